@@ -1,0 +1,36 @@
+"""The twin command: modal table and JSON, Campbell figure, clean errors."""
+
+import json
+
+from twin.cli import main
+
+
+def test_modal_table(capsys):
+    assert main(["modal", "models/hydro_unit.toml"]) == 0
+    out = capsys.readouterr().out
+    lines = [line for line in out.splitlines() if line.strip()[:1].isdigit()]
+    assert len(lines) >= 15
+    assert "116 DOF" in out and "134 rpm" in out
+
+
+def test_modal_json(capsys):
+    assert main(["modal", "models/ross_reference.toml", "--speed", "0", "--modes", "4", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["n_dof"] == 28 and data["speed_rpm"] == 0.0 and len(data["modes"]) == 4
+    first = data["modes"][0]
+    assert {"frequency_hz", "damping_ratio", "whirl", "stable"} <= set(first)
+    assert first["whirl"] == "forward" and first["stable"] is False
+
+
+def test_campbell_command(tmp_path, capsys):
+    out = tmp_path / "c.png"
+    assert main(["campbell", "models/ross_reference.toml", "--points", "3", "--modes", "4", "-o", str(out)]) == 0
+    assert out.stat().st_size > 1000
+
+
+def test_errors_are_one_line_with_status_2(tmp_path, capsys):
+    assert main(["modal", str(tmp_path / "none.toml")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("twin: error: ") and "no such file" in err and "Traceback" not in err
+    assert main(["campbell", "models/ross_reference.toml", "-o", str(tmp_path / "no" / "c.png")]) == 2
+    assert "does not exist" in capsys.readouterr().err

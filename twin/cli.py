@@ -1,0 +1,120 @@
+"""The ``twin`` command: one sub-command per stage of the loop.
+
+    twin modal MODEL.toml [--speed RPM] [--modes N] [--json]
+    twin campbell MODEL.toml [--max-speed RPM] [--points N] [--modes N] -o campbell.png
+
+Errors in the input are reported on one line (``twin: error: ...``) with exit
+status 2, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from twin import __version__
+from twin.errors import TwinError
+
+log = logging.getLogger("twin")
+
+
+def _modal(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.modes import modal
+
+    model = load_model(args.model)
+    ds = modal(model, speed_rpm=args.speed, n_modes=args.modes)
+    modes = [
+        {
+            "mode": int(ds.mode[i]),
+            "frequency_hz": float(ds.frequency[i]),
+            "natural_frequency_hz": float(ds.natural_frequency[i]),
+            "damping_ratio": float(ds.damping_ratio[i]),
+            "log_decrement": float(ds.log_decrement[i]),
+            "whirl": str(ds.whirl[i].values),
+            "stable": bool(ds.stable[i]),
+            "pole_real": float(ds.pole[i].real),
+            "pole_imag": float(ds.pole[i].imag),
+        }
+        for i in range(ds.sizes["mode"])
+    ]
+    if args.json:
+        out = {"model": model.name, "n_dof": model.n_dof, "speed_rpm": ds.attrs["speed_rpm"], "modes": modes}
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"{model.name}: {model.n_dof} DOF, {ds.attrs['speed_rpm']:g} rpm, {len(modes)} modes"
+          f" ({ds.attrs['n_overdamped']} over-damped eigenvalues not listed)")  # fmt: skip
+    print(f"{'mode':>4}  {'f [Hz]':>10}  {'fn [Hz]':>10}  {'zeta [%]':>8}  {'log dec':>8}  {'whirl':<8}  stable")
+    for m in modes:
+        print(f"{m['mode']:>4}  {m['frequency_hz']:>10.4f}  {m['natural_frequency_hz']:>10.4f}  "
+              f"{100 * m['damping_ratio']:>8.3f}  {m['log_decrement']:>8.4f}  {m['whirl']:<8}  "
+              f"{'yes' if m['stable'] else 'NO'}")  # fmt: skip
+    return 0
+
+
+def _campbell(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from twin.fem import load_model
+    from twin.modes import campbell, plot_campbell
+
+    model = load_model(args.model)
+    max_speed = args.max_speed if args.max_speed is not None else 2.0 * model.speed_rpm
+    if not max_speed > 0:
+        raise TwinError(f"--max-speed must be positive, got {max_speed:g}")
+    if args.points < 2:
+        raise TwinError(f"--points must be at least 2, got {args.points}")
+    out = Path(args.output)
+    if not out.parent.is_dir():
+        raise TwinError(f"cannot write {out}: folder {out.parent} does not exist")
+    ds = campbell(model, np.linspace(0.0, max_speed, args.points), n_modes=args.modes, progress=True)
+    fig = plot_campbell(ds)
+    fig.savefig(out, dpi=120, bbox_inches="tight")
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``twin`` command."""
+    parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
+    parser.add_argument("--version", action="version", version=f"twin {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress and details")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("modal", help="complex modes of a model at a speed")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("--speed", type=float, default=None, help="speed [rpm] (default: the model's running speed)")
+    p.add_argument("--modes", type=int, default=None, help="number of modes to list (default: all)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_modal)
+
+    p = sub.add_parser("campbell", help="Campbell diagram of a model over a speed range")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("--max-speed", type=float, default=None, help="highest speed [rpm] (default: 2x running speed)")
+    p.add_argument("--points", type=int, default=41, help="number of speeds (default: 41)")
+    p.add_argument("--modes", type=int, default=12, help="number of modes followed (default: 12)")
+    p.add_argument("-o", "--output", default="campbell.png", help="figure file (default: campbell.png)")
+    p.set_defaults(func=_campbell)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``twin`` command; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.func(args)
+    except TwinError as exc:
+        print(f"twin: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,35 @@
+"""Exceptions raised by twin for bad input.
+
+Every error says what is wrong and where (file, table, key, channel), so a user
+never has to read a traceback from inside numpy to find the cause.
+"""
+
+from __future__ import annotations
+
+
+class TwinError(Exception):
+    """Base class of all errors twin raises on purpose."""
+
+
+class ModelFileError(TwinError, ValueError):
+    """A model or truth file is malformed.
+
+    The message names the file, the table and the key.
+
+    Examples
+    --------
+    >>> err = ModelFileError("unit.toml", "[[bearing]] 'UGB'", "kxx", "missing key")
+    >>> str(err)
+    "unit.toml: [[bearing]] 'UGB': key 'kxx': missing key"
+    """
+
+    def __init__(self, path: str, table: str, key: str | None, problem: str) -> None:
+        self.path, self.table, self.key, self.problem = str(path), table, key, problem
+        where = f"{self.path}: {table}"
+        if key is not None:
+            where += f": key '{key}'"
+        super().__init__(f"{where}: {problem}")
+
+
+class ModelError(TwinError, ValueError):
+    """A model built in Python is inconsistent (unknown node, parameter, ...)."""

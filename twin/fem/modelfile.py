@@ -1,0 +1,374 @@
+"""Read and validate TOML model files into a :class:`~twin.fem.model.RotorModel`.
+
+A model file is data only: nothing in it is executed. Every problem is
+reported as a :class:`~twin.errors.ModelFileError` naming the file, the table
+and the key. The format (see ``models/hydro_unit.toml`` for a full example)::
+
+    [model]        name, speed_rpm, description?, shear_deformation?, rotary_inertia?, gyroscopic?
+    [materials.X]  E [Pa], rho [kg/m3], and G [Pa] or poisson
+    [[shaft]]      nodes = [first, last], material, outer_diameter [m], inner_diameter [m],
+                   and length [m] (split equally) or element_lengths [m]
+    [[disk]]       name, node, mass [kg], Id [kg m2], Ip [kg m2]
+    [[bearing]]    name, node, kxx kxy kyx kyy [N/m], cxx cxy cyx cyy [N s/m]
+    [[thrust]]     name, node, k_tilt [N m/rad], c_tilt [N m s/rad]
+    [[sensor]]     name, node, location?, directions? (default ["x", "y"]); channels <name>_<dir>
+    [regions]      named node lists: immersed, generator, seal, ...
+    [damping]      shaft_mass_proportional [1/s], shaft_stiffness_proportional [s]
+    [effects.KEY]  switched-on effects of :mod:`twin.fem.effects` with their values
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from twin.errors import ModelFileError
+from twin.fem.effects import EFFECTS, effect_fields
+from twin.fem.elements import BEARING_COEFFICIENTS, Bearing, Disk, Material, ShaftElement, ThrustBearing
+from twin.fem.model import RotorModel, Sensor
+
+_MISSING = object()
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*$")
+
+
+class _Table:
+    """One TOML table being read: typed getters that report file/table/key, and a check for unknown keys."""
+
+    def __init__(self, path: str, where: str, data: Any) -> None:
+        if not isinstance(data, Mapping):
+            raise ModelFileError(path, where, None, f"must be a table, got {type(data).__name__}")
+        self.path, self.where, self.data = path, where, data
+        self.used: set[str] = set()
+
+    def error(self, key: str | None, problem: str) -> ModelFileError:
+        return ModelFileError(self.path, self.where, key, problem)
+
+    def _get(self, key: str, default: Any) -> Any:
+        self.used.add(key)
+        if key not in self.data:
+            if default is _MISSING:
+                close = difflib.get_close_matches(key, [k for k in self.data if isinstance(k, str)], n=1)
+                hint = f" (the table has '{close[0]}': a typo?)" if close else ""
+                raise self.error(key, f"missing key{hint}")
+            return default
+        return self.data[key]
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def number(self, key: str, default: Any = _MISSING, *, positive: bool = False, nonnegative: bool = False) -> float:
+        value = self._get(key, default)
+        if value is default and default is not _MISSING:
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(key, f"expected a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.error(key, f"must be finite, got {value}")
+        if positive and value <= 0:
+            raise self.error(key, f"must be positive, got {value:g}")
+        if nonnegative and value < 0:
+            raise self.error(key, f"must not be negative, got {value:g}")
+        return value
+
+    def integer(self, key: str, default: Any = _MISSING) -> int:
+        value = self._get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"expected a whole number, got {value!r}")
+        return value
+
+    def string(self, key: str, default: Any = _MISSING) -> str:
+        value = self._get(key, default)
+        if not isinstance(value, str):
+            raise self.error(key, f"expected a string, got {value!r}")
+        return value
+
+    def name(self, key: str = "name") -> str:
+        value = self.string(key)
+        if not _NAME.match(value):
+            raise self.error(key, f"{value!r} is not a valid name (letters, digits, '_' or '-', starting with a letter)")
+        return value
+
+    def boolean(self, key: str, default: Any = _MISSING) -> bool:
+        value = self._get(key, default)
+        if not isinstance(value, bool):
+            raise self.error(key, f"expected true or false, got {value!r}")
+        return value
+
+    def array(self, key: str, default: Any = _MISSING) -> list:
+        value = self._get(key, default)
+        if not isinstance(value, list):
+            raise self.error(key, f"expected an array, got {value!r}")
+        return value
+
+    def node_list(self, key: str, n_nodes: int, default: Any = _MISSING) -> list[int]:
+        nodes = self.array(key, default)
+        for n in nodes:
+            self._check_node(key, n, n_nodes)
+        return nodes
+
+    def node(self, key: str, n_nodes: int) -> int:
+        n = self._get(key, _MISSING)
+        self._check_node(key, n, n_nodes)
+        return n
+
+    def _check_node(self, key: str, n: Any, n_nodes: int) -> None:
+        if isinstance(n, bool) or not isinstance(n, int):
+            raise self.error(key, f"expected a node number, got {n!r}")
+        if not 0 <= n < n_nodes:
+            raise self.error(key, f"node {n} does not exist (the shaft has nodes 0..{n_nodes - 1})")
+
+    def finish(self) -> None:
+        """Reject keys nobody read (typos), suggesting the closest known key."""
+        unknown = [k for k in self.data if k not in self.used]
+        if unknown:
+            key = unknown[0]
+            close = difflib.get_close_matches(key, sorted(self.used), n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else f"; known keys: {', '.join(sorted(self.used))}"
+            raise self.error(key, f"unknown key{hint}")
+
+
+def _array_of_tables(top: _Table, key: str, required: bool = False) -> list[_Table]:
+    items = top.array(key, _MISSING if required else [])
+    if required and not items:
+        raise top.error(key, f"at least one [[{key}]] table is needed")
+    return [_Table(top.path, f"[[{key}]] #{i + 1}", item) for i, item in enumerate(items)]
+
+
+def _label(table: _Table, name: str) -> None:
+    table.where = f"{table.where.split(' ')[0]} '{name}'"
+
+
+def load_model(path: str | Path) -> RotorModel:
+    """Read a TOML model file and build the rotor model.
+
+    Parameters
+    ----------
+    path : str or Path
+        The model file.
+
+    Returns
+    -------
+    RotorModel
+
+    Raises
+    ------
+    ModelFileError
+        The file is missing, not TOML, or a table/key is wrong; the message
+        names the file, the table and the key.
+
+    Examples
+    --------
+    >>> m = load_model("models/hydro_unit.toml")
+    >>> m.n_nodes, m.n_dof, m.channels[:2]
+    (29, 116, ['SEAL_x', 'SEAL_y'])
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ModelFileError(str(path), "(file)", None, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(str(path), "(file)", None, f"cannot be read: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelFileError(str(path), "(file)", None, f"not valid TOML: {exc}") from None
+    return model_from_dict(data, source=str(path))
+
+
+def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorModel:
+    """Build a model from the parsed contents of a model file (see :func:`load_model`).
+
+    Examples
+    --------
+    >>> d = {"model": {"name": "m", "speed_rpm": 0.0},
+    ...      "materials": {"steel": {"E": 2.1e11, "G": 8.1e10, "rho": 7800.0}},
+    ...      "shaft": [{"nodes": [0, 2], "length": 1.0, "outer_diameter": 0.1,
+    ...                 "inner_diameter": 0.0, "material": "steel"}]}
+    >>> model_from_dict(d).n_nodes
+    3
+    """
+    top = _Table(source, "(top level)", data)
+    head = _Table(source, "[model]", top._get("model", _MISSING))
+    name = head.name()
+    speed_rpm = head.number("speed_rpm", nonnegative=True)
+    description = head.string("description", "")
+    flags = {k: head.boolean(k, True) for k in ("shear_deformation", "rotary_inertia", "gyroscopic")}
+    head.finish()
+
+    materials = _read_materials(top)
+    shaft = _read_shaft(top, materials, flags)
+    n_nodes = len(shaft) + 1
+
+    names: dict[str, str] = {}
+
+    def unique(table: _Table, kind: str) -> str:
+        nm = table.name()
+        _label(table, nm)
+        if nm in names:
+            raise table.error("name", f"'{nm}' is already the name of a {names[nm]}")
+        names[nm] = kind
+        return nm
+
+    disks = []
+    for t in _array_of_tables(top, "disk"):
+        nm = unique(t, "disk")
+        disks.append(Disk(nm, t.node("node", n_nodes), t.number("mass", nonnegative=True),
+                          t.number("Id", nonnegative=True), t.number("Ip", nonnegative=True)))  # fmt: skip
+        t.finish()
+    bearings = []
+    for t in _array_of_tables(top, "bearing"):
+        nm = unique(t, "bearing")
+        node = t.node("node", n_nodes)
+        bearings.append(Bearing(nm, node, {k: t.number(k) for k in BEARING_COEFFICIENTS}))
+        t.finish()
+    thrusts = []
+    for t in _array_of_tables(top, "thrust"):
+        nm = unique(t, "thrust bearing")
+        thrusts.append(ThrustBearing(nm, t.node("node", n_nodes), t.number("k_tilt", nonnegative=True),
+                                     t.number("c_tilt", nonnegative=True)))  # fmt: skip
+        t.finish()
+    sensors = _read_sensors(top, n_nodes)
+    regions = _read_regions(top, n_nodes)
+    rayleigh = _read_damping(top)
+    effects = _read_effects(top, regions)
+    top.finish()
+    return RotorModel(
+        name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
+        speed_rpm=speed_rpm, regions=regions, effects=effects, rayleigh=rayleigh, source=source,
+        description=description,
+    )  # fmt: skip
+
+
+def _read_materials(top: _Table) -> dict[str, Material]:
+    tables = _Table(top.path, "[materials]", top._get("materials", _MISSING))
+    out = {}
+    for key in tables.data:
+        tables.used.add(key)
+        t = _Table(top.path, f"[materials.{key}]", tables.data[key])
+        E = t.number("E", positive=True)
+        rho = t.number("rho", positive=True)
+        if t.has("G") == t.has("poisson"):
+            raise t.error("G", "give exactly one of 'G' (shear modulus) and 'poisson'")
+        if t.has("G"):
+            G = t.number("G", positive=True)
+        else:
+            nu = t.number("poisson")
+            if not -1.0 < nu < 0.5:
+                raise t.error("poisson", f"must lie in (-1, 0.5), got {nu:g}")
+            G = E / (2 * (1 + nu))
+        t.finish()
+        out[key] = Material(key, E, G, rho)
+    if not out:
+        raise tables.error(None, "at least one material is needed")
+    return out
+
+
+def _read_shaft(top: _Table, materials: dict[str, Material], flags: dict[str, bool]) -> list[ShaftElement]:
+    sections = []
+    for t in _array_of_tables(top, "shaft", required=True):
+        nodes = t.array("nodes")
+        if len(nodes) != 2 or any(isinstance(n, bool) or not isinstance(n, int) or n < 0 for n in nodes):
+            raise t.error("nodes", f"expected [first, last] node numbers, got {nodes!r}")
+        first, last = nodes
+        if last <= first:
+            raise t.error("nodes", f"last node must come after the first, got {nodes!r}")
+        n_el = last - first
+        if t.has("length") == t.has("element_lengths"):
+            raise t.error("length", "give exactly one of 'length' (split equally) and 'element_lengths'")
+        if t.has("length"):
+            lengths = [t.number("length", positive=True) / n_el] * n_el
+        else:
+            lengths = t.array("element_lengths")
+            if len(lengths) != n_el:
+                raise t.error("element_lengths", f"nodes {nodes} span {n_el} elements, got {len(lengths)} lengths")
+            for v in lengths:
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+                    raise t.error("element_lengths", f"every length must be a positive number, got {v!r}")
+        od = t.number("outer_diameter", positive=True)
+        id_ = t.number("inner_diameter", nonnegative=True)
+        if id_ >= od:
+            raise t.error("inner_diameter", f"must be smaller than outer_diameter ({od:g} m), got {id_:g}")
+        mat = t.string("material")
+        if mat not in materials:
+            raise t.error("material", f"unknown material '{mat}' (defined: {', '.join(sorted(materials))})")
+        t.finish()
+        sections.append((first, last, t, [
+            ShaftElement(first + i, float(L), od, id_, materials[mat], flags["shear_deformation"],
+                         flags["rotary_inertia"], flags["gyroscopic"])
+            for i, L in enumerate(lengths)
+        ]))  # fmt: skip
+    sections.sort(key=lambda s: s[0])
+    expected = 0
+    elements: list[ShaftElement] = []
+    for first, last, t, els in sections:
+        if first < expected:
+            raise t.error("nodes", f"section {[first, last]} overlaps the section ending at node {expected}")
+        if first > expected:
+            raise t.error("nodes", f"gap: no shaft element joins nodes {expected} and {first}")
+        elements += els
+        expected = last
+    return elements
+
+
+def _read_sensors(top: _Table, n_nodes: int) -> list[Sensor]:
+    sensors: list[Sensor] = []
+    for t in _array_of_tables(top, "sensor"):
+        nm = t.name()
+        _label(t, nm)
+        node = t.node("node", n_nodes)
+        location = t.string("location", "")
+        directions = t.array("directions", ["x", "y"])
+        if not directions or any(d not in ("x", "y") for d in directions) or len(set(directions)) != len(directions):
+            raise t.error("directions", f"expected distinct 'x' and/or 'y', got {directions!r}")
+        t.finish()
+        for d in directions:
+            channel = f"{nm}_{d}"
+            if channel in {s.name for s in sensors}:
+                raise t.error("name", f"channel '{channel}' is defined twice")
+            sensors.append(Sensor(channel, node, d, location))
+    return sensors
+
+
+def _read_regions(top: _Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
+    t = _Table(top.path, "[regions]", top._get("regions", {}))
+    out = {}
+    for key in list(t.data):
+        nodes = t.node_list(key, n_nodes)
+        if not nodes or len(set(nodes)) != len(nodes):
+            raise t.error(key, f"expected a non-empty list of distinct nodes, got {nodes!r}")
+        out[key] = tuple(nodes)
+    return out
+
+
+def _read_damping(top: _Table) -> tuple[float, float]:
+    t = _Table(top.path, "[damping]", top._get("damping", {}))
+    a = t.number("shaft_mass_proportional", 0.0, nonnegative=True)
+    b = t.number("shaft_stiffness_proportional", 0.0, nonnegative=True)
+    t.finish()
+    return (a, b)
+
+
+def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]]) -> list:
+    tables = _Table(top.path, "[effects]", top._get("effects", {}))
+    out = []
+    for key in tables.data:
+        tables.used.add(key)
+        if key not in EFFECTS:
+            close = difflib.get_close_matches(key, EFFECTS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(EFFECTS)}"
+            raise tables.error(key, f"unknown effect{hint}")
+        cls = EFFECTS[key]
+        t = _Table(top.path, f"[effects.{key}]", tables.data[key])
+        if cls.per_mode:
+            raise t.error(None, "a per-mode effect is not a single FEM; it belongs in a truth file")
+        if cls.region not in regions:
+            raise t.error(None, f"effect '{key}' acts on region '{cls.region}', which [regions] does not declare")
+        values = {f: t.number(f) for f in effect_fields(cls)}
+        t.finish()
+        out.append(cls(**values))
+    return out

@@ -1,0 +1,11 @@
+"""Modal analysis of a rotor model: complex modes, MAC, pairing, Campbell diagram."""
+
+from twin.modes.analysis import modal, state_matrix, whirl_direction
+from twin.modes.campbell import campbell, plot_campbell
+from twin.modes.pairing import added_damping_ratio, frequency_ratio, pair_modes
+from twin.modes.shapes import mac, normalise_shapes
+
+__all__ = [
+    "added_damping_ratio", "campbell", "frequency_ratio", "mac", "modal", "normalise_shapes",
+    "pair_modes", "plot_campbell", "state_matrix", "whirl_direction",
+]  # fmt: skip
