@@ -34,3 +34,15 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
     assert err.startswith("twin: error: ") and "no such file" in err and "Traceback" not in err
     assert main(["campbell", "models/ross_reference.toml", "-o", str(tmp_path / "no" / "c.png")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_output_into_a_closed_pipe_is_not_an_error():
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "modal", "models/hydro_unit.toml"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)  # fmt: skip
+    proc.stdout.readline()  # like `| head -1`
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and b"Traceback" not in err

@@ -62,9 +62,10 @@ class _Table:
         return key in self.data
 
     def number(self, key: str, default: Any = _MISSING, *, positive: bool = False, nonnegative: bool = False) -> float:
+        if key not in self.data and default is not _MISSING:
+            self.used.add(key)
+            return default
         value = self._get(key, default)
-        if value is default and default is not _MISSING:
-            return value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(key, f"expected a number, got {value!r}")
         value = float(value)
