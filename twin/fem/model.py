@@ -12,6 +12,7 @@ so each matrix is ``X0 + Σ θ_k X_k`` and later stages can read the footprints.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -206,8 +207,6 @@ class RotorModel:
         for p in self.parameters:
             if p.name == name:
                 return p
-        import difflib
-
         close = difflib.get_close_matches(name, self.parameter_names, n=3)
         hint = f"; did you mean {close}?" if close else ""
         raise ModelError(f"model '{self.name}' has no parameter '{name}'{hint}")
