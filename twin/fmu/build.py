@@ -1,0 +1,107 @@
+"""Compile the generic FMU runtime once per platform and cache the shared library.
+
+The runtime (``twin/fmu/c/twin_lti.c``) does not depend on the model, so the
+binary is built the first time an FMU is exported on a machine and reused
+afterwards: re-exporting after a parameter change needs no compiler.
+The cache lives in ``$TWIN_CACHE_DIR`` or ``~/.cache/twin``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+from twin.errors import TwinError
+
+log = logging.getLogger(__name__)
+
+MODEL_IDENTIFIER = "twin_lti"
+
+
+class FMUBuildError(TwinError):
+    """No C compiler was found, or compiling the FMU runtime failed."""
+
+
+def runtime_source() -> Path:
+    """Path of the C source of the FMU runtime shipped with the package."""
+    return Path(str(resources.files("twin.fmu") / "c" / f"{MODEL_IDENTIFIER}.c"))
+
+
+def fmi_headers_dir() -> Path:
+    """Folder with the FMI 2.0 headers (shipped by FMPy in ``fmpy/c-code``)."""
+    import fmpy
+
+    path = Path(fmpy.__file__).parent / "c-code"
+    if not (path / "fmi2Functions.h").is_file():
+        raise FMUBuildError(f"FMI 2.0 headers not found in {path}: reinstall fmpy")
+    return path
+
+
+def platform_folder() -> str:
+    """FMI 2.0 binaries folder name for this machine, e.g. ``linux64``."""
+    bits = "64" if sys.maxsize > 2**32 else "32"
+    system = {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(platform.system())
+    if system is None:
+        raise FMUBuildError(f"no FMI 2.0 platform name for {platform.system()}")
+    return system + bits
+
+
+def shared_library_suffix() -> str:
+    """``.so``, ``.dylib`` or ``.dll``."""
+    return {"linux": ".so", "darwin": ".dylib", "win": ".dll"}[platform_folder()[:-2]]
+
+
+def find_compiler() -> str:
+    """The C compiler to use: ``$CC``, else ``cc``, ``gcc`` or ``clang`` on the PATH."""
+    candidates = [os.environ["CC"]] if os.environ.get("CC") else ["cc", "gcc", "clang"]
+    for name in candidates:
+        path = shutil.which(name)
+        if path:
+            return path
+    raise FMUBuildError(
+        f"no C compiler found (looked for {', '.join(candidates)}); install one, e.g. 'apt-get install gcc', "
+        "or set CC to its path. It is needed once per machine to build the FMU runtime."
+    )
+
+
+def cache_dir() -> Path:
+    """Where compiled runtimes are kept."""
+    return Path(os.environ.get("TWIN_CACHE_DIR", Path.home() / ".cache" / "twin"))
+
+
+def compiled_runtime(rebuild: bool = False) -> Path:
+    """Path of the compiled runtime for this platform, compiling it if needed.
+
+    Raises
+    ------
+    FMUBuildError
+        No compiler, or the compiler failed (its own message is included).
+    """
+    source = runtime_source()
+    headers = fmi_headers_dir()
+    digest = hashlib.sha256(source.read_bytes() + (headers / "fmi2Functions.h").read_bytes()).hexdigest()[:16]
+    target = cache_dir() / f"{platform_folder()}-{digest}" / (MODEL_IDENTIFIER + shared_library_suffix())
+    if target.is_file() and not rebuild:
+        return target
+    compiler = find_compiler()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        out = Path(tmp) / target.name
+        cmd = [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(source), f"-I{headers}", "-lm"]
+        log.info("compiling the FMU runtime: %s", " ".join(cmd))
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        except OSError as exc:
+            raise FMUBuildError(f"could not run the C compiler {compiler}: {exc}") from None
+        if proc.returncode != 0:
+            raise FMUBuildError(f"compiling the FMU runtime with {compiler} failed:\n{proc.stderr.strip()}")
+        os.replace(out, target)  # atomic: a concurrent build never sees half a library
+    return target

@@ -1,0 +1,425 @@
+/*
+ * twin_lti.c - generic FMI 2.0 co-simulation runtime of a linear rotor model.
+ *
+ * The system x[k+1] = Phi x[k] + sum_j (G0_j f_j[k] + G1_j (f_j[k+1] - f_j[k])), y = C x
+ * is read from resources/twin_lti.bin (written by twin.fmu.export). The step matrices
+ * are exact (matrix exponential) for the nominal communication step, so a step costs
+ * one dense mat-vec plus a few columns, and the binary does not depend on the model:
+ * it is compiled once per platform and reused for every export.
+ *
+ * Force ports: external inputs are held constant over a step (zero-order hold);
+ * the built-in 1X unbalance and runner turbulence are known ahead and use a
+ * first-order hold. Random numbers: splitmix64 + Box-Muller (reproduced in
+ * twin.fmu.excitation for the numpy reference).
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+#define MAGIC "TWINLTI1"
+#define VR_UNBALANCE_ME 1
+#define VR_UNBALANCE_PHASE 2
+#define VR_TURBULENCE_ASD 3
+#define VR_NOISE_STD 4
+#define VR_UNBALANCE_NODE 5
+#define VR_TURBULENCE_SEED 6
+#define VR_NOISE_SEED 7
+#define VR_INPUT0 100
+#define VR_OUTPUT0 1000
+#define STEP_TOLERANCE 1e-6
+#define TWO_PI 6.283185307179586476925286766559
+
+typedef struct {
+    uint64_t state;
+    int has_spare;
+    double spare;
+} Rng;
+
+typedef struct {
+    /* system */
+    int n, p, m, n_in, turb_x, turb_y;
+    double h, omega;
+    int *in_port;
+    double *phi, *g0t, *g1t, *c, *nominal; /* g0t, g1t: p rows of n (transposed) */
+    /* run state */
+    double *x, *xn, *y, *u;
+    double t, unb_me, unb_phase, turb_asd, noise_std;
+    int unb_node, turb_seed, noise_seed;
+    double turb_now[2], turb_next[2];
+    Rng turb_rng, noise_rng;
+    int initialised;
+    fmi2CallbackFunctions cb;
+    char name[128];
+} Lti;
+
+/* ---- random numbers: splitmix64 and Box-Muller ------------------------------------- */
+static uint64_t splitmix64(uint64_t *s) {
+    uint64_t z = (*s += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+}
+
+static double gauss(Rng *r) {
+    if (r->has_spare) {
+        r->has_spare = 0;
+        return r->spare;
+    }
+    double u1 = ((double)(splitmix64(&r->state) >> 11) + 1.0) * 0x1.0p-53; /* (0, 1] */
+    double u2 = (double)(splitmix64(&r->state) >> 11) * 0x1.0p-53;        /* [0, 1) */
+    double rad = sqrt(-2.0 * log(u1));
+    r->spare = rad * sin(TWO_PI * u2);
+    r->has_spare = 1;
+    return rad * cos(TWO_PI * u2);
+}
+
+static void rng_seed(Rng *r, int seed) {
+    r->state = (uint64_t)(int64_t)seed;
+    r->has_spare = 0;
+}
+
+/* ---- helpers ------------------------------------------------------------------------ */
+static void logmsg(Lti *s, fmi2Status st, const char *msg) {
+    if (s && s->cb.logger) s->cb.logger(s->cb.componentEnvironment, s->name, st, "twin", "%s", msg);
+}
+
+static int read_block(FILE *f, void *dst, size_t size, size_t count) {
+    return fread(dst, size, count, f) == count;
+}
+
+/* Percent-decode a file:// URI (FMI 2 resource location) into a path. */
+static void uri_to_path(const char *uri, char *out, size_t len) {
+    const char *p = uri;
+    if (strncmp(p, "file://", 7) == 0) {
+        p += 7;
+        if (strncmp(p, "localhost/", 10) == 0) p += 9;
+    } else if (strncmp(p, "file:", 5) == 0) {
+        p += 5;
+    }
+    size_t k = 0;
+    while (*p && k + 1 < len) {
+        if (p[0] == '%' && p[1] && p[2]) {
+            char hex[3] = {p[1], p[2], 0};
+            out[k++] = (char)strtol(hex, NULL, 16);
+            p += 3;
+        } else {
+            out[k++] = *p++;
+        }
+    }
+    out[k] = 0;
+}
+
+/* y = Phi x with four independent partial sums per row (the plain loop is latency-bound). */
+static void matvec(const double *a, const double *x, double *y, int rows, int cols) {
+    for (int i = 0; i < rows; i++) {
+        const double *row = a + (size_t)i * cols;
+        double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+        int j = 0;
+        for (; j + 3 < cols; j += 4) {
+            s0 += row[j] * x[j];
+            s1 += row[j + 1] * x[j + 1];
+            s2 += row[j + 2] * x[j + 2];
+            s3 += row[j + 3] * x[j + 3];
+        }
+        for (; j < cols; j++) s0 += row[j] * x[j];
+        y[i] = (s0 + s1) + (s2 + s3);
+    }
+}
+
+static void axpy(double a, const double *v, double *y, int n) {
+    if (a == 0.0) return;
+    for (int i = 0; i < n; i++) y[i] += a * v[i];
+}
+
+static void update_outputs(Lti *s) {
+    matvec(s->c, s->x, s->y, s->m, s->n);
+    if (s->noise_std > 0)
+        for (int i = 0; i < s->m; i++) s->y[i] += s->noise_std * gauss(&s->noise_rng);
+}
+
+static void draw_turbulence(Lti *s, double *f) {
+    /* ZOH-equivalent white noise of one-sided amplitude spectral density asd: std = asd / sqrt(2 h) */
+    double sd = s->turb_asd / sqrt(2.0 * s->h);
+    f[0] = sd * gauss(&s->turb_rng);
+    f[1] = sd * gauss(&s->turb_rng);
+}
+
+static void free_lti(Lti *s) {
+    if (!s) return;
+    free(s->in_port); free(s->phi); free(s->g0t); free(s->g1t); free(s->c); free(s->nominal);
+    free(s->x); free(s->xn); free(s->y); free(s->u);
+    free(s);
+}
+
+/* ---- FMI 2.0 ------------------------------------------------------------------------ */
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cat[]) {
+    (void)c; (void)on; (void)n; (void)cat;
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
+    (void)visible; (void)logging;
+    Lti *s = calloc(1, sizeof(Lti));
+    if (!s) return NULL;
+    if (functions) s->cb = *functions;
+    snprintf(s->name, sizeof s->name, "%s", name ? name : "twin");
+    if (type != fmi2CoSimulation) {
+        logmsg(s, fmi2Error, "this FMU supports co-simulation only");
+        free_lti(s);
+        return NULL;
+    }
+    char path[4096], file[4200];
+    uri_to_path(resources ? resources : "", path, sizeof path);
+    size_t len = strlen(path);
+    snprintf(file, sizeof file, "%s%stwin_lti.bin", path, (len && path[len - 1] == '/') ? "" : "/");
+    FILE *f = fopen(file, "rb");
+    if (!f) {
+        char msg[4400];
+        snprintf(msg, sizeof msg, "cannot open resource file %s", file);
+        logmsg(s, fmi2Error, msg);
+        free_lti(s);
+        return NULL;
+    }
+    char magic[8], fguid[64];
+    int32_t dims[7];
+    double hw[2];
+    int ok = read_block(f, magic, 1, 8) && memcmp(magic, MAGIC, 8) == 0 && read_block(f, dims, 4, 7) &&
+             read_block(f, hw, 8, 2) && read_block(f, fguid, 1, 64);
+    if (ok) {
+        s->n = dims[0]; s->p = dims[1]; s->m = dims[2]; s->n_in = dims[3]; s->turb_x = dims[4]; s->turb_y = dims[5];
+        s->unb_node = dims[6]; /* start value of the unbalance_node parameter */
+        s->h = hw[0]; s->omega = hw[1];
+        size_t n = s->n, p = s->p, m = s->m;
+        s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
+        s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
+        s->c = malloc(m * n * 8); s->nominal = malloc(n * 8);
+        s->x = calloc(n, 8); s->xn = calloc(n, 8); s->y = calloc(m ? m : 1, 8); s->u = calloc(s->n_in ? s->n_in : 1, 8);
+        int32_t *tmp = calloc(s->n_in ? s->n_in : 1, 4);
+        ok = s->phi && s->g0t && s->g1t && s->c && s->nominal && s->x && s->xn && s->y && s->u && tmp &&
+             read_block(f, tmp, 4, s->n_in) && read_block(f, s->phi, 8, n * n) && read_block(f, s->g0t, 8, p * n) &&
+             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n) && read_block(f, s->nominal, 8, n);
+        for (int i = 0; ok && i < s->n_in; i++) {
+            s->in_port[i] = tmp[i];
+            if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
+        }
+        free(tmp);
+    }
+    fclose(f);
+    if (!ok) {
+        logmsg(s, fmi2Error, "resource file twin_lti.bin is corrupt or truncated");
+        free_lti(s);
+        return NULL;
+    }
+    fguid[63] = 0;
+    if (!guid || strcmp(guid, fguid) != 0) {
+        logmsg(s, fmi2Error, "GUID of modelDescription.xml does not match the resource file");
+        free_lti(s);
+        return NULL;
+    }
+    s->turb_seed = 1; s->noise_seed = 2;
+    return s;
+}
+
+void fmi2FreeInstance(fmi2Component c) { free_lti((Lti *)c); }
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start,
+                               fmi2Boolean stopDefined, fmi2Real stop) {
+    (void)tolDefined; (void)tol; (void)stopDefined; (void)stop;
+    ((Lti *)c)->t = start;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Lti *s = (Lti *)c;
+    if (s->unb_node < 0 || 2 * s->unb_node + 1 >= s->p) {
+        logmsg(s, fmi2Error, "unbalance_node is not a node of the model");
+        return fmi2Error;
+    }
+    rng_seed(&s->turb_rng, s->turb_seed);
+    rng_seed(&s->noise_rng, s->noise_seed);
+    memset(s->x, 0, (size_t)s->n * 8);
+    s->turb_now[0] = s->turb_now[1] = 0.0;
+    if (s->turb_x >= 0 && s->turb_asd > 0) draw_turbulence(s, s->turb_now);
+    update_outputs(s);
+    s->initialised = 1;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Lti *s = (Lti *)c;
+    s->initialised = 0;
+    s->t = 0;
+    memset(s->x, 0, (size_t)s->n * 8);
+    memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
+    return fmi2OK;
+}
+
+static void unbalance(const Lti *s, double t, double *f) {
+    double a = s->unb_me * s->omega * s->omega, ph = s->omega * t + s->unb_phase;
+    f[0] = a * cos(ph);
+    f[1] = a * sin(ph);
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
+    (void)noSetPrior;
+    Lti *s = (Lti *)c;
+    if (!s->initialised) return fmi2Error;
+    if (fabs(h - s->h) > STEP_TOLERANCE * s->h) {
+        char msg[256];
+        snprintf(msg, sizeof msg, "communication step %.12g s differs from the exported step %.12g s; export the FMU for this step", h, s->h);
+        logmsg(s, fmi2Error, msg);
+        return fmi2Error;
+    }
+    int n = s->n;
+    matvec(s->phi, s->x, s->xn, n, n);
+    for (int i = 0; i < s->n_in; i++) axpy(s->u[i], s->g0t + (size_t)s->in_port[i] * n, s->xn, n);
+    if (s->unb_me != 0.0) {
+        double f0[2], f1[2];
+        unbalance(s, t, f0);
+        unbalance(s, t + h, f1);
+        for (int d = 0; d < 2; d++) {
+            size_t col = (size_t)(2 * s->unb_node + d) * n;
+            axpy(f0[d], s->g0t + col, s->xn, n);
+            axpy(f1[d] - f0[d], s->g1t + col, s->xn, n);
+        }
+    }
+    if (s->turb_x >= 0 && s->turb_asd > 0) {
+        draw_turbulence(s, s->turb_next);
+        int ports[2] = {s->turb_x, s->turb_y};
+        for (int d = 0; d < 2; d++) {
+            size_t col = (size_t)ports[d] * n;
+            axpy(s->turb_now[d], s->g0t + col, s->xn, n);
+            axpy(s->turb_next[d] - s->turb_now[d], s->g1t + col, s->xn, n);
+        }
+        s->turb_now[0] = s->turb_next[0];
+        s->turb_now[1] = s->turb_next[1];
+    }
+    double *tmp = s->x; s->x = s->xn; s->xn = tmp;
+    s->t = t + h;
+    update_outputs(s);
+    return fmi2OK;
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c) { (void)c; return fmi2Error; }
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    Lti *s = (Lti *)c;
+    for (size_t i = 0; i < nvr; i++) {
+        fmi2ValueReference r = vr[i];
+        if (r >= VR_OUTPUT0 && r < VR_OUTPUT0 + (unsigned)s->m) value[i] = s->y[r - VR_OUTPUT0];
+        else if (r >= VR_INPUT0 && r < VR_INPUT0 + (unsigned)s->n_in) value[i] = s->u[r - VR_INPUT0];
+        else if (r == VR_UNBALANCE_ME) value[i] = s->unb_me;
+        else if (r == VR_UNBALANCE_PHASE) value[i] = s->unb_phase;
+        else if (r == VR_TURBULENCE_ASD) value[i] = s->turb_asd;
+        else if (r == VR_NOISE_STD) value[i] = s->noise_std;
+        else return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
+    Lti *s = (Lti *)c;
+    for (size_t i = 0; i < nvr; i++) {
+        fmi2ValueReference r = vr[i];
+        if (r >= VR_INPUT0 && r < VR_INPUT0 + (unsigned)s->n_in) s->u[r - VR_INPUT0] = value[i];
+        else if (s->initialised) return fmi2Error; /* parameters are fixed after initialisation */
+        else if (r == VR_UNBALANCE_ME) s->unb_me = value[i];
+        else if (r == VR_UNBALANCE_PHASE) s->unb_phase = value[i];
+        else if (r == VR_TURBULENCE_ASD) s->turb_asd = value[i];
+        else if (r == VR_NOISE_STD) s->noise_std = value[i];
+        else return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
+    Lti *s = (Lti *)c;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] == VR_UNBALANCE_NODE) value[i] = s->unb_node;
+        else if (vr[i] == VR_TURBULENCE_SEED) value[i] = s->turb_seed;
+        else if (vr[i] == VR_NOISE_SEED) value[i] = s->noise_seed;
+        else return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
+    Lti *s = (Lti *)c;
+    if (s->initialised) return fmi2Error;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] == VR_UNBALANCE_NODE) s->unb_node = value[i];
+        else if (vr[i] == VR_TURBULENCE_SEED) s->turb_seed = value[i];
+        else if (vr[i] == VR_NOISE_SEED) s->noise_seed = value[i];
+        else return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
+    (void)c; (void)vr; (void)v;
+    return nvr ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean v[]) {
+    (void)c; (void)vr; (void)v;
+    return nvr ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
+    (void)c; (void)vr; (void)v;
+    return nvr ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String v[]) {
+    (void)c; (void)vr; (void)v;
+    return nvr ? fmi2Error : fmi2OK;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)c; (void)st; return fmi2Error; }
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate st) { (void)c; (void)st; return fmi2Error; }
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)c; (void)st; return fmi2Error; }
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate st, size_t *n) {
+    (void)c; (void)st; (void)n;
+    return fmi2Error;
+}
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[], size_t n) {
+    (void)c; (void)st; (void)b; (void)n;
+    return fmi2Error;
+}
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *st) {
+    (void)c; (void)b; (void)n; (void)st;
+    return fmi2Error;
+}
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
+                                        const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real dz[]) {
+    (void)c; (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
+    return fmi2Error;
+}
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[]) {
+    (void)c; (void)vr; (void)nvr; (void)order; (void)value;
+    return fmi2Error;
+}
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[]) {
+    (void)c; (void)vr; (void)nvr; (void)order; (void)value;
+    return fmi2Error;
+}
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
+    Lti *s = (Lti *)c;
+    if (k == fmi2LastSuccessfulTime) { *v = s->t; return fmi2OK; }
+    return fmi2Discard;
+}
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String *v) { (void)c; (void)k; (void)v; return fmi2Discard; }

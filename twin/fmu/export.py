@@ -1,0 +1,278 @@
+"""Export a rotor model as an FMI 2.0 co-simulation FMU.
+
+The FMU holds
+
+* ``modelDescription.xml``: inputs (forces at named nodes), outputs (the
+  sensor channels), parameters of the built-in excitation;
+* ``resources/twin_lti.bin``: the exact step matrices of the linear system
+  (full FEM or truncated modal basis) for the nominal communication step;
+* ``binaries/<platform>/twin_lti.<so|dylib|dll>``: the generic runtime,
+  compiled once per platform (:mod:`twin.fmu.build`);
+* ``sources/``: the runtime's C source and the FMI headers, so the FMU can be
+  rebuilt on another platform.
+
+The file is written to a temporary name and renamed when complete, so a
+failed export never leaves half an FMU behind.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import logging
+import os
+import struct
+import tempfile
+import uuid
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from twin import __version__
+from twin.errors import ModelError, TwinError
+from twin.fem.model import RPM_TO_RAD_S, RotorModel
+from twin.fmu import build
+from twin.fmu.statespace import StateSpace, discretize, full_state_space, truncated_state_space
+
+log = logging.getLogger(__name__)
+
+# value references, shared with twin_lti.c
+VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
+      "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7}  # fmt: skip
+VR_INPUT0, VR_OUTPUT0 = 100, 1000
+
+
+@dataclass(frozen=True)
+class Port:
+    """An FMU force input: variable ``name`` drives state-space port ``port`` (``"<node>.<x|y>"``)."""
+
+    name: str
+    port: str
+
+
+def resolve_inputs(model: RotorModel, inputs: Sequence[str] | None) -> list[Port]:
+    """FMU force inputs from names like ``"runner.x"`` (a disk, bearing or sensor name) or ``"12.y"`` (a node).
+
+    By default every disk gets an x and a y force input.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> [p.name for p in resolve_inputs(load_model("models/hydro_unit.toml"), ["runner.x", "12.y"])]
+    ['F_runner_x', 'F_12_y']
+    """
+    if inputs is None:
+        inputs = [f"{d.name}.{axis}" for d in model.disks for axis in ("x", "y")]
+    named = {d.name: d.node for d in model.disks}
+    named.update({b.name: b.node for b in model.bearings})
+    named.update({s.name.rsplit("_", 1)[0]: s.node for s in model.sensors})
+    out = []
+    for item in inputs:
+        where, _, axis = item.rpartition(".")
+        if axis not in ("x", "y") or not where:
+            raise ModelError(f"force input '{item}' must look like '<node or name>.x' or '<node or name>.y'")
+        if where.isdigit():
+            node = int(where)
+            if node >= model.n_nodes:
+                raise ModelError(f"force input '{item}': node {node} does not exist (nodes 0..{model.n_nodes - 1})")
+        elif where in named:
+            node = named[where]
+        else:
+            raise ModelError(f"force input '{item}': no node, disk, bearing or sensor called '{where}' "
+                             f"(names: {', '.join(sorted(named))})")  # fmt: skip
+        out.append(Port(f"F_{where}_{axis}", f"{node}.{axis}"))
+    if len({p.name for p in out}) != len(out):
+        raise ModelError(f"force inputs are given twice: {list(inputs)}")
+    return out
+
+
+def default_unbalance_node(model: RotorModel) -> int:
+    """The generator region's node if declared, else the heaviest disk's node."""
+    if "generator" in model.regions:
+        return model.regions["generator"][0]
+    if model.disks:
+        return max(model.disks, key=lambda d: d.m).node
+    return 0
+
+
+def default_turbulence_node(model: RotorModel) -> int | None:
+    """The immersed (runner) region's node, where turbulence acts; None without one."""
+    return model.regions["immersed"][0] if "immersed" in model.regions else None
+
+
+def export_fmu(
+    model: RotorModel,
+    path: str | Path,
+    *,
+    step_s: float = 1.0 / 256.0,
+    basis: str = "full",
+    fmax_hz: float | None = None,
+    inputs: Sequence[str] | None = None,
+    state_space: StateSpace | None = None,
+    unbalance_node: int | None = None,
+    turbulence_node: int | None = None,
+    description: str | None = None,
+) -> Path:
+    """Export the model as an FMI 2.0 co-simulation FMU.
+
+    Parameters
+    ----------
+    model : RotorModel
+        Supplies names, sensors and regions, and the state space unless given.
+    path : path
+        The ``.fmu`` file to write.
+    step_s : float
+        Nominal communication step [s]; the FMU integrates exactly over it.
+    basis : {"full", "modal"}
+        Full FEM (``2 n_dof`` states) or the modes up to ``fmax_hz``.
+    fmax_hz : float, optional
+        Highest damped frequency kept by the modal basis [Hz].
+    inputs : list of str, optional
+        Force inputs, e.g. ``["runner.x", "runner.y"]`` (default: x and y at every disk).
+    state_space : StateSpace, optional
+        Use this system (e.g. a truth model) instead of building one from ``model``.
+    unbalance_node, turbulence_node : int, optional
+        Default node of the 1X unbalance (a parameter of the FMU) and node of the
+        turbulence force (fixed); defaults: generator region, immersed region.
+
+    Returns
+    -------
+    Path
+        The FMU written.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from twin import load_model
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "unit.fmu"
+    >>> export_fmu(load_model("models/hydro_unit.toml"), out, basis="modal", fmax_hz=50.0).name
+    'unit.fmu'
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise TwinError(f"cannot write {path}: folder {path.parent} does not exist")
+    if state_space is None:
+        if basis == "full":
+            state_space = full_state_space(model)
+        elif basis == "modal":
+            if fmax_hz is None:
+                raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
+            state_space = truncated_state_space(full_state_space(model), fmax_hz)
+        else:
+            raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
+    ports = resolve_inputs(model, inputs)
+    unbalance_node = default_unbalance_node(model) if unbalance_node is None else int(unbalance_node)
+    turbulence_node = default_turbulence_node(model) if turbulence_node is None else int(turbulence_node)
+    for what, node in (("unbalance_node", unbalance_node), ("turbulence_node", turbulence_node)):
+        if node is not None and not 0 <= node < model.n_nodes:
+            raise ModelError(f"{what} {node} does not exist (nodes 0..{model.n_nodes - 1})")
+    unstable = np.nonzero(state_space.poles.real > 0)[0]
+    if unstable.size:
+        freqs = sorted({round(abs(p.imag) / (2 * np.pi), 3) for p in state_space.poles[unstable]})
+        raise ModelError(f"{model.name} is unstable at {state_space.speed_rpm:g} rpm: modes at {freqs} Hz grow; "
+                         "an FMU of it would diverge")  # fmt: skip
+
+    disc = discretize(state_space, step_s)
+    turb = [-1, -1] if turbulence_node is None else [state_space.port_index(f"{turbulence_node}.{a}") for a in "xy"]
+    in_ports = [state_space.port_index(p.port) for p in ports]
+    omega = state_space.speed_rpm * RPM_TO_RAD_S
+    body = b"".join([
+        np.asarray(in_ports, dtype="<i4").tobytes(),
+        np.ascontiguousarray(disc.phi, dtype="<f8").tobytes(),
+        np.ascontiguousarray(disc.gamma0.T, dtype="<f8").tobytes(),
+        np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
+        np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
+        np.ascontiguousarray(state_space.state_nominal, dtype="<f8").tobytes(),
+    ])  # fmt: skip
+    guid = "{" + str(uuid.UUID(hashlib.sha256(body + model.name.encode()).hexdigest()[:32])) + "}"
+    n, p = state_space.B.shape
+    dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node)
+    head = b"TWINLTI1" + struct.pack("<7i2d", *dims, step_s, omega)
+    resource = head + guid.encode().ljust(64, b"\0") + body
+
+    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description)
+    library = build.compiled_runtime()
+    plat = build.platform_folder()
+    headers = build.fmi_headers_dir()
+    fd, tmp = tempfile.mkstemp(suffix=".fmu.part", dir=path.parent)
+    os.close(fd)
+    try:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", xml)
+            z.writestr("resources/twin_lti.bin", resource)
+            z.write(library, f"binaries/{plat}/{build.MODEL_IDENTIFIER}{build.shared_library_suffix()}")
+            z.write(build.runtime_source(), f"sources/{build.MODEL_IDENTIFIER}.c")
+            for h in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
+                z.write(headers / h, f"sources/{h}")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    log.info("wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s)
+    return path
+
+
+def _var(parent, name, vr, causality, variability, description, kind="Real", initial=None, **attrs):
+    sv = ET.SubElement(parent, "ScalarVariable", name=name, valueReference=str(vr), causality=causality,
+                       variability=variability, description=description)  # fmt: skip
+    if initial:
+        sv.set("initial", initial)
+    ET.SubElement(sv, kind, **{k: str(v) for k, v in attrs.items()})
+
+
+def _model_description(model, ss, ports, guid, step_s, unbalance_node, description) -> bytes:
+    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=model.name, guid=guid,
+                      description=description or f"{model.name} at {ss.speed_rpm:g} rpm, {ss.basis} basis, "
+                                                 f"{ss.n_states} states (twin linear rotor)",
+                      generationTool=f"twin {__version__}",
+                      generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                      variableNamingConvention="flat", numberOfEventIndicators="0")  # fmt: skip
+    cs = ET.SubElement(root, "CoSimulation", modelIdentifier=build.MODEL_IDENTIFIER,
+                       canHandleVariableCommunicationStepSize="false", canInterpolateInputs="false",
+                       canBeInstantiatedOnlyOncePerProcess="false", canNotUseMemoryManagementFunctions="true",
+                       canGetAndSetFMUstate="false", canSerializeFMUstate="false",
+                       providesDirectionalDerivative="false")  # fmt: skip
+    files = ET.SubElement(cs, "SourceFiles")
+    ET.SubElement(files, "File", name=f"{build.MODEL_IDENTIFIER}.c")
+    units = ET.SubElement(root, "UnitDefinitions")
+    for name, base in (("m", {"m": "1"}), ("N", {"kg": "1", "m": "1", "s": "-2"}), ("kg.m", {"kg": "1", "m": "1"}),
+                       ("rad", {"rad": "1"})):  # fmt: skip
+        ET.SubElement(ET.SubElement(units, "Unit", name=name), "BaseUnit", **base)
+    ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(1000 * step_s), stepSize=repr(step_s))
+    mv = ET.SubElement(root, "ModelVariables")
+    _var(mv, "unbalance_me", VR["unbalance_me"], "parameter", "fixed",
+         "unbalance mass times eccentricity (1X, forward)", start="0", unit="kg.m", min="0")
+    _var(mv, "unbalance_phase", VR["unbalance_phase"], "parameter", "fixed", "phase of the unbalance at t = 0",
+         start="0", unit="rad")
+    _var(mv, "turbulence_asd", VR["turbulence_asd"], "parameter", "fixed",
+         "amplitude spectral density of the white turbulence force on the runner, x and y [N/sqrt(Hz)]",
+         start="0", min="0")
+    _var(mv, "noise_std", VR["noise_std"], "parameter", "fixed", "standard deviation of the sensor noise",
+         start="0", unit="m", min="0")
+    _var(mv, "unbalance_node", VR["unbalance_node"], "parameter", "fixed", "node carrying the unbalance",
+         kind="Integer", start=str(unbalance_node), min="0", max=str(model.n_nodes - 1))
+    _var(mv, "turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence",
+         kind="Integer", start="1")
+    _var(mv, "noise_seed", VR["noise_seed"], "parameter", "fixed", "seed of the sensor noise",
+         kind="Integer", start="2")  # fmt: skip
+    for j, port in enumerate(ports):
+        _var(mv, port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a step)",
+             start="0", unit="N")  # fmt: skip
+    first_output = 8 + len(ports)  # 1-based index in ModelVariables
+    for i, channel in enumerate(ss.outputs):
+        sensor = next((s for s in model.sensors if s.name == channel), None)
+        where = f" at {sensor.location} (node {sensor.node})" if sensor else ""
+        _var(mv, channel, VR_OUTPUT0 + i, "output", "continuous", f"proximeter displacement {channel}{where}",
+             initial="calculated", unit="m")  # fmt: skip
+    structure = ET.SubElement(root, "ModelStructure")
+    outputs = ET.SubElement(structure, "Outputs")
+    initial = ET.SubElement(structure, "InitialUnknowns")
+    for i in range(len(ss.outputs)):
+        ET.SubElement(outputs, "Unknown", index=str(first_output + i), dependencies="")
+        ET.SubElement(initial, "Unknown", index=str(first_output + i))
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
