@@ -46,3 +46,15 @@ def test_output_into_a_closed_pipe_is_not_an_error():
     proc.stdout.close()
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0 and b"Traceback" not in err
+
+
+def test_export_fmu_command(tmp_path, capsys):
+    out = tmp_path / "unit.fmu"
+    assert main(["export-fmu", "models/hydro_unit.toml", "-o", str(out), "--basis", "modal", "--fmax", "60",
+                 "--inputs", "runner.x, runner.y"]) == 0  # fmt: skip
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(out)) == []
+    assert main(["export-fmu", "models/hydro_unit.toml", "-o", str(tmp_path / "b.fmu"), "--inputs", "shaft.x"]) == 2
+    assert "no node, disk, bearing or sensor called 'shaft'" in capsys.readouterr().err
+    assert not (tmp_path / "b.fmu").exists()

@@ -2,6 +2,7 @@
 
     twin modal MODEL.toml [--speed RPM] [--modes N] [--json]
     twin campbell MODEL.toml [--max-speed RPM] [--points N] [--modes N] -o campbell.png
+    twin export-fmu MODEL.toml -o unit.fmu [--fs HZ] [--basis full|modal] [--fmax HZ] [--inputs runner.x,...]
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -81,6 +82,19 @@ def _campbell(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_fmu(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.fmu import export_fmu
+
+    if not args.fs > 0:
+        raise TwinError(f"--fs must be positive, got {args.fs:g}")
+    model = load_model(args.model)
+    inputs = None if args.inputs is None else [s.strip() for s in args.inputs.split(",") if s.strip()]
+    path = export_fmu(model, args.output, step_s=1.0 / args.fs, basis=args.basis, fmax_hz=args.fmax, inputs=inputs)
+    print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -102,6 +116,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--modes", type=int, default=12, help="number of modes followed (default: 12)")
     p.add_argument("-o", "--output", default="campbell.png", help="figure file (default: campbell.png)")
     p.set_defaults(func=_campbell)
+
+    p = sub.add_parser("export-fmu", help="export the model as an FMI 2.0 co-simulation FMU")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate = 1 / communication step [Hz] (default: 256)")
+    p.add_argument("--basis", choices=("full", "modal"), default="full", help="full FEM or truncated modal basis")
+    p.add_argument("--fmax", type=float, default=None, help="highest mode kept by the modal basis [Hz]")
+    p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
+    p.set_defaults(func=_export_fmu)
     return parser
 
 
