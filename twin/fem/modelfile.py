@@ -356,6 +356,13 @@ def _read_damping(top: _Table) -> tuple[float, float]:
 
 def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]]) -> list:
     tables = _Table(top.path, "[effects]", top._get("effects", {}))
+    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False)
+
+
+def read_effect_tables(
+    tables: _Table, regions: Mapping[str, tuple[int, ...]], prefix: str = "", per_mode_allowed: bool = True
+) -> list:
+    """Effects from tables keyed by effect name (``[prefix + key]``), validated against :data:`EFFECTS`."""
     out = []
     for key in tables.data:
         tables.used.add(key)
@@ -364,12 +371,24 @@ def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]]) -> list:
             hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(EFFECTS)}"
             raise tables.error(key, f"unknown effect{hint}")
         cls = EFFECTS[key]
-        t = _Table(top.path, f"[effects.{key}]", tables.data[key])
-        if cls.per_mode:
+        t = _Table(tables.path, f"[{prefix}{key}]", tables.data[key])
+        if cls.per_mode and not per_mode_allowed:
             raise t.error(None, "a per-mode effect is not a single FEM; it belongs in a truth file")
         if cls.region not in regions:
             raise t.error(None, f"effect '{key}' acts on region '{cls.region}', which [regions] does not declare")
-        values = {f: t.number(f) for f in effect_fields(cls)}
+        values = {}
+        for name, kind in effect_fields(cls).items():
+            if kind is tuple:
+                items = t.array(name)
+                for v in items:
+                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                        raise t.error(name, f"expected an array of numbers, got {v!r} in it")
+                values[name] = tuple(float(v) for v in items)
+            else:
+                values[name] = t.number(name)
         t.finish()
-        out.append(cls(**values))
+        try:
+            out.append(cls(**values))
+        except ValueError as exc:
+            raise t.error(None, str(exc)) from None
     return out

@@ -124,10 +124,8 @@ def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=N
 
 def modal_state_space(
     poles: np.ndarray,
-    right: np.ndarray,
-    left: np.ndarray,
-    B: np.ndarray,
-    C: np.ndarray,
+    cv: np.ndarray,
+    wb: np.ndarray,
     ports: Sequence[str],
     outputs: Sequence[str],
     speed_rpm: float,
@@ -135,34 +133,38 @@ def modal_state_space(
 ) -> StateSpace:
     """Real modal state space from complex modes (one of each conjugate pair given).
 
-    Mode ``i`` contributes ``x ≈ 2 Re(v_i z_i)`` with ``z_i' = λ_i z_i + w_i B f``,
+    Mode ``i`` contributes ``y = 2 Re(C v_i z_i)`` with ``z_i' = λ_i z_i + w_i B f``,
     where ``v_i`` (right) and ``w_i`` (left, ``w_i v_i = 1``) are eigenvectors
     of the *state* matrix. In real coordinates ``(Re z, Im z)`` each mode is a
-    2x2 block ``[[σ, -ω], [ω, σ]]``.
+    2x2 block ``[[σ, -ω], [ω, σ]]``. The modes may come from different
+    systems (modal synthesis), hence the projections are given per mode.
 
     Parameters
     ----------
     poles : (r,) complex
         Eigenvalues with positive imaginary part.
-    right, left : (r, n) complex
-        Right and left state eigenvectors, normalised so ``left[i] @ right[i] = 1``.
-    B : (n, p), C : (m, n)
-        Input and output matrices of the full state space.
+    cv : (m, r) complex
+        Output projection ``C v_i`` of each mode.
+    wb : (r, p) complex
+        Input projection ``w_i B`` of each mode.
+
+    Examples
+    --------
+    >>> ss = modal_state_space(np.array([-1 + 10j]), np.array([[0.5]]), np.array([[1.0]]), ["0.x"], ["y"], 0.0)
+    >>> ss.A
+    array([[ -1., -10.],
+           [ 10.,  -1.]])
     """
     poles = np.asarray(poles, dtype=complex)
     r = len(poles)
     A = np.zeros((2 * r, 2 * r))
-    Bm = np.zeros((2 * r, B.shape[1]))
-    Cm = np.zeros((C.shape[0], 2 * r))
-    wb = left @ B
-    cv = C @ right.T
     for i, lam in enumerate(poles):
-        s = slice(2 * i, 2 * i + 2)
-        A[s, s] = [[lam.real, -lam.imag], [lam.imag, lam.real]]
-        Bm[2 * i], Bm[2 * i + 1] = wb[i].real, wb[i].imag
-        Cm[:, 2 * i], Cm[:, 2 * i + 1] = 2 * cv[:, i].real, -2 * cv[:, i].imag
-    nominal = np.ones(2 * r)
-    return StateSpace(A, Bm, Cm, list(ports), list(outputs), speed_rpm, "modal", nominal, dict(attrs or {}))
+        A[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = [[lam.real, -lam.imag], [lam.imag, lam.real]]
+    Bm = np.empty((2 * r, wb.shape[1]))
+    Bm[0::2], Bm[1::2] = wb.real, wb.imag
+    Cm = np.empty((cv.shape[0], 2 * r))
+    Cm[:, 0::2], Cm[:, 1::2] = 2 * cv.real, -2 * cv.imag
+    return StateSpace(A, Bm, Cm, list(ports), list(outputs), speed_rpm, "modal", np.ones(2 * r), dict(attrs or {}))
 
 
 def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -196,7 +198,7 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
     if not keep.any():
         raise ModelError(f"no mode below {fmax_hz:g} Hz to build a modal basis from")
     attrs = {**full.attrs, "basis": "modal", "fmax_hz": fmax_hz, "n_modes": int(keep.sum())}
-    return modal_state_space(lam[keep], right[keep], left[keep], full.B, full.C, full.ports, full.outputs,
+    return modal_state_space(lam[keep], full.C @ right[keep].T, left[keep] @ full.B, full.ports, full.outputs,
                              full.speed_rpm, attrs)  # fmt: skip
 
 

@@ -1,0 +1,49 @@
+"""Truth files: effects with values, validated like model files."""
+
+import json
+
+import pytest
+
+from twin import ModelFileError
+from twin.fem.truthfile import PAPER_TABLE2, load_truth, paper_truth
+
+
+def test_paper_truth_is_table_2():
+    t = paper_truth()
+    assert t.per_mode is PAPER_TABLE2 and t.per_mode.n_modes == 15
+    assert PAPER_TABLE2.added_mass[0] == 1.00e5 and PAPER_TABLE2.added_damping[12] == 1.51e8
+    assert json.loads(t.to_json())["effects"]["fsi_per_mode"]["added_mass"][14] == 5.15e4
+
+
+def test_truth_file_round_trip(tmp_path, hydro_unit):
+    path = tmp_path / "truth.toml"
+    path.write_text("[magnetic_pull]\nstiffness = -2.0e8\n\n[fsi_per_mode]\nadded_mass = [1e4, 2e4]\nadded_damping = [1e6, 2e6]\n")
+    t = load_truth(path, hydro_unit)
+    assert [e.key for e in t.mode_independent] == ["magnetic_pull"]
+    assert t.per_mode.added_damping == (1e6, 2e6)
+    assert t.source == str(path)
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("[magnetic_pul]\nstiffness = -1.0\n", r"\(top level\): key 'magnetic_pul': unknown effect; did you mean 'magnetic_pull'"),
+        ("[magnetic_pull]\nstifness = -1.0\n", r"\[magnetic_pull\]: key 'stiffness': missing key"),
+        ("[fsi_per_mode]\nadded_mass = [1.0, 2.0]\nadded_damping = [1.0]\n", "as many added masses"),
+        ("[fsi_per_mode]\nadded_mass = [1.0, 'x']\nadded_damping = [1.0, 2.0]\n", "expected an array of numbers"),
+        ("", "at least one effect"),
+        ("[magnetic_pull\n", "not valid TOML"),
+    ],
+)
+def test_truth_file_errors(tmp_path, hydro_unit, text, match):
+    path = tmp_path / "truth.toml"
+    path.write_text(text)
+    with pytest.raises(ModelFileError, match=match):
+        load_truth(path, hydro_unit)
+
+
+def test_truth_needs_the_region_of_its_effect(tmp_path, ross_model):
+    path = tmp_path / "truth.toml"
+    path.write_text("[seal_cross_coupling]\nkxy = 1.0e5\n")
+    with pytest.raises(ModelFileError, match="region 'seal', which \\[regions\\] does not declare"):
+        load_truth(path, ross_model)

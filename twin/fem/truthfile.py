@@ -1,0 +1,93 @@
+"""Truth files: the effects that make synthetic "measured" data differ from the model.
+
+A truth file is TOML with one table per effect of :mod:`twin.fem.effects`::
+
+    [fsi_per_mode]                 # mode i of the truth: FEM altered by (m_i, c_i)
+    added_mass = [1.00e5, 9.83e4, ...]      # kg
+    added_damping = [7.52e7, 1.26e7, ...]   # N s/m
+
+    [magnetic_pull]
+    stiffness = -2.0e8                      # N/m
+
+The truth is written into the attrs of every file made from it, so tests can
+check answers; nothing that plays the twin's role may read it.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from twin.errors import ModelFileError
+from twin.fem.effects import FluidAddedMassPerMode
+from twin.fem.model import RotorModel
+from twin.fem.modelfile import _Table, read_effect_tables
+
+#: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
+PAPER_TABLE2 = FluidAddedMassPerMode(
+    added_mass=(1.00e5, 9.83e4, 7.80e4, 6.09e4, 7.00e4, 5.08e4, 5.09e4, 7.05e4, 3.48e4, 4.87e4, 6.67e4, 7.49e4,
+                5.15e4, 3.07e4, 5.15e4),
+    added_damping=(7.52e7, 1.26e7, 9.99e5, 7.92e6, 1.01e7, 1.43e6, 6.45e6, 1.65e6, 2.90e6, 1.64e7, 1.20e7, 1.92e6,
+                   1.51e8, 7.32e7, 1.37e8),
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Effects switched on in a truth model, and where they came from."""
+
+    effects: tuple
+    source: str = ""
+
+    @property
+    def per_mode(self):
+        """The per-mode effect, if any (at most one)."""
+        found = [e for e in self.effects if e.per_mode]
+        return found[0] if found else None
+
+    @property
+    def mode_independent(self) -> tuple:
+        """The effects that alter the single FEM."""
+        return tuple(e for e in self.effects if not e.per_mode)
+
+    def to_json(self) -> str:
+        """The truth as JSON, for file attrs: ``{"source": ..., "effects": {key: {field: value}}}``."""
+        return json.dumps({"source": self.source, "effects": {e.key: asdict(e) for e in self.effects}})
+
+
+def paper_truth() -> Truth:
+    """The built-in truth of the hydro unit: the paper's Table 2 per-mode FSI."""
+    return Truth((PAPER_TABLE2,), "reference paper, Table 2")
+
+
+def load_truth(path: str | Path, model: RotorModel) -> Truth:
+    """Read and validate a truth file for ``model`` (regions must exist in the model).
+
+    ``path`` may also be ``"paper"`` for :func:`paper_truth`.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> t = load_truth("paper", load_model("models/hydro_unit.toml"))
+    >>> t.per_mode.n_modes
+    15
+    """
+    if str(path) == "paper":
+        return paper_truth()
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ModelFileError(str(path), "(file)", None, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(str(path), "(file)", None, f"cannot be read: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelFileError(str(path), "(file)", None, f"not valid TOML: {exc}") from None
+    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions)
+    if not effects:
+        raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")
+    if sum(e.per_mode for e in effects) > 1:
+        raise ModelFileError(str(path), "(top level)", None, "at most one per-mode effect")
+    return Truth(tuple(effects), str(path))

@@ -1,0 +1,152 @@
+"""Truth models: the model plus hidden effects, as a state space ready for export.
+
+Mode-independent effects (FSI added mass, magnetic pull, seal cross-coupling)
+simply alter the FEM. A per-mode FSI truth is not one FEM: by modal
+synthesis, mode ``i`` is taken from the FEM altered by its own ``(m_i, c_i)``.
+Each target mode is followed from the dry FEM to its altered FEM by
+continuation (small steps in ``(m, c)``, matched by MAC of the full shape), so
+a large added mass that reorders frequencies cannot swap modes.
+
+*Target modes* are the lowest modes whose damping ratio is below
+:data:`MAX_TARGET_DAMPING`: over-damped bearing modes (the hydro unit's UGB
+mode at 75%) carry no per-mode value and are not identifiable from signals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+
+import numpy as np
+import scipy.linalg as sla
+
+from twin.errors import ModelError
+from twin.fem.effects import FluidAddedMass
+from twin.fem.model import RotorModel
+from twin.fem.truthfile import Truth
+from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, state_modes, truncated_state_space
+from twin.modes.shapes import mac
+
+log = logging.getLogger(__name__)
+
+#: Modes damped more than this are not target modes.
+MAX_TARGET_DAMPING = 0.10
+#: Steps of the continuation from the dry FEM to a mode's altered FEM.
+CONTINUATION_STEPS = 6
+
+
+def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
+    """Indices of the lowest ``n`` poles (sorted by frequency) with damping ratio below the limit.
+
+    Examples
+    --------
+    >>> target_mode_indices(np.array([-0.1 + 7j, -9 + 10j, -0.2 + 20j]), 2)
+    array([0, 2])
+    """
+    zeta = -poles.real / np.abs(poles)
+    light = np.nonzero(zeta < MAX_TARGET_DAMPING)[0]
+    if len(light) < n:
+        raise ModelError(f"the truth gives values for {n} modes but the model has only {len(light)} modes "
+                         f"damped less than {MAX_TARGET_DAMPING:.0%}")  # fmt: skip
+    return light[:n]
+
+
+def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
+    """The model with the truth's mode-independent effects switched on."""
+    present = {e.key for e in model.effects}
+    clash = present & {e.key for e in truth.mode_independent}
+    if clash:
+        raise ModelError(f"the model already has effect(s) {sorted(clash)} that the truth sets")
+    return dataclasses.replace(model, effects=tuple(model.effects) + truth.mode_independent)
+
+
+def truth_state_space(
+    model: RotorModel, truth: Truth, basis: str = "full", fmax_hz: float | None = None
+) -> StateSpace:
+    """State space of the truth: the altered FEM, or the per-mode modal synthesis.
+
+    Parameters
+    ----------
+    model : RotorModel
+    truth : Truth
+    basis, fmax_hz
+        For a truth without per-mode effect: full FEM or modes up to ``fmax_hz``.
+        A per-mode truth is always modal (its target modes).
+
+    Returns
+    -------
+    StateSpace
+        With ``attrs["truth"]`` (JSON) and ``attrs["truth_modes"]`` (JSON list of
+        the truth's frequency [Hz] and damping ratio per mode).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.fem.truthfile import paper_truth
+    >>> ss = truth_state_space(load_model("models/hydro_unit.toml"), paper_truth())
+    >>> ss.n_states, ss.basis
+    (30, 'modal')
+    """
+    altered = truth_model(model, truth)
+    per_mode = truth.per_mode
+    if per_mode is None:
+        ss = full_state_space(altered)
+        if basis == "modal":
+            if fmax_hz is None:
+                raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
+            ss = truncated_state_space(ss, fmax_hz)
+        poles = state_modes(ss.A)[0]
+    else:
+        ss = synthesize_per_mode_fsi(altered, per_mode.added_mass, per_mode.added_damping)
+        poles = np.linalg.eigvals(ss.A)
+        poles = np.sort_complex(poles[poles.imag > 0])
+        poles = poles[np.argsort(poles.imag)]
+    modes = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(-p.real / abs(p))} for p in poles]
+    attrs = {**ss.attrs, "model": model.name, "truth": truth.to_json(), "truth_modes": json.dumps(modes)}
+    return dataclasses.replace(ss, attrs=attrs)
+
+
+def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping: tuple) -> StateSpace:
+    """Modal synthesis: target mode ``i`` from the FEM altered by ``(added_mass[i], added_damping[i])``.
+
+    The added mass and damping are shared over the immersed DOFs like the
+    mode-independent FSI effect (on top of it if the model has one).
+    """
+    existing = next((e for e in model.effects if isinstance(e, FluidAddedMass)), None)
+    fsi_model = model if existing else dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
+    m0, c0 = (existing.added_mass, existing.added_damping) if existing else (0.0, 0.0)
+    n_dof = model.n_dof
+
+    def state(m: float, c: float) -> StateSpace:
+        return full_state_space(fsi_model, values={"FSI.added_mass": m0 + m, "FSI.added_damping": c0 + c})
+
+    dry = state(0.0, 0.0)
+    lam0, vec0 = sla.eig(dry.A)
+    order = np.argsort(np.where(lam0.imag > 0, lam0.imag, np.inf))[: int(np.sum(lam0.imag > 0))]
+    lam0, vec0 = lam0[order], vec0[:, order]
+    targets = target_mode_indices(lam0, len(added_mass))
+    poles, cv, wb = [], [], []
+    for i, k in enumerate(targets):
+        shape, lam = vec0[:n_dof, k], lam0[k]
+        for s in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
+            ss = state(s * added_mass[i], s * added_damping[i])
+            if s < 1.0:
+                cand, vecs = sla.eig(ss.A)
+                left = None
+            else:
+                cand, right, left = state_modes(ss.A)
+                vecs = right.T
+            osc = cand.imag > 0
+            cand, vecs = cand[osc], vecs[:, osc]
+            similarity = mac(vecs[:n_dof].T, shape)[:, 0] - 1e-3 * np.abs(np.log(np.abs(cand / lam)))
+            j = int(np.argmax(similarity))
+            if similarity[j] < 0.5:
+                log.warning("mode %d: continuation step s=%.2f matched with MAC %.2f only", i + 1, s, similarity[j])
+            shape, lam = vecs[:n_dof, j], cand[j]
+        poles.append(lam)
+        cv.append(ss.C @ right[j])
+        wb.append(left[j] @ ss.B)
+    attrs = {"basis": "modal", "synthesis": "per-mode FSI", "target_modes": [int(k) + 1 for k in targets]}
+    return modal_state_space(np.array(poles), np.array(cv).T, np.array(wb), dry.ports, dry.outputs,
+                             dry.speed_rpm, attrs)  # fmt: skip
