@@ -3,6 +3,7 @@
     twin modal MODEL.toml [--speed RPM] [--modes N] [--json]
     twin campbell MODEL.toml [--max-speed RPM] [--points N] [--modes N] -o campbell.png
     twin export-fmu MODEL.toml -o unit.fmu [--fs HZ] [--basis full|modal] [--fmax HZ] [--inputs runner.x,...]
+    twin simulate MODEL.toml --duration S --fs HZ --seed N [--truth truth.toml|paper] -o signals.nc
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -95,6 +96,20 @@ def _export_fmu(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.fem.truthfile import load_truth
+    from twin.fmu.simulate import simulate
+
+    model = load_model(args.model)
+    truth = None if args.truth is None else load_truth(args.truth, model)
+    simulate(model, duration_s=args.duration, fs_hz=args.fs, seed=args.seed, truth=truth,
+             turbulence_asd=args.turbulence, unbalance_me=args.unbalance, noise_ratio=args.noise,
+             basis=args.basis, fmax_hz=args.fmax, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+    print(f"wrote {args.output}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -125,6 +140,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmax", type=float, default=None, help="highest mode kept by the modal basis [Hz]")
     p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
     p.set_defaults(func=_export_fmu)
+
+    from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+
+    p = sub.add_parser("simulate", help="simulate proximeter signals through the model's FMU")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
+    p.add_argument("--duration", type=float, required=True, help="record length [s]")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz] (default: 256)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default: 1)")
+    p.add_argument("--truth", default=None, help="truth file with hidden effects, or 'paper' (Table 2 FSI)")
+    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
+                   help=f"runner turbulence force ASD [N/sqrt(Hz)] (default: {DEFAULT_TURBULENCE_ASD:g})")
+    p.add_argument("--unbalance", type=float, default=DEFAULT_UNBALANCE_ME,
+                   help=f"1X unbalance at the generator [kg m] (default: {DEFAULT_UNBALANCE_ME:g})")
+    p.add_argument("--noise", type=float, default=0.05, help="sensor noise / signal RMS (default: 0.05)")
+    p.add_argument("--basis", choices=("full", "modal"), default="full", help="full FEM or modal basis")
+    p.add_argument("--fmax", type=float, default=None, help="highest mode of the modal basis [Hz]")
+    p.set_defaults(func=_simulate)
     return parser
 
 

@@ -172,8 +172,8 @@ def export_fmu(
             raise ModelError(f"{what} {node} does not exist (nodes 0..{model.n_nodes - 1})")
     unstable = np.nonzero(state_space.poles.real > 0)[0]
     if unstable.size:
-        freqs = sorted({round(abs(p.imag) / (2 * np.pi), 3) for p in state_space.poles[unstable]})
-        raise ModelError(f"{model.name} is unstable at {state_space.speed_rpm:g} rpm: modes at {freqs} Hz grow; "
+        freqs = ", ".join(f"{f:.3f}" for f in sorted({abs(p.imag) / (2 * np.pi) for p in state_space.poles[unstable]}))
+        raise ModelError(f"{model.name} is unstable at {state_space.speed_rpm:g} rpm: modes at [{freqs}] Hz grow; "
                          "an FMU of it would diverge")  # fmt: skip
 
     disc = discretize(state_space, step_s)

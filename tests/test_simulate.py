@@ -1,0 +1,78 @@
+"""Signals through the FMU: file layout, round trip, truth in attrs, bad input."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from twin import ModelError, TwinError
+from twin.cli import main
+from twin.fem.truthfile import Truth
+from twin.fem.effects import MagneticPull
+from twin.fmu import discretize, full_state_space, simulate_reference
+from twin.fmu.excitation import sensor_noise, turbulence_force, unbalance_force
+from twin.fmu.simulate import simulate
+
+
+def test_signals_equal_the_numpy_reference_after_the_warm_up(hydro_unit):
+    fs, warm, n = 256.0, 2.0, 128
+    ds = simulate(hydro_unit, duration_s=n / fs, fs_hz=fs, seed=3, warmup_s=warm, progress=False)
+    settings = json.loads(ds.attrs["settings"])
+    ss = full_state_space(hydro_unit)
+    h, total = 1 / fs, int(warm * fs) + n
+    t = (np.arange(total) - int(warm * fs)) * h
+    foh = np.zeros((total, len(ss.ports)))
+    foh[:, [ss.port_index("8.x"), ss.port_index("8.y")]] = unbalance_force(t, 5.0, 0.0, ss.speed_rpm * np.pi / 30)
+    foh[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(total, 200.0, 3, h)
+    ref = simulate_reference(discretize(ss, h), ss.C, foh=foh)
+    ref += sensor_noise(total, 8, settings["noise_std_m"], 3 + 7919)
+    np.testing.assert_allclose(ds.displacement.values, ref[-n:], rtol=0, atol=1e-9 * np.abs(ref).max())
+    np.testing.assert_allclose(ds.time.values, np.arange(n) / fs)
+
+
+def test_signal_file_round_trip(tmp_path, hydro_unit):
+    out = tmp_path / "signals.nc"
+    ds = simulate(hydro_unit, duration_s=1.0, fs_hz=256.0, seed=1, output=out, progress=False, command="test")
+    back = xr.open_dataset(out)
+    xr.testing.assert_identical(back.load(), ds)
+    assert back.displacement.attrs["units"] == "m" and back.attrs["sampling_rate"] == 256.0
+    assert list(back.channel.values) == hydro_unit.channels
+    assert list(back.location.values[:2]) == ["runner seals", "runner seals"]
+    assert [p.name for p in tmp_path.iterdir()] == ["signals.nc"]  # no temporary file left
+
+
+def test_truth_is_recorded_in_the_attrs(hydro_unit):
+    truth = Truth((MagneticPull(stiffness=-5e7),), "hidden.toml")
+    ds = simulate(hydro_unit, duration_s=1.0, fs_hz=256.0, truth=truth, progress=False)
+    assert json.loads(ds.attrs["truth"])["effects"]["magnetic_pull"]["stiffness"] == -5e7
+    assert len(json.loads(ds.attrs["truth_modes"])) > 15
+
+
+def test_bad_input(tmp_path, hydro_unit):
+    with pytest.raises(ModelError, match="duration must be positive"):
+        simulate(hydro_unit, duration_s=0.0, progress=False)
+    with pytest.raises(ModelError, match="sampling rate must be positive"):
+        simulate(hydro_unit, duration_s=1.0, fs_hz=-1.0, progress=False)
+    with pytest.raises(TwinError, match="does not exist"):
+        simulate(hydro_unit, duration_s=1.0, output=tmp_path / "no" / "s.nc", progress=False)
+    unstable = hydro_unit.with_values({"LGB.cxx": 1e3, "LGB.cyy": 1e3})
+    with pytest.raises(ModelError, match="unstable at 134 rpm: modes at"):
+        simulate(unstable, duration_s=1.0, output=tmp_path / "s.nc", progress=False)
+    with pytest.warns(UserWarning, match="fs = 50 Hz is low for modes up to 100.0 Hz"):
+        simulate(hydro_unit, duration_s=0.5, fs_hz=50.0, warmup_s=0.0, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_simulate_command(tmp_path, capsys):
+    out = tmp_path / "s.nc"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["simulate", "models/hydro_unit.toml", "--duration", "1", "--fs", "256", "--seed", "2",
+                     "-o", str(out)]) == 0  # fmt: skip
+    ds = xr.open_dataset(out)
+    assert ds.sizes["time"] == 256 and ds.attrs["seed"] == 2
+    assert main(["simulate", "models/hydro_unit.toml", "--duration", "1", "--truth", str(tmp_path / "none.toml"),
+                 "-o", str(tmp_path / "t.nc")]) == 2  # fmt: skip
+    assert "no such file" in capsys.readouterr().err
