@@ -25,14 +25,15 @@ def test_frequency_ratio_and_added_damping_in_water(hydro_unit):
 
     water_model = dataclasses.replace(hydro_unit, effects=(FluidAddedMass(added_mass=8e4, added_damping=5e7),))
     air, water = modal(hydro_unit, n_modes=13), modal(water_model, n_modes=13)
-    pairs = pair_modes(air, water, min_mac=0.9)
-    assert pairs.sizes["pair"] >= 9  # close modes (2.1/2.2 Hz, 14.6/15.4 Hz) mix in water
-    frr = frequency_ratio(air, water, min_mac=0.9)
+    # on all DOFs the pairing is unambiguous (8 sensors can make different modes look alike)
+    pairs = pair_modes(air, water, shape_var="shape", min_mac=0.9)
+    assert pairs.sizes["pair"] >= 7
+    frr = frequency_ratio(air, water, shape_var="shape", min_mac=0.9)
     np.testing.assert_allclose(frr, pairs.other_frequency / pairs.reference_frequency)
     assert np.all(frr < 1.0 + 1e-9)
-    added = added_damping_ratio(air, water, min_mac=0.9)
+    added = added_damping_ratio(air, water, shape_var="shape", min_mac=0.9)
     np.testing.assert_allclose(added, pairs.other_damping_ratio - pairs.reference_damping_ratio)
-    assert added.max() > 0.001  # the runner modes gain damping in water
+    assert added.min() > 0 and added.max() > 0.01  # every paired mode gains damping in water
 
 
 def test_min_mac_drops_unrelated_modes(hydro_unit):

@@ -24,8 +24,8 @@ def test_signals_equal_the_numpy_reference_after_the_warm_up(hydro_unit):
     h, total = 1 / fs, int(warm * fs) + n
     t = (np.arange(total) - int(warm * fs)) * h
     foh = np.zeros((total, len(ss.ports)))
-    foh[:, [ss.port_index("8.x"), ss.port_index("8.y")]] = unbalance_force(t, 5.0, 0.0, ss.speed_rpm * np.pi / 30)
-    foh[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(total, 200.0, 3, h)
+    foh[:, [ss.port_index("8.x"), ss.port_index("8.y")]] = unbalance_force(t, 100.0, 0.0, ss.speed_rpm * np.pi / 30)
+    foh[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(total, 3000.0, 3, h)
     ref = simulate_reference(discretize(ss, h), ss.C, foh=foh)
     ref += sensor_noise(total, 8, settings["noise_std_m"], 3 + 7919)
     np.testing.assert_allclose(ds.displacement.values, ref[-n:], rtol=0, atol=1e-9 * np.abs(ref).max())

@@ -11,7 +11,7 @@ Examples
 >>> import twin
 >>> ds = twin.modal(twin.load_model("models/hydro_unit.toml"), n_modes=3)
 >>> [str(w) for w in ds.whirl.values]
-['forward', 'backward', 'forward']
+['forward', 'forward', 'mixed']
 """
 
 __version__ = "0.1.0"

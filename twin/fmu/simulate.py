@@ -31,8 +31,8 @@ from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
 log = logging.getLogger(__name__)
 
 #: Default excitation: turbulence on the runner [N/sqrt(Hz)] and 1X unbalance [kg m].
-DEFAULT_TURBULENCE_ASD = 200.0
-DEFAULT_UNBALANCE_ME = 5.0
+DEFAULT_TURBULENCE_ASD = 3000.0
+DEFAULT_UNBALANCE_ME = 100.0  # about balance grade G2.5 for the 600 t generator rotor at 134 rpm
 #: The warm-up lasts this many of the slowest mode's time constants (at most MAX_WARMUP_S).
 WARMUP_TIME_CONSTANTS = 5.0
 MAX_WARMUP_S = 300.0

@@ -106,8 +106,8 @@ def frequency_ratio(air: xr.Dataset, water: xr.Dataset, **kwargs) -> xr.DataArra
     >>> m = load_model("models/hydro_unit.toml")
     >>> air = modal(m, n_modes=4)
     >>> water = modal(m, n_modes=4, values={"runner.m": 1.3 * m.parameter("runner.m").nominal})
-    >>> bool((frequency_ratio(air, water) <= 1.0).all())
-    True
+    >>> frequency_ratio(air, water).values.round(3)  # heavier runner: lower frequencies
+    array([1.   , 0.998, 0.992, 0.991])
     """
     return pair_modes(air, water, **kwargs)["frequency_ratio"]
 
