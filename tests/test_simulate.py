@@ -76,3 +76,23 @@ def test_simulate_command(tmp_path, capsys):
     assert main(["simulate", "models/hydro_unit.toml", "--duration", "1", "--truth", str(tmp_path / "none.toml"),
                  "-o", str(tmp_path / "t.nc")]) == 2  # fmt: skip
     assert "no such file" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_one_hour_with_the_paper_truth_has_the_predicted_variance(tmp_path, hydro_unit):
+    from twin.fem.truthfile import paper_truth
+    from twin.fmu.simulate import output_rms
+    from twin.fmu.truth import truth_state_space
+
+    out = tmp_path / "signals.nc"
+    simulate(hydro_unit, duration_s=3600.0, fs_hz=256.0, seed=1, truth=paper_truth(), unbalance_me=0.0,
+             noise_ratio=0.0, output=out, progress=False)  # fmt: skip
+    ds = xr.open_dataset(out)
+    x = ds.displacement.values
+    assert x.shape == (3600 * 256, 8) and np.all(np.isfinite(x))
+    assert len(json.loads(ds.attrs["truth_modes"])) == 15
+    # steady-state RMS of the truth system under the turbulence alone (discrete Lyapunov equation);
+    # the slowest mode decorrelates in ~10 s, so 1 h gives the variance to a few percent
+    ss = truth_state_space(hydro_unit, paper_truth())
+    expected = output_rms(ss, 1 / 256.0, 3000.0, [ss.port_index("28.x"), ss.port_index("28.y")])
+    np.testing.assert_allclose(x.std(axis=0), expected, rtol=0.15)
