@@ -169,16 +169,20 @@ def load_model(path: str | Path) -> RotorModel:
     >>> m.n_nodes, m.n_dof, m.channels[:2]
     (29, 116, ['SEAL_x', 'SEAL_y'])
     """
+    return model_from_dict(read_toml(path), source=str(path))
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file, reporting a missing, unreadable or malformed file as a ModelFileError."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ModelFileError(str(path), "(file)", None, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelFileError(str(path), "(file)", None, f"cannot be read: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ModelFileError(str(path), "(file)", None, f"not valid TOML: {exc}") from None
-    return model_from_dict(data, source=str(path))
 
 
 def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorModel:

@@ -16,14 +16,13 @@ check answers; nothing that plays the twin's role may read it.
 from __future__ import annotations
 
 import json
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from twin.errors import ModelFileError
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.model import RotorModel
-from twin.fem.modelfile import _Table, read_effect_tables
+from twin.fem.modelfile import _Table, read_effect_tables, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
 PAPER_TABLE2 = FluidAddedMassPerMode(
@@ -77,14 +76,7 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
     if str(path) == "paper":
         return paper_truth()
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ModelFileError(str(path), "(file)", None, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelFileError(str(path), "(file)", None, f"cannot be read: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelFileError(str(path), "(file)", None, f"not valid TOML: {exc}") from None
+    data = read_toml(path)
     effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions)
     if not effects:
         raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")
