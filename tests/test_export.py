@@ -1,6 +1,5 @@
 """FMU export: FMI validation, FMPy simulation against the numpy reference, errors."""
 
-import dataclasses
 import time
 import zipfile
 

@@ -5,7 +5,8 @@ The FMU holds
 * ``modelDescription.xml``: inputs (forces at named nodes), outputs (the
   sensor channels), parameters of the built-in excitation;
 * ``resources/twin_lti.bin``: the exact step matrices of the linear system
-  (full FEM or truncated modal basis) for the nominal communication step;
+  (full FEM or truncated modal basis) for the nominal communication step, the
+  port map and the GUID;
 * ``binaries/<platform>/twin_lti.<so|dylib|dll>``: the generic runtime,
   compiled once per platform (:mod:`twin.fmu.build`);
 * ``sources/``: the runtime's C source and the FMI headers, so the FMU can be
@@ -36,7 +37,7 @@ from twin import __version__
 from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
-from twin.fmu.statespace import StateSpace, discretize, full_state_space, truncated_state_space
+from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
 
 log = logging.getLogger(__name__)
 
@@ -156,25 +157,14 @@ def export_fmu(
     if not path.parent.is_dir():
         raise TwinError(f"cannot write {path}: folder {path.parent} does not exist")
     if state_space is None:
-        if basis == "full":
-            state_space = full_state_space(model)
-        elif basis == "modal":
-            if fmax_hz is None:
-                raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
-            state_space = truncated_state_space(full_state_space(model), fmax_hz)
-        else:
-            raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
+        state_space = model_state_space(model, basis, fmax_hz)
     ports = resolve_inputs(model, inputs)
     unbalance_node = default_unbalance_node(model) if unbalance_node is None else int(unbalance_node)
     turbulence_node = default_turbulence_node(model) if turbulence_node is None else int(turbulence_node)
     for what, node in (("unbalance_node", unbalance_node), ("turbulence_node", turbulence_node)):
         if node is not None and not 0 <= node < model.n_nodes:
             raise ModelError(f"{what} {node} does not exist (nodes 0..{model.n_nodes - 1})")
-    unstable = np.nonzero(state_space.poles.real > 0)[0]
-    if unstable.size:
-        freqs = ", ".join(f"{f:.3f}" for f in sorted({abs(p.imag) / (2 * np.pi) for p in state_space.poles[unstable]}))
-        raise ModelError(f"{model.name} is unstable at {state_space.speed_rpm:g} rpm: modes at [{freqs}] Hz grow; "
-                         "an FMU of it would diverge")  # fmt: skip
+    check_stable(state_space, model.name)
 
     disc = discretize(state_space, step_s)
     turb = [-1, -1] if turbulence_node is None else [state_space.port_index(f"{turbulence_node}.{a}") for a in "xy"]
@@ -186,7 +176,6 @@ def export_fmu(
         np.ascontiguousarray(disc.gamma0.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
-        np.ascontiguousarray(state_space.state_nominal, dtype="<f8").tobytes(),
     ])  # fmt: skip
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + model.name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
@@ -262,7 +251,7 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
     for j, port in enumerate(ports):
         _var(mv, port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a step)",
              start="0", unit="N")  # fmt: skip
-    first_output = 8 + len(ports)  # 1-based index in ModelVariables
+    first_output = len(VR) + len(ports) + 1  # 1-based index in ModelVariables: parameters, inputs, outputs
     for i, channel in enumerate(ss.outputs):
         sensor = next((s for s in model.sensors if s.name == channel), None)
         where = f" at {sensor.location} (node {sensor.node})" if sensor else ""

@@ -25,7 +25,7 @@ from twin.errors import ModelError, TwinError
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
-from twin.fmu.statespace import StateSpace, discretize, full_state_space, truncated_state_space
+from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
 from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
 
 log = logging.getLogger(__name__)
@@ -42,14 +42,7 @@ def system_for(model: RotorModel, truth: Truth | None, basis: str, fmax_hz: floa
     """The state space to simulate: the truth's, or the model's (full or modal basis)."""
     if truth is not None:
         return truth_state_space(model, truth, basis=basis, fmax_hz=fmax_hz)
-    ss = full_state_space(model)
-    if basis == "modal":
-        if fmax_hz is None:
-            raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
-        return truncated_state_space(ss, fmax_hz)
-    if basis != "full":
-        raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
-    return ss
+    return model_state_space(model, basis, fmax_hz)
 
 
 def output_rms(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports: list[int]) -> np.ndarray:
@@ -136,6 +129,7 @@ def simulate(
             raise TwinError(f"cannot write {output}: folder {output.parent} is not writable")
     h = 1.0 / fs_hz
     ss = system_for(model, truth, basis, fmax_hz)
+    check_stable(ss, model.name)  # before any work on a system that would diverge
     poles = ss.poles[ss.poles.imag > 0]
     zeta = -poles.real / np.abs(poles)
     light = poles[zeta < MAX_TARGET_DAMPING]
@@ -145,8 +139,7 @@ def simulate(
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
                       f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", stacklevel=2)  # fmt: skip
     if warmup_s is None:
-        stable = ss.poles.real < 0
-        slowest = 1.0 / np.min(-ss.poles.real[stable]) if stable.any() else 0.0
+        slowest = 1.0 / np.min(-ss.poles.real)
         warmup_s = min(MAX_WARMUP_S, WARMUP_TIME_CONSTANTS * slowest)
     n_warm = int(np.ceil(warmup_s * fs_hz))
     n_rec = int(round(duration_s * fs_hz))

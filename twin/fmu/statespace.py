@@ -24,12 +24,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg as sla
 
 from twin.errors import ModelError
-from twin.fem.elements import DOF_NAMES
+from twin.fem.elements import DOF_NAMES, node_dofs
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.modes.analysis import state_matrix
 
@@ -53,8 +54,6 @@ class StateSpace:
         Rotor speed the matrices hold [rpm].
     basis : str
         ``"full"`` or ``"modal"``.
-    state_nominal : (n,) array
-        Typical magnitude of each state, for the FMU's state nominals.
     attrs : dict
         Provenance (model, truth, basis settings).
     """
@@ -66,7 +65,6 @@ class StateSpace:
     outputs: list[str]
     speed_rpm: float
     basis: str = "full"
-    state_nominal: np.ndarray | None = None
     attrs: dict = field(default_factory=dict)
 
     @property
@@ -81,9 +79,9 @@ class StateSpace:
         except ValueError:
             raise ModelError(f"no force port '{port}'; ports are '<node>.x' / '<node>.y' for nodes 0..{len(self.ports) // 2 - 1}") from None
 
-    @property
+    @cached_property
     def poles(self) -> np.ndarray:
-        """Eigenvalues of ``A`` [1/s]."""
+        """Eigenvalues of ``A`` [1/s] (computed once)."""
         return np.linalg.eigvals(self.A)
 
 
@@ -93,7 +91,7 @@ def force_ports(model: RotorModel) -> list[str]:
 
 
 def _port_dofs(model: RotorModel) -> np.ndarray:
-    return np.array([4 * n + DOF_NAMES.index(d) for n in range(model.n_nodes) for d in ("x", "y")])
+    return np.array([node_dofs(n)[DOF_NAMES.index(d)] for n in range(model.n_nodes) for d in ("x", "y")])
 
 
 def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=None) -> StateSpace:
@@ -116,9 +114,7 @@ def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=N
     B = np.vstack([np.zeros((n, len(ports))), sla.cho_solve(sla.cho_factor(mats["M"]), unit)])
     C = np.zeros((len(model.sensors), 2 * n))
     C[np.arange(len(model.sensors)), model.sensor_dofs] = 1.0
-    # nominal magnitudes: displacement ~ static deflection under 1 kN, velocity ~ that times |A|
-    nominal = np.full(2 * n, 1.0)
-    return StateSpace(A, B, C, force_ports(model), model.channels, speed_rpm, "full", nominal,
+    return StateSpace(A, B, C, force_ports(model), model.channels, speed_rpm, "full",
                       {"model": model.name, "basis": "full"})  # fmt: skip
 
 
@@ -164,7 +160,7 @@ def modal_state_space(
     Bm[0::2], Bm[1::2] = wb.real, wb.imag
     Cm = np.empty((cv.shape[0], 2 * r))
     Cm[:, 0::2], Cm[:, 1::2] = 2 * cv.real, -2 * cv.imag
-    return StateSpace(A, Bm, Cm, list(ports), list(outputs), speed_rpm, "modal", np.ones(2 * r), dict(attrs or {}))
+    return StateSpace(A, Bm, Cm, list(ports), list(outputs), speed_rpm, "modal", dict(attrs or {}))
 
 
 def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -200,6 +196,32 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
     attrs = {**full.attrs, "basis": "modal", "fmax_hz": fmax_hz, "n_modes": int(keep.sum())}
     return modal_state_space(lam[keep], full.C @ right[keep].T, left[keep] @ full.B, full.ports, full.outputs,
                              full.speed_rpm, attrs)  # fmt: skip
+
+
+def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | None = None) -> StateSpace:
+    """The model's state space in the chosen basis: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> model_state_space(load_model("models/hydro_unit.toml"), "modal", 50.0).n_states  # modes 1-11
+    22
+    """
+    if basis not in ("full", "modal"):
+        raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
+    if basis == "modal" and fmax_hz is None:
+        raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
+    ss = full_state_space(model)
+    return ss if basis == "full" else truncated_state_space(ss, fmax_hz)
+
+
+def check_stable(ss: StateSpace, name: str) -> None:
+    """Raise a ModelError naming the growing modes if any pole has a positive real part."""
+    growing = ss.poles[ss.poles.real > 0]
+    if growing.size:
+        freqs = ", ".join(f"{f:.3f}" for f in sorted({abs(p.imag) / (2 * np.pi) for p in growing}))
+        raise ModelError(f"{name} is unstable at {ss.speed_rpm:g} rpm: modes at [{freqs}] Hz grow; "
+                         "a simulation of it would diverge")  # fmt: skip
 
 
 @dataclass(frozen=True)

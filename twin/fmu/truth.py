@@ -25,7 +25,7 @@ from twin.errors import ModelError
 from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
-from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, state_modes, truncated_state_space
+from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, model_state_space, state_modes
 from twin.modes.shapes import mac
 
 log = logging.getLogger(__name__)
@@ -91,17 +91,11 @@ def truth_state_space(
     altered = truth_model(model, truth)
     per_mode = truth.per_mode
     if per_mode is None:
-        ss = full_state_space(altered)
-        if basis == "modal":
-            if fmax_hz is None:
-                raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
-            ss = truncated_state_space(ss, fmax_hz)
-        poles = state_modes(ss.A)[0]
+        ss = model_state_space(altered, basis, fmax_hz)
     else:
         ss = synthesize_per_mode_fsi(altered, per_mode.added_mass, per_mode.added_damping)
-        poles = np.linalg.eigvals(ss.A)
-        poles = np.sort_complex(poles[poles.imag > 0])
-        poles = poles[np.argsort(poles.imag)]
+    poles = ss.poles[ss.poles.imag > 0]
+    poles = poles[np.argsort(poles.imag)]
     modes = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(-p.real / abs(p))} for p in poles]
     attrs = {**ss.attrs, "model": model.name, "truth": truth.to_json(), "truth_modes": json.dumps(modes)}
     return dataclasses.replace(ss, attrs=attrs)
@@ -122,13 +116,11 @@ def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping:
         return full_state_space(fsi_model, values={"FSI.added_mass": m0 + m, "FSI.added_damping": c0 + c})
 
     dry = state(0.0, 0.0)
-    lam0, vec0 = sla.eig(dry.A)
-    order = np.argsort(np.where(lam0.imag > 0, lam0.imag, np.inf))[: int(np.sum(lam0.imag > 0))]
-    lam0, vec0 = lam0[order], vec0[:, order]
+    lam0, right0, _ = state_modes(dry.A)
     targets = target_mode_indices(lam0, len(added_mass))
     poles, cv, wb = [], [], []
     for i, k in enumerate(targets):
-        shape, lam = vec0[:n_dof, k], lam0[k]
+        shape, lam = right0[k, :n_dof], lam0[k]
         for s in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
             ss = state(s * added_mass[i], s * added_damping[i])
             if s < 1.0:

@@ -44,7 +44,7 @@ typedef struct {
     int n, p, m, n_in, turb_x, turb_y;
     double h, omega;
     int *in_port;
-    double *phi, *g0t, *g1t, *c, *nominal; /* g0t, g1t: p rows of n (transposed) */
+    double *phi, *g0t, *g1t, *c; /* g0t, g1t: p rows of n (transposed) */
     /* run state */
     double *x, *xn, *y, *u;
     double t, unb_me, unb_phase, turb_asd, noise_std;
@@ -150,7 +150,7 @@ static void draw_turbulence(Lti *s, double *f) {
 
 static void free_lti(Lti *s) {
     if (!s) return;
-    free(s->in_port); free(s->phi); free(s->g0t); free(s->g1t); free(s->c); free(s->nominal);
+    free(s->in_port); free(s->phi); free(s->g0t); free(s->g1t); free(s->c);
     free(s->x); free(s->xn); free(s->y); free(s->u);
     free(s);
 }
@@ -200,12 +200,12 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         size_t n = s->n, p = s->p, m = s->m;
         s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
         s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
-        s->c = malloc(m * n * 8); s->nominal = malloc(n * 8);
+        s->c = malloc(m * n * 8);
         s->x = calloc(n, 8); s->xn = calloc(n, 8); s->y = calloc(m ? m : 1, 8); s->u = calloc(s->n_in ? s->n_in : 1, 8);
         int32_t *tmp = calloc(s->n_in ? s->n_in : 1, 4);
-        ok = s->phi && s->g0t && s->g1t && s->c && s->nominal && s->x && s->xn && s->y && s->u && tmp &&
+        ok = s->phi && s->g0t && s->g1t && s->c && s->x && s->xn && s->y && s->u && tmp &&
              read_block(f, tmp, 4, s->n_in) && read_block(f, s->phi, 8, n * n) && read_block(f, s->g0t, 8, p * n) &&
-             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n) && read_block(f, s->nominal, 8, n);
+             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n);
         for (int i = 0; ok && i < s->n_in; i++) {
             s->in_port[i] = tmp[i];
             if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
