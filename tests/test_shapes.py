@@ -31,3 +31,12 @@ def test_mac_properties():
     assert mac(a, a[:2]).shape == (4, 2)
     with pytest.raises(ValueError, match="same length"):
         mac(a, a[:, :3])
+
+
+def test_mpc_and_mpd_of_real_and_circular_shapes():
+    from twin.modes.shapes import mpc, mpd
+
+    real = np.array([1.0, -0.5, 0.2, 0.1]) * np.exp(0.7j)
+    circular = np.array([1.0, 1j, 0.5, 0.5j])
+    assert np.allclose(mpc(np.array([real, circular])), [1.0, 0.0], atol=1e-12)
+    assert np.allclose(mpd(np.array([real, circular])), [0.0, 45.0], atol=1e-9)

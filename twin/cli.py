@@ -4,6 +4,7 @@
     twin campbell MODEL.toml [--max-speed RPM] [--points N] [--modes N] -o campbell.png
     twin export-fmu MODEL.toml -o unit.fmu [--fs HZ] [--basis full|modal] [--fmax HZ] [--inputs runner.x,...]
     twin simulate MODEL.toml --duration S --fs HZ --seed N [--truth truth.toml|paper] -o signals.nc
+    twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -110,6 +111,34 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _extract(args: argparse.Namespace) -> int:
+    from twin.extract import extract
+    from twin.netcdf import check_writable
+
+    plot = None if args.plot is None else check_writable(args.plot)
+    channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
+    ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
+                 max_order=args.max_order, channels=channels, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+    harmonics = ", ".join(f"{h['frequency_hz']:.3f}" for h in json.loads(ds.attrs["harmonics"]))
+    print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
+          + (f"; harmonics rejected at {harmonics} Hz" if harmonics else ""))
+    print(f"{'mode':>4}  {'f [Hz]':>9}  {'+-se':>7}  {'zeta [%]':>8}  {'+-se':>6}  {'MPC':>5}  {'MPD':>5}")
+    for k in range(ds.sizes["mode"]):
+        print(f"{int(ds.mode[k]):>4}  {float(ds.frequency[k]):>9.4f}  {float(ds.frequency_se[k]):>7.4f}  "
+              f"{100 * float(ds.damping_ratio[k]):>8.3f}  {100 * float(ds.damping_ratio_se[k]):>6.3f}  "
+              f"{float(ds.MPC[k]):>5.2f}  {float(ds.MPD[k]):>5.1f}")  # fmt: skip
+    if plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from twin.extract.plot import plot_stabilisation
+
+        plot_stabilisation(ds).savefig(plot, dpi=120)
+        print(f"wrote {plot}")
+    print(f"wrote {args.output}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -158,6 +187,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--basis", choices=("full", "modal"), default="full", help="full FEM or modal basis")
     p.add_argument("--fmax", type=float, default=None, help="highest mode of the modal basis [Hz]")
     p.set_defaults(func=_simulate)
+
+    p = sub.add_parser("extract", help="automated modal extraction (SSI-cov) from signals to mode samples")
+    p.add_argument("signals", help="signals file (NetCDF, time x channel)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--samples", type=int, default=100, help="samples per mode J (default: 100)")
+    p.add_argument("--fmax", type=float, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
+    p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz] (default: 0)")
+    p.add_argument("--block-rows", type=int, default=None, help="Hankel block rows (default: from fmax)")
+    p.add_argument("--max-order", type=int, default=100, help="largest model order (default: 100)")
+    p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
+    p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
+    p.set_defaults(func=_extract)
     return parser
 
 

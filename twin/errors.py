@@ -33,3 +33,14 @@ class ModelFileError(TwinError, ValueError):
 
 class ModelError(TwinError, ValueError):
     """A model built in Python is inconsistent (unknown node, parameter, ...)."""
+
+
+class SignalError(TwinError, ValueError):
+    """A signals file or record cannot be used (missing variable, NaN samples, dead channel, ...).
+
+    The message names the file (or record) and the channel.
+    """
+
+
+class TwinWarning(UserWarning):
+    """Something in the input is suspicious but usable (a clipped channel, a short record, ...)."""

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import tempfile
 import warnings
 from pathlib import Path
@@ -27,6 +26,7 @@ from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
 from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
 from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
+from twin.netcdf import check_writable, write_netcdf
 
 log = logging.getLogger(__name__)
 
@@ -122,11 +122,7 @@ def simulate(
     if noise_ratio < 0 or turbulence_asd < 0 or unbalance_me < 0:
         raise ModelError("noise_ratio, turbulence_asd and unbalance_me must not be negative")
     if output is not None:
-        output = Path(output)
-        if not output.parent.is_dir():
-            raise TwinError(f"cannot write {output}: folder {output.parent} does not exist")
-        if not os.access(output.parent, os.W_OK):
-            raise TwinError(f"cannot write {output}: folder {output.parent} is not writable")
+        output = check_writable(output)
     h = 1.0 / fs_hz
     ss = system_for(model, truth, basis, fmax_hz)
     check_stable(ss, model.name)  # before any work on a system that would diverge
@@ -215,20 +211,5 @@ def simulate(
         attrs=attrs,
     )
     if output is not None:
-        write_signals(ds, output)
+        write_netcdf(ds, output)
     return ds
-
-
-def write_signals(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write a signals Dataset to NetCDF atomically (temporary file, then rename)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(suffix=".nc.part", dir=path.parent)
-    os.close(fd)
-    try:
-        ds.to_netcdf(tmp, engine="netcdf4")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    log.info("wrote %s", path)
-    return path

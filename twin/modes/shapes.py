@@ -72,3 +72,53 @@ def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(den > 0, num / den, 0.0)
     return out[0, 0] if single else out
+
+
+def mpc(shapes: np.ndarray) -> np.ndarray:
+    """Modal phase collinearity (Pappa et al. 1993) of complex shapes along the last axis.
+
+    1 for a real (standing) mode, 0 for a circular one such as a pure forward
+    whirl seen by an x and a y probe.
+
+    Examples
+    --------
+    >>> float(mpc(np.array([1.0, -2.0]) * (1 + 1j)).round(12))
+    1.0
+    >>> float(mpc(np.array([1.0, 1j])).round(12))
+    0.0
+    """
+    shapes = np.asarray(shapes, dtype=complex)
+    re, im = shapes.real, shapes.imag
+    sxx, syy, sxy = np.sum(re * re, -1), np.sum(im * im, -1), np.sum(re * im, -1)
+    tr, det = sxx + syy, sxx * syy - sxy**2
+    gap = np.sqrt(np.clip(tr**2 - 4 * det, 0, None))  # lambda1 - lambda2 of [[sxx, sxy], [sxy, syy]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(tr > 0, (gap / tr) ** 2, 1.0)
+
+
+def mpd(shapes: np.ndarray) -> np.ndarray:
+    """Mean phase deviation [deg] (Reynders et al. 2012) of complex shapes along the last axis.
+
+    The amplitude-weighted mean angle between the components and their best
+    straight line through the origin of the complex plane: 0 for a real mode,
+    45 deg for a circular one.
+
+    Examples
+    --------
+    >>> float(mpd(np.array([1.0, -2.0]) * (1 + 1j)).round(9))
+    0.0
+    >>> float(mpd(np.array([1.0, 1j])).round(9))
+    45.0
+    """
+    shapes = np.asarray(shapes, dtype=complex)
+    out = np.empty(shapes.shape[:-1])
+    for idx in np.ndindex(out.shape):
+        v = shapes[idx]
+        _, _, vt = np.linalg.svd(np.column_stack([v.real, v.imag]), full_matrices=False)
+        v12, v22 = vt[1, 0], vt[1, 1]  # V = vt.T: the direction normal to the best line is V[:, 1]
+        amp = np.abs(v)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cosang = np.abs(v.real * v22 - v.imag * v12) / (np.hypot(v12, v22) * amp)
+        ang = np.degrees(np.arccos(np.clip(np.nan_to_num(cosang, nan=1.0), 0.0, 1.0)))
+        out[idx] = np.sum(amp * ang) / np.sum(amp) if amp.sum() > 0 else 0.0
+    return out

@@ -1,0 +1,208 @@
+"""Benchmark of the automated modal extraction on the hydro unit (issue 4).
+
+In one run, on the same 1 h record (Table 2 truth, 256 Hz, turbulence + 1X
+unbalance, 5% sensor noise, simulated through the FMU):
+
+1. ``twin.extract.extract`` with its defaults (J = 100 jackknife samples):
+   wall time and accuracy against the truth's modes (frequency, damping,
+   MAC on the sensors);
+2. pyOMA2 (PyPI ``pyOMA-2``) SSI-cov with the same block rows and orders and
+   its automatic clustering (the Magalhães and Reynders presets), with and
+   without its bootstrap uncertainty (``calc_unc``, 100 samples): wall time
+   and accuracy;
+3. with ``--seeds N``: the spread ratio, i.e. the mean jackknife standard
+   error of each mode's frequency and damping against their standard
+   deviation over N independent records (Monte Carlo over seeds).
+
+Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR]
+(simulated records are kept in DIR, default ``~/.cache/twin/bench``).
+Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from twin import load_model
+from twin.extract import extract
+from twin.fem.truthfile import paper_truth
+from twin.fmu.simulate import simulate
+from twin.fmu.statespace import state_modes
+from twin.fmu.truth import truth_state_space
+from twin.modes.shapes import mac
+
+MODEL = "models/hydro_unit.toml"
+
+
+def truth_modes(model):
+    """Poles and sensor shapes of the Table 2 truth (all its modes; the targets are the lightly damped ones)."""
+    ss = truth_state_space(model, paper_truth())
+    lam, right, _ = state_modes(ss.A)
+    return lam, (ss.C @ right.T).T
+
+
+def record(cache: Path, seed: int) -> Path:
+    path = cache / f"hydro_paper_1h_seed{seed}.nc"
+    if not path.exists():
+        simulate(load_model(MODEL), duration_s=3600.0, fs_hz=256.0, seed=seed, truth=paper_truth(),
+                 output=path, progress=False)  # fmt: skip
+    return path
+
+
+def match(freq, zeta, shapes, lam_t, phi_t):
+    """For every truth mode the extracted mode nearest in frequency + (1 - MAC), or None."""
+    rows = []
+    for j in range(len(lam_t)):
+        ft, zt = lam_t[j].imag / (2 * np.pi), -lam_t[j].real / abs(lam_t[j])
+        if len(freq) == 0:
+            rows.append((ft, zt, None))
+            continue
+        d = np.abs(freq - ft) / ft + 1 - mac(shapes, phi_t[j])[:, 0]
+        k = int(np.argmin(d))
+        ok = abs(freq[k] / ft - 1) < 0.02 and mac(shapes[k], phi_t[j]) > 0.8
+        rows.append((ft, zt, (freq[k], zeta[k], float(mac(shapes[k], phi_t[j]))) if ok else None))
+    return rows
+
+
+def spurious(freq, shapes, lam_t, phi_t):
+    """Extracted modes that match no truth mode."""
+    out = []
+    for k in range(len(freq)):
+        d = np.abs(lam_t.imag / (2 * np.pi) - freq[k]) / freq[k]
+        if not np.any((d < 0.02) & (mac(phi_t, shapes[k])[:, 0] > 0.8)):
+            out.append(float(freq[k]))
+    return out
+
+
+def table(name, rows, seconds, extra=""):
+    print(f"\n{name}: {seconds:.1f} s {extra}")
+    print(f"{'truth f [Hz]':>12} {'truth zeta %':>12} | {'f [Hz]':>9} {'f err %':>8} {'zeta %':>7} {'zeta err %':>10} {'MAC':>7}")
+    for ft, zt, got in rows:
+        if got is None:
+            print(f"{ft:12.3f} {100 * zt:12.2f} | {'not found':>9}")
+        else:
+            f, z, m = got
+            print(f"{ft:12.3f} {100 * zt:12.2f} | {f:9.3f} {100 * (f / ft - 1):+8.3f} {100 * z:7.2f} "
+                  f"{100 * (z / zt - 1):+10.1f} {m:7.4f}")  # fmt: skip
+
+
+def run_twin(path, lam_t, phi_t):
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m = extract(path, progress=False)
+    dt = time.perf_counter() - t0
+    rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
+    harmonics = json.loads(m.attrs["harmonics"])
+    extra = (f"({m.sizes['mode']} modes x {m.sizes['sample']} samples; harmonics rejected: "
+             f"{[round(h['frequency_hz'], 3) for h in harmonics]}; spurious: "
+             f"{spurious(m.frequency.values, m.sensor_shape.values, lam_t, phi_t)}; "
+             f"{len(caught)} warning(s))")  # fmt: skip
+    return m, rows, dt, extra
+
+
+def run_pyoma(path, lam_t, phi_t, preset, calc_unc, complex_ok):
+    from pyoma2.algorithms.data.run_params import Clustering
+    from pyoma2.algorithms.ssi import SSI
+    from pyoma2.setup.single import SingleSetup
+
+    ds = xr.load_dataset(path)
+    data = ds.displacement.values
+    fs = float(ds.attrs["sampling_rate"])
+    t0 = time.perf_counter()
+    setup = SingleSetup(data, fs=fs)
+    # pyOMA2's default hard criteria drop poles with MPC < 0.5 or MPD > 0.5: complex modes
+    hc = {"xi_max": 0.25, "mpc_lim": 0.0, "mpd_lim": 1e9, "CoV_max": np.inf} if complex_ok else None
+    kw = {"hc": hc} if hc else {}
+    alg = SSI(name="ssicov", method="cov", br=64, ordmax=100, step=2, calc_unc=calc_unc, nb=100, **kw)
+    setup.add_algorithms(alg)
+    setup.run_by_name("ssicov")
+    alg.add_clustering(Clustering(name=preset, quick=preset, freqlim=(0.5, 102.4)))
+    alg.run_clustering(preset)
+    dt = time.perf_counter() - t0
+    res = alg.result.clustering_results[preset]
+    fn, xi, phi = np.atleast_1d(res.Fn), np.atleast_1d(res.Xi), np.atleast_2d(res.Phi)
+    phi = phi.T if phi.shape[0] == data.shape[1] else phi
+    # pyOMA2 reports undamped natural frequencies; compare damped ones like ours
+    fd = fn * np.sqrt(np.clip(1 - xi**2, 0, None))
+    rows = match(fd, xi, phi, lam_t, phi_t)
+    spur = spurious(fd, phi, lam_t, phi_t)
+    extra = f"({len(fn)} modes; {len(spur)} spurious, e.g. {[round(x, 3) for x in spur[:8]]})"
+    return rows, dt, extra
+
+
+def spread(cache, seeds, lam_t, phi_t):
+    """Mean jackknife standard error against the standard deviation over independent records."""
+    f, z, sef, sez = [], [], [], []
+    for s in range(1, seeds + 1):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            m = extract(record(cache, s), progress=False)
+        rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
+        fr, zr, sf, sz = [], [], [], []
+        for ft, _, got in rows:
+            k = None if got is None else int(np.argmin(np.abs(m.frequency.values - got[0])))
+            fr.append(np.nan if k is None else float(m.frequency[k]))
+            zr.append(np.nan if k is None else float(m.damping_ratio[k]))
+            sf.append(np.nan if k is None else float(m.frequency_se[k]))
+            sz.append(np.nan if k is None else float(m.damping_ratio_se[k]))
+        f.append(fr), z.append(zr), sef.append(sf), sez.append(sz)
+    f, z, sef, sez = map(np.array, (f, z, sef, sez))
+    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}): jackknife standard error / "
+          "Monte Carlo std")  # fmt: skip
+    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f [mHz]':>10} {'ratio':>6} | "
+          f"{'MC std zeta %':>13} {'SE zeta %':>9} {'ratio':>6}")  # fmt: skip
+    for j in range(len(lam_t)):
+        ok = np.isfinite(f[:, j])
+        if ok.sum() < 3:
+            continue
+        mf, mz = np.std(f[ok, j], ddof=1), np.std(z[ok, j], ddof=1)
+        print(f"{lam_t[j].imag / (2 * np.pi):12.3f} {ok.sum():5d} | {1e3 * mf:14.3f} {1e3 * np.mean(sef[ok, j]):10.3f} "
+              f"{np.mean(sef[ok, j]) / mf:6.2f} | {100 * mz:13.3f} {100 * np.mean(sez[ok, j]):9.3f} "
+              f"{np.mean(sez[ok, j]) / mz:6.2f}")  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
+    ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
+    args = ap.parse_args()
+    args.cache.mkdir(parents=True, exist_ok=True)
+    model = load_model(MODEL)
+    lam_t, phi_t = truth_modes(model)
+    path = record(args.cache, 1)
+    _, rows, dt, extra = run_twin(path, lam_t, phi_t)
+    table("twin.extract (SSI-cov, 100 jackknife samples)", rows, dt, extra)
+    try:
+        import pyoma2  # noqa: F401 (only: is it installed?)
+        from importlib.metadata import version
+    except ImportError:
+        print("\npyOMA2 not installed (pip install pyOMA-2): comparison skipped")
+    else:
+        import logging
+
+        logging.getLogger("pyoma2").setLevel(logging.WARNING)
+        for preset, unc, complex_ok in (("Magalhaes", False, False), ("Magalhaes", False, True),
+                                        ("Magalhaes", True, True), ("Reynders", False, True)):  # fmt: skip
+            name = (f"pyOMA2 {version('pyOMA-2')} SSI-cov br=64 orders<=100, clustering '{preset}', "
+                    f"{'complex-mode filters off' if complex_ok else 'default MPC/MPD filters'}"
+                    f"{', bootstrap uncertainty nb=100' if unc else ''}")  # fmt: skip
+            try:
+                rows, dt, extra = run_pyoma(path, lam_t, phi_t, preset, unc, complex_ok)
+            except Exception as exc:  # report a failure of the other tool, do not hide it
+                print(f"\n{name}: failed with {type(exc).__name__}: {exc}")
+                continue
+            table(name, rows, dt, extra)
+    if args.seeds:
+        spread(args.cache, args.seeds, lam_t, phi_t)
+
+
+if __name__ == "__main__":
+    main()

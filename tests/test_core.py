@@ -1,0 +1,123 @@
+"""extract(): complex gyroscopic modes kept, harmonics rejected, the shear-frame reference, bad input, files."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from twin import load_model, modal
+from twin.cli import main
+from twin.errors import SignalError
+from twin.extract import extract, read_modes
+from twin.fmu.statespace import full_state_space, state_modes
+from twin.modes.shapes import mac
+
+
+@pytest.fixture(scope="module")
+def gyro_record(make_record):
+    """600 s of the gyroscopic rotor (circular whirl modes, MPC = 0) driven by white forces at the disk."""
+    model = load_model("tests/data/gyro_rotor.toml")
+    ss = full_state_space(model)
+    lam, right, left = state_modes(ss.A)
+    keep = lam.imag / (2 * np.pi) < 180.0
+    lam, right, left = lam[keep], right[keep], left[keep]
+    ports = [ss.port_index("4.x"), ss.port_index("4.y")]
+    fs = 500.0
+    ds = make_record(lam, (ss.C @ right.T).T, fs_hz=fs, duration_s=600.0, seed=3, noise_ratio=0.05,
+                     participation=(left @ ss.B[:, ports]) / fs * 1e3, channels=list(model.channels))  # fmt: skip
+    return model, ds
+
+
+def test_gyroscopic_circular_modes_are_found_with_their_phase(gyro_record):
+    model, ds = gyro_record
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = extract(ds, samples=20, fmax_hz=180.0, progress=False)
+    ref = modal(model, n_modes=3)  # modes 4 and 5 (137, 165 Hz) are below the sensor noise with disk forcing
+    assert m.sizes["mode"] == 3
+    for k in range(3):
+        j = int(np.argmin(np.abs(m.frequency.values - float(ref.frequency[k]))))
+        assert abs(float(m.frequency[j]) / float(ref.frequency[k]) - 1) < 0.005
+        dz = abs(float(m.damping_ratio[j]) - float(ref.damping_ratio[k]))
+        assert dz < 0.2 * float(ref.damping_ratio[k]) and dz < 3 * float(m.damping_ratio_se[j])
+        assert float(mac(m.sensor_shape.values[j], ref.sensor_shape.values[k])) > 0.99
+    assert np.all(m.MPC.values < 0.05) and np.all(m.MPD.values > 40)  # circular whirls kept, phase intact
+    # every sample keeps the phase: the reference channel real positive, the others complex
+    ref_ch = [list(m.channel.values).index(c) for c in m.reference_channel.values]
+    pivot = np.take_along_axis(m.shape.values, np.array(ref_ch)[:, None, None], axis=2)
+    assert np.allclose(pivot.imag, 0, atol=1e-12) and np.all(pivot.real > 0)
+
+
+def test_running_speed_harmonic_is_rejected_and_reported(make_record):
+    poles = np.array([-0.01 * 2 * np.pi * 3.1 + 2j * np.pi * 3.1, -0.02 * 2 * np.pi * 7.0 + 2j * np.pi * 7.0])
+    shapes = np.array([[1.0, 1j, 0.4], [0.3, -0.5, 1.0]])
+    ds = make_record(poles, shapes, fs_hz=32.0, duration_s=1200.0, seed=5,
+                     sinusoid=(2.25, 40.0 * np.array([1.0, -1j, 0.2])), attrs={"speed_rpm": 135.0})  # fmt: skip
+    m = extract(ds, samples=20, max_order=40, progress=False)
+    for f in (3.1, 7.0):
+        assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
+    assert np.min(np.abs(m.frequency.values - 2.25)) > 0.05  # the 1X line is no mode
+    harmonics = json.loads(m.attrs["harmonics"])
+    assert len(harmonics) == 1 and harmonics[0]["running_speed_multiple"] == 1
+    assert abs(harmonics[0]["frequency_hz"] - 2.25) < 1e-3 and harmonics[0]["kurtosis"] < 2.0
+    assert (m.diagram_mode.values == -2).any()
+
+
+def test_shear_frame_reference(shear_frame):
+    """KOMA's shear frame: the 5 modes. The record was integrated with the trapezoidal rule at its
+    sampling step, so its poles are the reference ones through z = (1 + l h/2) / (1 - l h/2)."""
+    ds, omega_n, xi, _ = shear_frame
+    m = extract(ds, samples=10, progress=False)
+    h = 1.0 / 12.0
+    lam_c = -xi * omega_n + 1j * omega_n * np.sqrt(1 - xi**2)
+    lam_d = np.log((1 + lam_c * h / 2) / (1 - lam_c * h / 2)) / h
+    f_ref, z_ref = lam_d.imag / (2 * np.pi), -lam_d.real / np.abs(lam_d)
+    assert m.sizes["mode"] == 5
+    f_err = np.abs(m.frequency.values / f_ref - 1)
+    # mode 1 (0.18 Hz, 217 periods in the record) has a standard error of about 0.6% of frequency
+    assert np.all(f_err[1:] < 0.005) and f_err[0] < 0.01
+    assert np.all(np.abs(m.frequency.values - f_ref) < 2.5 * m.frequency_se.values)
+    # damping from 1200 s is uncertain by 10-25% (jackknife standard error): within 2.5 of them
+    assert np.all(np.abs(m.damping_ratio.values - z_ref) < 2.5 * m.damping_ratio_se.values)
+
+
+def test_bad_requests_are_clear_errors(make_record):
+    ds = make_record(np.array([-0.1 + 2j * np.pi * 2.0]), np.array([[1.0, 1j]]), fs_hz=20.0, duration_s=100.0, seed=0)
+    with pytest.raises(SignalError, match=r"too short for modes down to fmin = 0.5 Hz: it needs 200 s"):
+        extract(ds, fmin_hz=0.5, progress=False)
+    with pytest.raises(SignalError, match="too short for 100 samples"):
+        extract(ds, samples=100, progress=False)
+    with pytest.raises(SignalError, match="fmax = 20 Hz must be positive and at most Nyquist"):
+        extract(ds, fmax_hz=20.0, progress=False)
+    with pytest.raises(SignalError, match="samples must be at least 2"):
+        extract(ds, samples=1, progress=False)
+    with pytest.raises(SignalError, match="nowhere.nc: no such signals file"):
+        extract("nowhere.nc", progress=False)
+
+
+def test_files_and_command_line(make_record, tmp_path, capsys):
+    poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0, -0.01 * 2 * np.pi * 5.0 + 2j * np.pi * 5.0])
+    ds = make_record(poles, np.array([[1.0, 1j], [1.0, -0.5]]), fs_hz=20.0, duration_s=1000.0, seed=1,
+                     channels=["A_x", "A_y"], attrs={"truth": "{}", "seed": 1})  # fmt: skip
+    signals = tmp_path / "signals.nc"
+    ds.to_netcdf(signals)
+    out, png = tmp_path / "modes.nc", tmp_path / "stab.png"
+    assert main(["extract", str(signals), "-o", str(out), "--samples", "10", "--plot", str(png)]) == 0
+    assert png.stat().st_size > 10_000 and "modes, 10 samples each" in capsys.readouterr().out
+    raw = xr.load_dataset(out)
+    for v in ("pole_real", "pole_imag", "shape_real", "shape_imag", "frequency", "damping_ratio", "MPC", "MPD"):
+        assert v in raw
+    assert raw.shape_real.dims == ("mode", "sample", "channel") and "truth" in raw.attrs
+    assert json.loads(raw.attrs["settings"])["samples"] == 10
+    m = read_modes(out)
+    assert np.iscomplexobj(m.pole) and np.iscomplexobj(m.shape) and np.iscomplexobj(m.sensor_shape)
+    for f in (2.0, 5.0):
+        assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
+    # bad input: one line, exit status 2, no file left behind
+    ds["displacement"][10, 0] = np.nan
+    ds.to_netcdf(tmp_path / "bad.nc")
+    assert main(["extract", str(tmp_path / "bad.nc"), "-o", str(tmp_path / "bad_modes.nc")]) == 2
+    assert "channel 'A_x' has 1 NaN" in capsys.readouterr().err
+    assert not list(tmp_path.glob("bad_modes*"))

@@ -1,0 +1,37 @@
+"""Harmonic recognition: band kurtosis 1.5 for a sinusoid, 3 for a mode's random response."""
+
+import numpy as np
+import scipy.signal as sg
+
+from twin.extract.harmonics import band_kurtosis, harmonic_test
+
+
+def test_kurtosis_of_sinusoid_plus_noise_follows_the_mixture_formula():
+    rng = np.random.default_rng(0)
+    n, fs = 400_000, 100.0
+    t = np.arange(n) / fs
+    s = 0.3 * np.sin(2 * np.pi * 5.0 * t)
+    g = rng.standard_normal(n)
+
+    def band(x):
+        return band_kurtosis(np.fft.rfft(x[:, None], axis=0), n, fs, 4.9, 5.1)
+
+    (k,), _ = band(s + g)
+    _, (ps,) = band(s)
+    _, (pg,) = band(g)
+    r = ps / (ps + pg)  # sinusoid share of the band power
+    assert abs(k - (3 - 1.5 * r**2)) < 0.1
+
+
+def test_harmonic_flagged_with_its_order_and_a_lightly_damped_mode_not():
+    rng = np.random.default_rng(1)
+    fs, n = 64.0, 200_000
+    t = np.arange(n) / fs
+    lam = -0.005 * 2 * np.pi * 3.0 + 2j * np.pi * 3.0  # 0.5% damped mode at 3 Hz
+    q = sg.lfilter([1.0], [1.0, -np.exp(lam / fs)], rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    y = np.column_stack([q.real, q.imag]) + 3.0 * np.column_stack([np.cos(2 * np.pi * 2.25 * t), np.sin(2 * np.pi * 2.25 * t)])
+    spec = np.fft.rfft(y, axis=0)
+    h = harmonic_test(spec, n, fs, 1e-5 + 2j * np.pi * 2.25, running_speed_hz=2.25)
+    assert h is not None and h["kurtosis"] < 1.8 and h["running_speed_multiple"] == 1
+    assert harmonic_test(spec, n, fs, lam) is None  # Gaussian band: a mode
+    assert harmonic_test(spec, n, fs, -0.05 * 2 * np.pi * 2.25 + 2j * np.pi * 2.25) is None  # 5% damped: not tested

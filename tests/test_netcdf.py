@@ -1,0 +1,27 @@
+"""Atomic NetCDF writing with normal permissions."""
+
+import os
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from twin.errors import TwinError
+from twin.netcdf import write_netcdf
+
+
+def test_written_file_has_umask_permissions_and_no_leftovers(tmp_path):
+    path = write_netcdf(xr.Dataset({"a": ("x", np.arange(3.0))}), tmp_path / "a.nc")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask
+    assert [p.name for p in tmp_path.iterdir()] == ["a.nc"]
+
+
+def test_failed_write_leaves_nothing(tmp_path):
+    bad = xr.Dataset({"a": ("x", np.array([object()], dtype=object))})
+    with pytest.raises(Exception):
+        write_netcdf(bad, tmp_path / "b.nc")
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(TwinError, match="does not exist"):
+        write_netcdf(bad, tmp_path / "missing" / "b.nc")

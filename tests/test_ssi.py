@@ -1,0 +1,59 @@
+"""Covariances, Hankel matrix and the fast multi-order SSI realisation."""
+
+import numpy as np
+
+from twin.extract.ssi import block_covariances, hankel, realise
+
+
+def test_blocks_add_up_to_the_whole_record_and_leave_one_out_is_exact():
+    y = np.random.default_rng(0).standard_normal((2003, 3))
+    bc = block_covariances(y, max_lag=7, n_blocks=5)
+    for k in (0, 1, 7):
+        direct = y[k:].T @ y[: len(y) - k] / (len(y) - k)
+        assert np.allclose(bc.covariance()[k], direct, rtol=1e-12, atol=1e-14)
+    # leaving out block 2 = the lagged products of every t outside that block
+    edges = np.linspace(0, len(y), 6).astype(int)
+    t = np.r_[0 : edges[2], edges[3] : len(y) - 7]
+    direct = y[t + 7].T @ y[t] / len(t)
+    assert np.allclose(bc.covariance(leave_out=2)[7], direct, rtol=1e-12)
+
+
+def test_hankel_blocks():
+    R = np.arange(10)[:, None, None] * np.ones((10, 2, 2))
+    H = hankel(R, 3)
+    assert H.shape == (8, 6)
+    assert H[0, 0] == 1 and H[6, 4] == 3 + 2 + 1  # block (3, 2) holds R_6
+
+
+def test_fast_multi_order_equals_least_squares_at_every_order():
+    rng = np.random.default_rng(1)
+    y = rng.standard_normal((5000, 3))
+    y[1:] += 0.8 * y[:-1]
+    R = block_covariances(y, 20).covariance()
+    real = realise(R, 10, 12, fs_hz=1.0)
+    H = hankel(R, 10)
+    U, s, _ = np.linalg.svd(H)
+    for n in (2, 6, 12):
+        O = U[:, :n] * np.sqrt(s[:n])
+        A = np.linalg.lstsq(O[:-3], O[3:], rcond=None)[0]
+        lam_ls = np.log(np.linalg.eigvals(A).astype(complex))
+        lam_ls = np.sort_complex(lam_ls[(lam_ls.imag > 0) & (lam_ls.imag < 0.99 * np.pi)])
+        lam, _ = real.modes(n)
+        assert np.allclose(np.sort_complex(lam), lam_ls, rtol=1e-9)
+
+
+def test_exact_covariances_give_the_exact_poles():
+    """With the exact output covariances of a 2-mode system, SSI returns its poles to round-off."""
+    import scipy.linalg as sla
+
+    fs = 20.0
+    poles = np.array([-0.1 + 2j * np.pi * 1.5, -0.3 + 2j * np.pi * 4.0])
+    mu = np.exp(poles / fs)
+    A = np.zeros((4, 4))
+    for k, m in enumerate(mu):  # real 2x2 blocks [[Re, Im], [-Im, Re]]
+        A[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[m.real, m.imag], [-m.imag, m.real]]
+    C = np.array([[1.0, 0.0, 0.3, 0.2], [0.0, 1.0, -0.5, 1.0], [0.4, 0.4, 0.0, 1.0]])
+    sigma = sla.solve_discrete_lyapunov(A, np.eye(4))
+    R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(13)])
+    lam, _ = realise(R, 6, 4, fs).modes(4)
+    assert np.allclose(np.sort_complex(lam), np.sort_complex(poles), rtol=1e-9)

@@ -1,0 +1,307 @@
+"""Automated operational modal analysis: ``signals.nc`` in, ``modes.nc`` out.
+
+One function, :func:`extract`: check the record, decimate to the band asked
+for, covariance-driven SSI over many orders, stabilisation diagram, automatic
+clustering, rejection of running-speed harmonics, J jackknife samples per
+mode. It never reads the model; pair the result with model modes by MAC with
+:func:`twin.pair_modes`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import scipy.signal as sig
+import xarray as xr
+
+from twin import __version__
+from twin.errors import SignalError, TwinWarning
+from twin.extract.harmonics import harmonic_test
+from twin.extract.modesfile import write_modes
+from twin.extract.samples import jackknife, normalise_at
+from twin.extract.signals import Record, check_record
+from twin.extract.ssi import block_covariances, realise
+from twin.extract.stabilisation import Criteria, cluster_poles, damping_ratio, diagram
+from twin.modes.shapes import mpc, mpd
+from twin.netcdf import check_writable
+
+log = logging.getLogger(__name__)
+
+#: Default upper frequency: this fraction of the sampling rate (80% of Nyquist).
+DEFAULT_FMAX_FRACTION = 0.4
+#: Decimate when the sampling rate exceeds this many times ``fmax``.
+SAMPLES_PER_PERIOD = 2.5
+#: Default lowest frequency for the Hankel size, as a fraction of ``fmax``.
+DEFAULT_FMIN_FRACTION = 0.01
+#: The record must hold this many periods of the lowest frequency asked for.
+MIN_CYCLES = 100
+#: Each jackknife block must be this many times longer than the largest lag.
+MIN_BLOCK_LAGS = 2.0
+#: A mode is the average of its poles at this many model orders (at most).
+ORDERS_PER_MODE = 8
+#: Warn when more than this fraction of a mode's jackknife matches fail.
+MAX_MISSING = 0.05
+#: Warn when a block is shorter than this many time constants of a mode (samples then too narrow).
+MIN_BLOCK_TIME_CONSTANTS = 3.0
+
+
+def _open(signals: xr.Dataset | str | Path) -> tuple[xr.Dataset, str]:
+    if isinstance(signals, xr.Dataset):
+        return signals, str(signals.attrs.get("title", "signals"))
+    path = Path(signals)
+    if not path.is_file():
+        raise SignalError(f"{path}: no such signals file")
+    try:
+        return xr.load_dataset(path), str(path)
+    except (OSError, ValueError) as exc:
+        raise SignalError(f"{path}: not a readable NetCDF signals file ({exc})") from None
+
+
+def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
+    q = int(rec.fs_hz // (SAMPLES_PER_PERIOD * fmax_hz))
+    if q < 2:
+        return rec.y, rec.fs_hz, 1
+    y = rec.y
+    left = q
+    while left > 1:  # FIR stages of at most 8 keep the anti-alias filters short and accurate
+        step = next(s for s in range(min(8, left), 1, -1) if left % s == 0) if left > 1 else 1
+        y = sig.decimate(y, step, ftype="fir", zero_phase=True, axis=0)
+        left //= step
+    return y, rec.fs_hz / q, q
+
+
+def extract(
+    signals: xr.Dataset | str | Path,
+    *,
+    samples: int = 100,
+    fmax_hz: float | None = None,
+    fmin_hz: float = 0.0,
+    block_rows: int | None = None,
+    max_order: int = 100,
+    channels: Sequence[str] | None = None,
+    criteria: Criteria | None = None,
+    output: str | Path | None = None,
+    progress: bool = True,
+    command: str = "",
+) -> xr.Dataset:
+    """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
+
+    Parameters
+    ----------
+    signals : xarray.Dataset or path
+        ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
+    samples : int
+        J, samples per mode: the record is cut into J blocks and the samples
+        are delete-one-block jackknife pseudo-values (see :mod:`twin.extract.samples`).
+    fmax_hz : float, optional
+        Highest frequency of interest [Hz] (default 40% of the sampling rate).
+        The record is decimated to about ``2.5 fmax``.
+    fmin_hz : float
+        Lowest frequency of interest [Hz]; when given, the record must hold
+        100 periods of it.
+    block_rows : int, optional
+        Block rows ``i`` of the covariance Hankel matrix (lags up to ``2i``).
+        Default: ``i / fs`` covers a quarter period of ``max(fmin, fmax / 100)``
+        (about 63 block rows after decimation).
+    max_order : int
+        Largest model order of the stabilisation diagram (orders 2, 4, ...).
+    channels : sequence of str, optional
+        Channels to use (default all).
+    criteria : Criteria, optional
+        Stabilisation and clustering settings.
+    output : path, optional
+        ``modes.nc`` to write (atomically).
+    progress : bool
+        Progress bar over the jackknife blocks.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``mode``, ``sample``, ``channel`` (and ``diagram_pole`` for the
+        stabilisation diagram): complex ``pole`` [1/s] and ``shape`` samples;
+        per mode the full-record ``frequency`` (damped) and ``natural_frequency``
+        [Hz], ``damping_ratio``, their sample std and standard error,
+        ``sensor_shape``, ``MPC``, ``MPD`` [deg], ``model_order``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> fs, n = 20.0, 20_000
+    >>> lam = -0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0  # one mode: 2 Hz, 2% damping
+    >>> q = sig.lfilter([1.0], [1.0, -np.exp(lam / fs)], rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    >>> y = 2 * np.real(q[:, None] * np.array([1.0, 0.6j])) + 0.1 * rng.standard_normal((n, 2))
+    >>> ds = xr.Dataset({"displacement": (("time", "channel"), y)}, coords={"channel": ["A_x", "A_y"]},
+    ...                 attrs={"sampling_rate": fs})
+    >>> modes = extract(ds, samples=20, max_order=16, progress=False)
+    >>> modes.frequency.values.round(2), modes.damping_ratio.values.round(2), modes.MPC.values.round(2)
+    (array([2.]), array([0.02]), array([0.22]))
+    """
+    crit = criteria or Criteria()
+    if output is not None:
+        output = check_writable(output)
+    ds, source = _open(signals)
+    rec = check_record(ds, source, channels)
+    nyquist = rec.fs_hz / 2
+    fmax = DEFAULT_FMAX_FRACTION * rec.fs_hz if fmax_hz is None else float(fmax_hz)
+    if not 0 < fmax <= nyquist:
+        raise SignalError(f"{source}: fmax = {fmax:g} Hz must be positive and at most Nyquist ({nyquist:g} Hz)")
+    if not 0 <= fmin_hz < fmax:
+        raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
+    if samples < 2:
+        raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
+    if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
+        raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
+                          f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
+    y, fs, q = _decimate(rec, fmax)
+    n_ch = y.shape[1]
+    f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
+    i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
+    block_len = y.shape[0] // samples
+    if block_len < MIN_BLOCK_LAGS * 2 * i:
+        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {samples} samples with {i} block rows: "
+                          f"each block needs {MIN_BLOCK_LAGS * 2 * i / fs:g} s; ask for fewer samples "
+                          f"(at most {y.shape[0] // int(MIN_BLOCK_LAGS * 2 * i)})")  # fmt: skip
+
+    log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows, orders up to %d",
+             source, n_ch, rec.duration_s, fs, i, max_order)  # fmt: skip
+    blocks = block_covariances(y, 2 * i, samples)
+    real = realise(blocks.covariance(), i, max_order, fs)
+    orders = np.arange(2, real.max_order + 1, 2)
+    diag = diagram(real, orders, fmin_hz, fmax, crit)
+    diag, clusters = cluster_poles(diag, len(orders), crit)
+
+    spectrum = np.fft.rfft(y, axis=0)
+    speed_rpm = rec.attrs.get("speed_rpm")
+    running_hz = float(speed_rpm) / 60.0 if speed_rpm else None
+    harmonics, modes = [], []
+    for k, c in enumerate(clusters):
+        h = harmonic_test(spectrum, y.shape[0], fs, diag.pole[c.representative], running_hz)
+        if h is None and damping_ratio(diag.pole[c.representative]) > 0:
+            modes.append(c)
+        elif h is None:  # not damped and not a sinusoid: not physical
+            log.info("%.4f Hz: stable pole without damping that is no harmonic; dropped",
+                     diag.pole[c.representative].imag / (2 * np.pi))  # fmt: skip
+            diag.cluster[diag.cluster == k] = -1
+        else:
+            h["channel"] = rec.channels[h.pop("channel_index")]
+            harmonics.append(h)
+            log.info("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
+            diag.cluster[diag.cluster == k] = -2
+    if not modes:
+        raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
+                          f"({len(harmonics)} harmonic(s) rejected)")  # fmt: skip
+    relabel = {old: new for new, old in enumerate(sorted({int(diag.cluster[c.representative]) for c in modes}))}
+    diag.cluster[:] = [relabel.get(int(c), -1 if c == -1 else -2) for c in diag.cluster]
+
+    members = []
+    popularity = {int(n): int(np.sum([np.any(diag.order[c.members] == n) for c in modes])) for n in orders}
+    for c in modes:
+        use = _orders_used(diag, c, popularity)
+        members.append((diag.order[use], diag.pole[use], diag.shape[use]))
+    poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress)
+    model_orders = np.array([len(m[0]) for m in members])
+    ref_channel = np.argmax(np.abs(shapes), axis=1)
+    shapes = normalise_at(shapes, ref_channel)
+    sample_s = normalise_at(sample_s, ref_channel[:, None])
+    _warn_about_samples(source, poles, missing / model_orders[:, None], block_len / fs)
+
+    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, model_orders, [len(c.members) for c in modes],
+                   ref_channel, diag)  # fmt: skip
+    settings = {
+        "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
+        "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
+        "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
+    }  # fmt: skip
+    out.attrs.update({
+        "title": f"modes identified from {Path(source).name}",
+        "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
+        "command": command,
+        "settings": json.dumps(settings),
+        "harmonics": json.dumps(harmonics),
+        "samples_method": "delete-one-block jackknife pseudo-values: sample std / sqrt(J) is the standard error",
+        "signals": source,
+    })  # fmt: skip
+    for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
+        if key in rec.attrs:
+            out.attrs[f"signals_{key}" if key == "seed" else key] = rec.attrs[key]
+    if output is not None:
+        write_modes(out, output)
+    return out
+
+
+def _orders_used(diag, cluster, popularity: dict[int, int]) -> np.ndarray:
+    """Up to ORDERS_PER_MODE members of a cluster: at the orders most modes share (fewer
+    eigenvalue problems per jackknife sample), then the closest to the cluster's median pole."""
+    m = cluster.members
+    p = diag.pole[m]
+    median = np.median(p.real) + 1j * np.median(p.imag)
+    rank = np.lexsort((np.abs(p - median), [-popularity[int(n)] for n in diag.order[m]]))
+    return m[rank][:ORDERS_PER_MODE]
+
+
+def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float) -> None:
+    f = poles.imag / (2 * np.pi)
+    tau = 1.0 / np.abs(poles.real)
+    slow = np.flatnonzero(block_s < MIN_BLOCK_TIME_CONSTANTS * tau)
+    if slow.size:
+        k = slow[np.argmax(tau[slow])]
+        warnings.warn(f"{source}: the samples come from {block_s:.3g} s blocks, shorter than "
+                      f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode ({tau[k]:.3g} s): "
+                      "its sample spread underestimates the uncertainty; ask for fewer samples", TwinWarning,
+                      stacklevel=3)  # fmt: skip
+    for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
+        warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
+                      "leave-one-block-out identifications: its sample spread is too narrow; treat it with care",
+                      TwinWarning, stacklevel=3)  # fmt: skip
+
+
+def _dataset(rec, ds, poles, shapes, sample_p, sample_s, orders, sizes, ref_channel, diag) -> xr.Dataset:
+    n_modes, J = sample_p.shape
+    f_s, z_s = sample_p.imag / (2 * np.pi), damping_ratio(sample_p)
+    ch_coords = {"channel": ("channel", list(rec.channels))}
+    if "displacement" in ds:
+        src = ds["displacement"]
+        for name in ("node", "direction", "location"):
+            if name in src.coords and src[name].dims == ("channel",):
+                sel = src[name].sel(channel=list(rec.channels)) if "channel" in src.coords else src[name]
+                ch_coords[name] = ("channel", sel.values)
+    mode_vars = {
+        "pole": (("mode", "sample"), sample_p, {"units": "1/s", "long_name": "pole samples"}),
+        "shape": (("mode", "sample", "channel"), sample_s,
+                  {"units": "1", "long_name": "mode shape samples (unit norm, reference channel real positive)"}),
+        "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
+        "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency"}),
+        "damping_ratio": ("mode", damping_ratio(poles), {"units": "1", "long_name": "damping ratio"}),
+        "frequency_std": ("mode", f_s.std(axis=1, ddof=1), {"units": "Hz", "long_name": "sample std of frequency"}),
+        "damping_ratio_std": ("mode", z_s.std(axis=1, ddof=1), {"units": "1", "long_name": "sample std of damping ratio"}),
+        "frequency_se": ("mode", f_s.std(axis=1, ddof=1) / np.sqrt(J),
+                         {"units": "Hz", "long_name": "standard error of frequency (jackknife)"}),
+        "damping_ratio_se": ("mode", z_s.std(axis=1, ddof=1) / np.sqrt(J),
+                             {"units": "1", "long_name": "standard error of damping ratio (jackknife)"}),
+        "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "full-record mode shape"}),
+        "MPC": ("mode", mpc(shapes), {"units": "1", "long_name": "modal phase collinearity (1 real, 0 circular)"}),
+        "MPD": ("mode", mpd(shapes), {"units": "deg", "long_name": "mean phase deviation (0 real, 45 circular)"}),
+        "n_orders": ("mode", orders, {"long_name": "number of model orders the mode is averaged over"}),
+        "cluster_size": ("mode", np.asarray(sizes), {"long_name": "orders at which the mode is stable"}),
+        "reference_channel": ("mode", np.array(rec.channels)[ref_channel],
+                              {"long_name": "channel made real and positive in every shape"}),
+    }  # fmt: skip
+    diagram_vars = {
+        "diagram_order": ("diagram_pole", diag.order, {"long_name": "model order"}),
+        "diagram_frequency": ("diagram_pole", diag.frequency_hz, {"units": "Hz"}),
+        "diagram_damping_ratio": ("diagram_pole", diag.damping_ratio, {"units": "1"}),
+        "diagram_status": ("diagram_pole", diag.status,
+                           {"long_name": "0 new, 1 stable frequency, 2 + damping, 3 + shape"}),
+        "diagram_mode": ("diagram_pole", np.where(diag.cluster >= 0, diag.cluster + 1, diag.cluster),
+                         {"long_name": "mode number of the pole, -1 none, -2 a harmonic"}),
+    }  # fmt: skip
+    return xr.Dataset(
+        {**mode_vars, **diagram_vars},
+        coords={"mode": ("mode", np.arange(1, n_modes + 1)), "sample": ("sample", np.arange(J)), **ch_coords},
+    )

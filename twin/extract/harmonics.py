@@ -1,0 +1,74 @@
+"""Recognise running-speed harmonics among identified poles.
+
+A harmonic (1X, 2X from unbalance, misalignment) looks to SSI like a mode
+with near-zero damping. What tells them apart is the amplitude distribution
+of the signal in a narrow band around the pole: a sinusoid has kurtosis 1.5,
+the narrow-band response of a mode to random forces is Gaussian (kurtosis 3).
+With a fraction ``r`` of the band's power in a sinusoid the kurtosis is
+``3 - 1.5 r^2``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Poles damped less than this are tested for being a harmonic.
+HARMONIC_MAX_DAMPING = 0.01
+#: Band kurtosis below this marks a harmonic (a sinusoid holding at least ~60% of the band power).
+HARMONIC_KURTOSIS = 2.5
+#: Half-width of the test band, relative to the frequency, at least this.
+MIN_HALF_BAND = 0.005
+
+
+def band_kurtosis(spectrum: np.ndarray, n: int, fs_hz: float, f_lo: float, f_hi: float) -> np.ndarray:
+    """Kurtosis (3 for Gaussian) of each channel band-passed to ``[f_lo, f_hi]`` Hz, and the band power.
+
+    Parameters
+    ----------
+    spectrum : (n // 2 + 1, channels) complex
+        ``numpy.fft.rfft`` of the zero-mean record along time.
+    n : int
+        Number of samples of the record.
+
+    Returns
+    -------
+    (kurtosis, power) : two arrays over channels
+
+    Examples
+    --------
+    >>> t = np.arange(400_000) / 100.0
+    >>> y = np.column_stack([np.sin(2 * np.pi * 5 * t), np.random.default_rng(0).standard_normal(len(t))])
+    >>> k, _ = band_kurtosis(np.fft.rfft(y, axis=0), len(t), 100.0, 4.8, 5.2)
+    >>> np.round(k, 1)
+    array([1.5, 3. ])
+    """
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    band = (f >= f_lo) & (f <= f_hi)
+    masked = np.zeros_like(spectrum)
+    masked[band] = spectrum[band]
+    x = np.fft.irfft(masked, n, axis=0)
+    power = np.mean(x**2, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        kurt = np.mean(x**4, axis=0) / power**2
+    return kurt, power
+
+
+def harmonic_test(
+    spectrum: np.ndarray, n: int, fs_hz: float, pole: complex, running_speed_hz: float | None = None
+) -> dict | None:
+    """Test one pole: a dict describing it as a harmonic, or ``None`` for a structural mode."""
+    f = pole.imag / (2 * np.pi)
+    zeta = -pole.real / abs(pole)
+    if zeta >= HARMONIC_MAX_DAMPING:
+        return None
+    half = max(MIN_HALF_BAND, 2.0 * max(zeta, 0.0)) * f
+    kurt, power = band_kurtosis(spectrum, n, fs_hz, f - half, f + half)
+    ch = int(np.nanargmax(power))
+    if not kurt[ch] < HARMONIC_KURTOSIS:
+        return None
+    out = {"frequency_hz": float(f), "damping_ratio": float(zeta), "kurtosis": float(kurt[ch]), "channel_index": ch}
+    if running_speed_hz:
+        order = f / running_speed_hz
+        out["order"] = float(order)
+        out["running_speed_multiple"] = int(round(order)) if abs(order - round(order)) < 0.02 else None
+    return out

@@ -1,0 +1,73 @@
+"""The ``modes.nc`` file: identified modes with J samples each (DESIGN section 6).
+
+In memory the poles and shapes are complex (``pole`` over mode x sample,
+``shape`` over mode x sample x channel, the full-record ``sensor_shape`` over
+mode x channel), so the Dataset pairs with :func:`twin.modal` output through
+:func:`twin.pair_modes`. NetCDF has no complex type: on disk each complex
+variable ``v`` is stored as ``v_real`` and ``v_imag`` (``pole_real``,
+``pole_imag``, ``shape_real``, ``shape_imag``, ...).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from twin.errors import SignalError
+from twin.netcdf import write_netcdf
+
+#: Complex variables of a modes Dataset, stored as <name>_real / <name>_imag.
+COMPLEX_VARIABLES = ("pole", "shape", "sensor_shape")
+
+
+def split_complex(ds: xr.Dataset) -> xr.Dataset:
+    """The on-disk layout: every complex variable as ``<name>_real`` and ``<name>_imag``."""
+    out = ds.copy()
+    for name in [v for v in ds.data_vars if np.iscomplexobj(ds[v])]:
+        da = ds[name]
+        out = out.drop_vars(name)
+        for part, values in (("real", da.real), ("imag", da.imag)):
+            attrs = {**da.attrs, "long_name": f"{da.attrs.get('long_name', name)} ({part} part)"}
+            out[f"{name}_{part}"] = values.assign_attrs(attrs)
+    return out
+
+
+def join_complex(ds: xr.Dataset) -> xr.Dataset:
+    """Inverse of :func:`split_complex`."""
+    out = ds.copy()
+    for name in COMPLEX_VARIABLES:
+        if f"{name}_real" in ds and f"{name}_imag" in ds:
+            re, im = ds[f"{name}_real"], ds[f"{name}_imag"]
+            attrs = {k: v for k, v in re.attrs.items() if k != "long_name"}
+            long_name = str(re.attrs.get("long_name", name)).removesuffix(" (real part)")
+            out[name] = (re + 1j * im).assign_attrs({**attrs, "long_name": long_name})
+            out = out.drop_vars([f"{name}_real", f"{name}_imag"])
+    return out
+
+
+def write_modes(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a modes Dataset to NetCDF (complex parts stored apart, atomic write)."""
+    return write_netcdf(split_complex(ds), path)
+
+
+def read_modes(path: str | Path) -> xr.Dataset:
+    """Read a ``modes.nc`` file; poles and shapes come back complex.
+
+    Raises
+    ------
+    SignalError
+        When the file is missing, not NetCDF, or lacks the pole and shape variables.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SignalError(f"{path}: no such modes file")
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise SignalError(f"{path}: not a readable NetCDF modes file ({exc})") from None
+    missing = [v for v in ("pole_real", "pole_imag", "shape_real", "shape_imag") if v not in ds]
+    if missing:
+        raise SignalError(f"{path}: not a modes file: no variable {', '.join(missing)}")
+    return join_complex(ds)

@@ -1,0 +1,173 @@
+"""Stabilisation diagram and automatic clustering of its stable poles into physical modes.
+
+A pole of order ``n`` is *stable* when the previous order has a pole within
+``df`` in frequency, ``dzeta`` in damping ratio (both relative) and with a
+complex MAC above ``1 - dmac``. Stable poles are grouped by average-linkage
+hierarchical clustering on the distance
+
+    d_ij = |lambda_i - lambda_j| / max(|lambda_i|, |lambda_j|) + 1 - MAC_ij
+
+(Magalhães et al. 2009, with the complex MAC so that the phase of the shapes
+counts), cut at ``cluster_distance``. A cluster is a physical mode when poles
+of at least ``min_fraction`` of the orders belong to it; noise poles do not
+persist over orders. Shapes stay complex throughout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import squareform
+
+from twin.extract.ssi import Realisation
+from twin.modes.shapes import mac, normalise_shapes
+
+
+#: Absolute tolerance on the damping change between orders (relative tests fail near zeta = 0).
+DZETA_FLOOR = 5e-4
+#: Poles down to this negative damping ratio are clustered (harmonics have zeta = 0).
+HARMONIC_ZETA_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """Stabilisation and clustering settings (see the module docstring)."""
+
+    df: float = 0.01
+    dzeta: float = 0.05
+    dmac: float = 0.02
+    zeta_max: float = 0.25
+    cluster_distance: float = 0.03
+    min_fraction: float = 0.25
+
+
+@dataclass(frozen=True)
+class Diagram:
+    """All poles of a stabilisation diagram (``Im lambda > 0``), order by order.
+
+    ``status``: 0 new pole, 1 stable in frequency only, 2 stable in frequency and
+    damping, 3 fully stable (frequency, damping and shape); ``cluster`` is the
+    mode a pole was assigned to (``-1`` for none).
+    """
+
+    order: np.ndarray
+    pole: np.ndarray
+    shape: np.ndarray  # (n_poles, n_channels), normalised
+    status: np.ndarray
+    cluster: np.ndarray
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        return self.pole.imag / (2 * np.pi)
+
+    @property
+    def damping_ratio(self) -> np.ndarray:
+        return -self.pole.real / np.abs(self.pole)
+
+
+def damping_ratio(pole: np.ndarray) -> np.ndarray:
+    """``zeta = -Re(lambda) / |lambda|``."""
+    return -np.real(pole) / np.abs(pole)
+
+
+def pole_distance(p1: np.ndarray, s1: np.ndarray, p2: np.ndarray, s2: np.ndarray) -> np.ndarray:
+    """Clustering distance between two sets of poles and shapes, shape ``(len(p1), len(p2))``."""
+    dp = np.abs(p1[:, None] - p2[None, :]) / np.maximum(np.abs(p1)[:, None], np.abs(p2)[None, :])
+    return dp + 1.0 - mac(s1, s2)
+
+
+def diagram(real: Realisation, orders: np.ndarray, fmin_hz: float, fmax_hz: float, crit: Criteria) -> Diagram:
+    """Poles of every order with their stability status (no clustering yet)."""
+    rows_order, rows_pole, rows_shape, rows_status = [], [], [], []
+    prev_p = prev_s = None
+    for n in orders:
+        lam, phi = real.modes(int(n))
+        f = lam.imag / (2 * np.pi)
+        keep = (f >= fmin_hz) & (f <= fmax_hz)
+        lam, phi = lam[keep], normalise_shapes(phi[:, keep].T)
+        status = np.zeros(len(lam), dtype=np.int8)
+        if prev_p is not None and len(prev_p) and len(lam):
+            rel = np.abs(lam[:, None] - prev_p[None, :]) / np.abs(lam)[:, None]
+            j = np.argmin(rel, axis=1)
+            q, qs = prev_p[j], prev_s[j]
+            ok_f = np.abs(lam.imag - q.imag) <= crit.df * lam.imag
+            z, zq = damping_ratio(lam), damping_ratio(q)
+            ok_z = np.abs(z - zq) <= np.maximum(crit.dzeta * np.abs(z), DZETA_FLOOR)
+            ok_m = np.abs(np.einsum("ij,ij->i", qs.conj(), phi)) ** 2 >= 1.0 - crit.dmac  # unit-norm shapes
+            status = np.where(ok_f, 1, 0) + np.where(ok_f & ok_z, 1, 0) + np.where(ok_f & ok_z & ok_m, 1, 0)
+        rows_order.append(np.full(len(lam), n))
+        rows_pole.append(lam)
+        rows_shape.append(phi)
+        rows_status.append(status)
+        prev_p, prev_s = lam, phi
+    n_ch = real.C.shape[0]
+    shape = np.concatenate(rows_shape) if rows_shape else np.zeros((0, n_ch), complex)
+    pole = np.concatenate(rows_pole) if rows_pole else np.zeros(0, complex)
+    return Diagram(order=np.concatenate(rows_order).astype(int), pole=pole, shape=shape.reshape(-1, n_ch),
+                   status=np.concatenate(rows_status).astype(np.int8), cluster=np.full(len(pole), -1))  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Cluster:
+    """One physical mode found in the diagram: its member poles and the representative one."""
+
+    members: np.ndarray  # indices into the diagram, one per order
+    representative: int  # index of the medoid member
+    order: int  # model order of the representative
+
+
+def cluster_poles(d: Diagram, n_orders: int, crit: Criteria) -> tuple[Diagram, list[Cluster]]:
+    """Group the fully stable, physically damped poles into modes; returns the diagram with ``cluster`` set.
+
+    Modes are sorted by frequency. Each keeps one pole per order (the closest
+    to the cluster's median pole) and its medoid as representative.
+    """
+    z = d.damping_ratio
+    # slightly negative damping is let in: a harmonic's pole sits at zeta = 0 +- estimation error
+    cand = np.flatnonzero((d.status == 3) & (z > -HARMONIC_ZETA_TOLERANCE) & (z < crit.zeta_max))
+    labels = np.full(len(d.pole), -1)
+    if len(cand) < 2:
+        return _with_clusters(d, labels), []
+    dist = pole_distance(d.pole[cand], d.shape[cand], d.pole[cand], d.shape[cand])
+    dist = 0.5 * (dist + dist.T)
+    np.fill_diagonal(dist, 0.0)
+    tree = linkage(squareform(np.clip(dist, 0, None), checks=False), method="average")
+    groups = fcluster(tree, t=crit.cluster_distance, criterion="distance")
+    clusters = []
+    for g in np.unique(groups):
+        idx = cand[groups == g]
+        if len(np.unique(d.order[idx])) < crit.min_fraction * n_orders:
+            continue
+        median = np.median(d.pole[idx].real) + 1j * np.median(d.pole[idx].imag)
+        members = []
+        for n in np.unique(d.order[idx]):
+            at_n = idx[d.order[idx] == n]
+            members.append(at_n[np.argmin(np.abs(d.pole[at_n] - median))])
+        members = np.array(members)
+        dm = pole_distance(d.pole[members], d.shape[members], d.pole[members], d.shape[members])
+        rep = int(members[np.argmin(dm.sum(axis=1))])
+        clusters.append(Cluster(members=members, representative=rep, order=int(d.order[rep])))
+    clusters = _merge_duplicates(d, clusters, crit)
+    clusters.sort(key=lambda c: d.pole[c.representative].imag)
+    for k, c in enumerate(clusters):
+        labels[c.members] = k
+    return _with_clusters(d, labels), clusters
+
+
+def _merge_duplicates(d: Diagram, clusters: list[Cluster], crit: Criteria) -> list[Cluster]:
+    """Keep the larger of two clusters that describe the same mode (same frequency and shape)."""
+    clusters = sorted(clusters, key=lambda c: -len(c.members))
+    kept: list[Cluster] = []
+    for c in clusters:
+        p, s = d.pole[[c.representative]], d.shape[[c.representative]]
+        if any(pole_distance(p, s, d.pole[[k.representative]], d.shape[[k.representative]])[0, 0]
+               < crit.cluster_distance for k in kept):  # fmt: skip
+            continue
+        kept.append(c)
+    return kept
+
+
+def _with_clusters(d: Diagram, labels: np.ndarray) -> Diagram:
+    return Diagram(order=d.order, pole=d.pole, shape=d.shape, status=d.status, cluster=labels)
