@@ -14,6 +14,20 @@ from twin.errors import TwinError
 log = logging.getLogger(__name__)
 
 
+def load_netcdf(path: str | Path, kind: str, error: type[TwinError] = TwinError) -> xr.Dataset:
+    """Load a NetCDF file of the loop into memory, or raise ``error`` saying what is wrong with it.
+
+    ``kind`` names the file in messages (``"signals"``, ``"modes"``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise error(f"{path}: no such {kind} file")
+    try:
+        return xr.load_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise error(f"{path}: not a readable NetCDF {kind} file ({exc})") from None
+
+
 def check_writable(path: str | Path) -> Path:
     """Fail early, before any long computation, when ``path``'s folder is missing or read-only."""
     path = Path(path)

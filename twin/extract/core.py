@@ -22,14 +22,15 @@ import xarray as xr
 
 from twin import __version__
 from twin.errors import SignalError, TwinWarning
-from twin.extract.harmonics import harmonic_test
+from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.modesfile import write_modes
 from twin.extract.samples import jackknife, normalise_at
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import block_covariances, realise
-from twin.extract.stabilisation import Criteria, cluster_poles, damping_ratio, diagram
+from twin.extract.stabilisation import Criteria, cluster_poles, diagram
+from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mpc, mpd
-from twin.netcdf import check_writable
+from twin.netcdf import check_writable, load_netcdf
 
 log = logging.getLogger(__name__)
 
@@ -54,13 +55,7 @@ MIN_BLOCK_TIME_CONSTANTS = 3.0
 def _open(signals: xr.Dataset | str | Path) -> tuple[xr.Dataset, str]:
     if isinstance(signals, xr.Dataset):
         return signals, str(signals.attrs.get("title", "signals"))
-    path = Path(signals)
-    if not path.is_file():
-        raise SignalError(f"{path}: no such signals file")
-    try:
-        return xr.load_dataset(path), str(path)
-    except (OSError, ValueError) as exc:
-        raise SignalError(f"{path}: not a readable NetCDF signals file ({exc})") from None
+    return load_netcdf(signals, "signals", SignalError), str(signals)
 
 
 def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
@@ -176,28 +171,30 @@ def extract(
     diag = diagram(real, orders, fmin_hz, fmax, crit)
     diag, clusters = cluster_poles(diag, len(orders), crit)
 
-    spectrum = np.fft.rfft(y, axis=0)
+    rep_zeta = [float(damping_ratio(diag.pole[c.representative])) for c in clusters]
+    # the FFT of the record only when some cluster is damped little enough to be tested as a harmonic
+    spectrum = np.fft.rfft(y, axis=0) if min(rep_zeta, default=1.0) < HARMONIC_MAX_DAMPING else None
     speed_rpm = rec.attrs.get("speed_rpm")
     running_hz = float(speed_rpm) / 60.0 if speed_rpm else None
     harmonics, modes = [], []
-    for k, c in enumerate(clusters):
+    labels = np.full(len(diag.pole), -1)  # -1 no mode, -2 harmonic, else the mode index
+    for c, zeta in zip(clusters, rep_zeta):
         h = harmonic_test(spectrum, y.shape[0], fs, diag.pole[c.representative], running_hz)
-        if h is None and damping_ratio(diag.pole[c.representative]) > 0:
+        if h is None and zeta > 0:
+            labels[c.members] = len(modes)
             modes.append(c)
         elif h is None:  # not damped and not a sinusoid: not physical
             log.info("%.4f Hz: stable pole without damping that is no harmonic; dropped",
                      diag.pole[c.representative].imag / (2 * np.pi))  # fmt: skip
-            diag.cluster[diag.cluster == k] = -1
         else:
             h["channel"] = rec.channels[h.pop("channel_index")]
             harmonics.append(h)
             log.info("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
-            diag.cluster[diag.cluster == k] = -2
+            labels[c.members] = -2
     if not modes:
         raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(harmonics)} harmonic(s) rejected)")  # fmt: skip
-    relabel = {old: new for new, old in enumerate(sorted({int(diag.cluster[c.representative]) for c in modes}))}
-    diag.cluster[:] = [relabel.get(int(c), -1 if c == -1 else -2) for c in diag.cluster]
+    diag = dataclasses.replace(diag, cluster=labels)
 
     members = []
     popularity = {int(n): int(np.sum([np.any(diag.order[c.members] == n) for c in modes])) for n in orders}
@@ -205,13 +202,13 @@ def extract(
         use = _orders_used(diag, c, popularity)
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
     poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress)
-    model_orders = np.array([len(m[0]) for m in members])
+    n_orders = np.array([len(m[0]) for m in members])
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing / model_orders[:, None], block_len / fs)
+    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs)
 
-    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, model_orders, [len(c.members) for c in modes],
+    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, [len(c.members) for c in modes],
                    ref_channel, diag)  # fmt: skip
     settings = {
         "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
@@ -261,9 +258,10 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 
-def _dataset(rec, ds, poles, shapes, sample_p, sample_s, orders, sizes, ref_channel, diag) -> xr.Dataset:
+def _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, sizes, ref_channel, diag) -> xr.Dataset:
     n_modes, J = sample_p.shape
-    f_s, z_s = sample_p.imag / (2 * np.pi), damping_ratio(sample_p)
+    f_std = np.std(sample_p.imag / (2 * np.pi), axis=1, ddof=1)
+    z_std = np.std(damping_ratio(sample_p), axis=1, ddof=1)
     ch_coords = {"channel": ("channel", list(rec.channels))}
     if "displacement" in ds:
         src = ds["displacement"]
@@ -278,16 +276,16 @@ def _dataset(rec, ds, poles, shapes, sample_p, sample_s, orders, sizes, ref_chan
         "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
         "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency"}),
         "damping_ratio": ("mode", damping_ratio(poles), {"units": "1", "long_name": "damping ratio"}),
-        "frequency_std": ("mode", f_s.std(axis=1, ddof=1), {"units": "Hz", "long_name": "sample std of frequency"}),
-        "damping_ratio_std": ("mode", z_s.std(axis=1, ddof=1), {"units": "1", "long_name": "sample std of damping ratio"}),
-        "frequency_se": ("mode", f_s.std(axis=1, ddof=1) / np.sqrt(J),
+        "frequency_std": ("mode", f_std, {"units": "Hz", "long_name": "sample std of frequency"}),
+        "damping_ratio_std": ("mode", z_std, {"units": "1", "long_name": "sample std of damping ratio"}),
+        "frequency_se": ("mode", f_std / np.sqrt(J),
                          {"units": "Hz", "long_name": "standard error of frequency (jackknife)"}),
-        "damping_ratio_se": ("mode", z_s.std(axis=1, ddof=1) / np.sqrt(J),
+        "damping_ratio_se": ("mode", z_std / np.sqrt(J),
                              {"units": "1", "long_name": "standard error of damping ratio (jackknife)"}),
         "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "full-record mode shape"}),
         "MPC": ("mode", mpc(shapes), {"units": "1", "long_name": "modal phase collinearity (1 real, 0 circular)"}),
         "MPD": ("mode", mpd(shapes), {"units": "deg", "long_name": "mean phase deviation (0 real, 45 circular)"}),
-        "n_orders": ("mode", orders, {"long_name": "number of model orders the mode is averaged over"}),
+        "n_orders": ("mode", n_orders, {"long_name": "number of model orders the mode is averaged over"}),
         "cluster_size": ("mode", np.asarray(sizes), {"long_name": "orders at which the mode is stable"}),
         "reference_channel": ("mode", np.array(rec.channels)[ref_channel],
                               {"long_name": "channel made real and positive in every shape"}),

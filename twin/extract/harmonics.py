@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from twin.modes.analysis import damping_ratio
+
 #: Poles damped less than this are tested for being a harmonic.
 HARMONIC_MAX_DAMPING = 0.01
 #: Band kurtosis below this marks a harmonic (a sinusoid holding at least ~60% of the band power).
@@ -54,11 +56,15 @@ def band_kurtosis(spectrum: np.ndarray, n: int, fs_hz: float, f_lo: float, f_hi:
 
 
 def harmonic_test(
-    spectrum: np.ndarray, n: int, fs_hz: float, pole: complex, running_speed_hz: float | None = None
+    spectrum: np.ndarray | None, n: int, fs_hz: float, pole: complex, running_speed_hz: float | None = None
 ) -> dict | None:
-    """Test one pole: a dict describing it as a harmonic, or ``None`` for a structural mode."""
+    """Test one pole: a dict describing it as a harmonic, or ``None`` for a structural mode.
+
+    ``spectrum`` (as for :func:`band_kurtosis`) is only read for poles damped
+    less than ``HARMONIC_MAX_DAMPING``; it may be ``None`` when there are none.
+    """
     f = pole.imag / (2 * np.pi)
-    zeta = -pole.real / abs(pole)
+    zeta = float(damping_ratio(pole))
     if zeta >= HARMONIC_MAX_DAMPING:
         return None
     half = max(MIN_HALF_BAND, 2.0 * max(zeta, 0.0)) * f

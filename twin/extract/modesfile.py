@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 
 from twin.errors import SignalError
-from twin.netcdf import write_netcdf
+from twin.netcdf import load_netcdf, write_netcdf
 
 #: Complex variables of a modes Dataset, stored as <name>_real / <name>_imag.
 COMPLEX_VARIABLES = ("pole", "shape", "sensor_shape")
@@ -60,13 +60,7 @@ def read_modes(path: str | Path) -> xr.Dataset:
     SignalError
         When the file is missing, not NetCDF, or lacks the pole and shape variables.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise SignalError(f"{path}: no such modes file")
-    try:
-        ds = xr.load_dataset(path)
-    except (OSError, ValueError) as exc:
-        raise SignalError(f"{path}: not a readable NetCDF modes file ({exc})") from None
+    ds = load_netcdf(path, "modes", SignalError)
     missing = [v for v in ("pole_real", "pole_imag", "shape_real", "shape_imag") if v not in ds]
     if missing:
         raise SignalError(f"{path}: not a modes file: no variable {', '.join(missing)}")

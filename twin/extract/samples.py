@@ -76,7 +76,7 @@ def jackknife(
     fs_hz: float,
     members: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     progress: bool = True,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full-record estimates and pseudo-value samples of the given modes.
 
     Each mode is estimated as the average of its poles (and phase-aligned
@@ -96,7 +96,7 @@ def jackknife(
 
     Returns
     -------
-    (poles, shapes, sample_poles, sample_shapes, distance)
+    (poles, shapes, sample_poles, sample_shapes, missing)
         Full-record ``(n_modes,)`` poles and ``(n_modes, channels)`` shapes;
         ``(n_modes, J)`` pole samples, ``(n_modes, J, channels)`` shape samples
         (phase-aligned, not yet normalised); ``(n_modes, J)`` how many of the

@@ -15,6 +15,7 @@ persist over orders. Shapes stay complex throughout.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,7 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import squareform
 
 from twin.extract.ssi import Realisation
+from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mac, normalise_shapes
 
 
@@ -64,12 +66,7 @@ class Diagram:
 
     @property
     def damping_ratio(self) -> np.ndarray:
-        return -self.pole.real / np.abs(self.pole)
-
-
-def damping_ratio(pole: np.ndarray) -> np.ndarray:
-    """``zeta = -Re(lambda) / |lambda|``."""
-    return -np.real(pole) / np.abs(pole)
+        return damping_ratio(self.pole)
 
 
 def pole_distance(p1: np.ndarray, s1: np.ndarray, p2: np.ndarray, s2: np.ndarray) -> np.ndarray:
@@ -115,7 +112,6 @@ class Cluster:
 
     members: np.ndarray  # indices into the diagram, one per order
     representative: int  # index of the medoid member
-    order: int  # model order of the representative
 
 
 def cluster_poles(d: Diagram, n_orders: int, crit: Criteria) -> tuple[Diagram, list[Cluster]]:
@@ -129,7 +125,7 @@ def cluster_poles(d: Diagram, n_orders: int, crit: Criteria) -> tuple[Diagram, l
     cand = np.flatnonzero((d.status == 3) & (z > -HARMONIC_ZETA_TOLERANCE) & (z < crit.zeta_max))
     labels = np.full(len(d.pole), -1)
     if len(cand) < 2:
-        return _with_clusters(d, labels), []
+        return dataclasses.replace(d, cluster=labels), []
     dist = pole_distance(d.pole[cand], d.shape[cand], d.pole[cand], d.shape[cand])
     dist = 0.5 * (dist + dist.T)
     np.fill_diagonal(dist, 0.0)
@@ -148,12 +144,12 @@ def cluster_poles(d: Diagram, n_orders: int, crit: Criteria) -> tuple[Diagram, l
         members = np.array(members)
         dm = pole_distance(d.pole[members], d.shape[members], d.pole[members], d.shape[members])
         rep = int(members[np.argmin(dm.sum(axis=1))])
-        clusters.append(Cluster(members=members, representative=rep, order=int(d.order[rep])))
+        clusters.append(Cluster(members=members, representative=rep))
     clusters = _merge_duplicates(d, clusters, crit)
     clusters.sort(key=lambda c: d.pole[c.representative].imag)
     for k, c in enumerate(clusters):
         labels[c.members] = k
-    return _with_clusters(d, labels), clusters
+    return dataclasses.replace(d, cluster=labels), clusters
 
 
 def _merge_duplicates(d: Diagram, clusters: list[Cluster], crit: Criteria) -> list[Cluster]:
@@ -168,6 +164,3 @@ def _merge_duplicates(d: Diagram, clusters: list[Cluster], crit: Criteria) -> li
         kept.append(c)
     return kept
 
-
-def _with_clusters(d: Diagram, labels: np.ndarray) -> Diagram:
-    return Diagram(order=d.order, pole=d.pole, shape=d.shape, status=d.status, cluster=labels)

@@ -26,6 +26,7 @@ from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
 from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
 from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
+from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, write_netcdf
 
 log = logging.getLogger(__name__)
@@ -127,8 +128,7 @@ def simulate(
     ss = system_for(model, truth, basis, fmax_hz)
     check_stable(ss, model.name)  # before any work on a system that would diverge
     poles = ss.poles[ss.poles.imag > 0]
-    zeta = -poles.real / np.abs(poles)
-    light = poles[zeta < MAX_TARGET_DAMPING]
+    light = poles[damping_ratio(poles) < MAX_TARGET_DAMPING]
     f_interest = (fmax_hz if fmax_hz is not None else
                   min(100.0, float(np.max(light.imag)) / (2 * np.pi)) if light.size else 0.0)  # fmt: skip
     if fs_hz < 2.5 * f_interest:

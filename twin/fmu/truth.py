@@ -26,6 +26,7 @@ from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, model_state_space, state_modes
+from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mac
 
 log = logging.getLogger(__name__)
@@ -44,7 +45,7 @@ def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
     >>> target_mode_indices(np.array([-0.1 + 7j, -9 + 10j, -0.2 + 20j]), 2)
     array([0, 2])
     """
-    zeta = -poles.real / np.abs(poles)
+    zeta = damping_ratio(poles)
     light = np.nonzero(zeta < MAX_TARGET_DAMPING)[0]
     if len(light) < n:
         raise ModelError(f"the truth gives values for {n} modes but the model has only {len(light)} modes "
@@ -96,7 +97,7 @@ def truth_state_space(
         ss = synthesize_per_mode_fsi(altered, per_mode.added_mass, per_mode.added_damping)
     poles = ss.poles[ss.poles.imag > 0]
     poles = poles[np.argsort(poles.imag)]
-    modes = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(-p.real / abs(p))} for p in poles]
+    modes = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p))} for p in poles]
     attrs = {**ss.attrs, "model": model.name, "truth": truth.to_json(), "truth_modes": json.dumps(modes)}
     return dataclasses.replace(ss, attrs=attrs)
 

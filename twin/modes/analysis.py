@@ -51,6 +51,20 @@ def state_matrix(M: np.ndarray, C: np.ndarray, G: np.ndarray, K: np.ndarray, spe
     return np.block([[np.zeros((n, n)), np.eye(n)], [-minv_k, -minv_c]])
 
 
+def damping_ratio(poles: np.ndarray) -> np.ndarray:
+    """Damping ratio ``-Re(lambda) / |lambda|`` of poles [1/s] (0 for a pole at the origin).
+
+    Examples
+    --------
+    >>> float(damping_ratio(-0.1 + 1j * np.sqrt(0.99)))
+    0.1
+    """
+    poles = np.asarray(poles)
+    wn = np.abs(poles)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(wn > 0, -poles.real / wn, 0.0)
+
+
 def whirl_direction(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Whirl direction of modes from their complex shapes on all DOFs.
 
@@ -160,9 +174,8 @@ def modes_dataset(
     sensor_dofs = model.sensor_dofs
     sensor_shapes = normalise_shapes(shapes[:, sensor_dofs]) if len(sensor_dofs) else np.zeros((len(poles), 0))
     whirl, whirl_index = whirl_direction(shapes)
-    wn = np.abs(poles)
+    zeta = damping_ratio(poles)
     with np.errstate(invalid="ignore", divide="ignore"):
-        zeta = np.where(wn > 0, -poles.real / wn, 0.0)
         log_dec = -2 * np.pi * poles.real / poles.imag
     n_modes = len(poles)
     mode = np.arange(1, n_modes + 1)
@@ -172,7 +185,7 @@ def modes_dataset(
         data_vars={
             "pole": ("mode", poles, {"units": "1/s", "long_name": "complex pole (sigma + i omega_d)"}),
             "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
-            "natural_frequency": ("mode", wn / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency |pole|/2pi"}),
+            "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency |pole|/2pi"}),
             "damping_ratio": ("mode", zeta, {"units": "1", "long_name": "damping ratio -Re(pole)/|pole|"}),
             "log_decrement": ("mode", log_dec, {"units": "1", "long_name": "logarithmic decrement"}),
             "whirl": ("mode", whirl, {"long_name": "whirl direction (forward, backward, mixed)"}),
