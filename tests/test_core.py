@@ -93,6 +93,8 @@ def test_bad_requests_are_clear_errors(make_record):
         extract(ds, fmax_hz=20.0, progress=False)
     with pytest.raises(SignalError, match="samples must be at least 2"):
         extract(ds, samples=1, progress=False)
+    with pytest.raises(SignalError, match="max_order must be at least 2"):
+        extract(ds, max_order=1, progress=False)
     with pytest.raises(SignalError, match="nowhere.nc: no such signals file"):
         extract("nowhere.nc", progress=False)
 
@@ -121,3 +123,12 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     assert main(["extract", str(tmp_path / "bad.nc"), "-o", str(tmp_path / "bad_modes.nc")]) == 2
     assert "channel 'A_x' has 1 NaN" in capsys.readouterr().err
     assert not list(tmp_path.glob("bad_modes*"))
+
+
+def test_decimation_by_a_prime_factor_above_eight(make_record):
+    """fs / (2.5 fmax) = 11: one FIR stage of 11 (no factor of 8 or less divides it)."""
+    lam = -0.02 * 2 * np.pi * 1.0 + 2j * np.pi * 1.0
+    ds = make_record(np.array([lam]), np.array([[1.0, 0.6j]]), fs_hz=110.0, duration_s=600.0, seed=2)
+    m = extract(ds, samples=10, fmax_hz=4.0, max_order=16, progress=False)
+    assert json.loads(m.attrs["settings"])["decimation"] == 11
+    assert np.min(np.abs(m.frequency.values - 1.0)) < 0.01

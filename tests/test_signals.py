@@ -37,6 +37,9 @@ def test_dead_channel_is_an_error_naming_it():
     y[:, 2] = 1e-3  # a flat line
     with pytest.raises(SignalError, match="channel 'B_x' is flat"):
         check_record(record(y), "rec.nc")
+    y[:, 1] = 0.0  # two of three flat: the median is 0, the live channel must not be blamed
+    with pytest.raises(SignalError, match="channel 'A_y' is flat"):
+        check_record(record(y), "rec.nc")
 
 
 def test_clipped_channel_warns_naming_it():

@@ -64,8 +64,8 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
         return rec.y, rec.fs_hz, 1
     y = rec.y
     left = q
-    while left > 1:  # FIR stages of at most 8 keep the anti-alias filters short and accurate
-        step = next(s for s in range(min(8, left), 1, -1) if left % s == 0) if left > 1 else 1
+    while left > 1:  # FIR stages of at most 8 where q factors so; a prime factor above 8 is one stage
+        step = next((s for s in range(min(8, left), 1, -1) if left % s == 0), left)
         y = sig.decimate(y, step, ftype="fir", zero_phase=True, axis=0)
         left //= step
     return y, rec.fs_hz / q, q
@@ -148,6 +148,8 @@ def extract(
         raise SignalError(f"{source}: fmax = {fmax:g} Hz must be positive and at most Nyquist ({nyquist:g} Hz)")
     if not 0 <= fmin_hz < fmax:
         raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
+    if max_order < 2:
+        raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
     if samples < 2:
         raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:

@@ -100,10 +100,10 @@ def check_record(
         raise SignalError(f"{source}: channel '{names[c]}' has {int(bad[:, c].sum())} NaN or inf samples "
                           f"(first at t = {first / fs:g} s): fill the gap, cut the record or drop the channel")  # fmt: skip
     std = y.std(axis=0)
-    ref = float(np.median(std))
-    for c in np.flatnonzero(std <= DEAD_CHANNEL_RATIO * ref) if ref > 0 else range(len(names)):
-        raise SignalError(f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against a median of {ref:.3g}):"
-                          " a dead sensor? Leave it out (channels=... / --channels)")  # fmt: skip
+    ref = float(np.median(std)) or float(std.max())  # most channels flat: compare with the live one(s)
+    for c in np.flatnonzero(std <= DEAD_CHANNEL_RATIO * ref):
+        raise SignalError(f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against {ref:.3g} for the "
+                          "others): a dead sensor? Leave it out (channels=... / --channels)")  # fmt: skip
     for c, name in enumerate(names):
         hi, lo = y[:, c].max(), y[:, c].min()
         tol = 1e-9 * (hi - lo)
