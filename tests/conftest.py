@@ -82,3 +82,20 @@ def shear_frame():
     ds = xr.Dataset({"displacement": (("time", "channel"), data["response"])},
                     coords={"channel": [f"storey{i + 1}" for i in range(5)]}, attrs={"sampling_rate": 12.0})  # fmt: skip
     return ds, data["omega_n"], data["xi_ref"], data["phi_ref"]
+
+
+@pytest.fixture(scope="session")
+def paper_truth_modes(hydro_unit):
+    """The paper's Table 2 truth: mode i from the FEM altered by its own (m_i, c_i), on all DOFs."""
+    from twin.fem.truthfile import paper_truth
+    from twin.fmu.truth import truth_modes
+
+    return truth_modes(hydro_unit, paper_truth())
+
+
+@pytest.fixture(scope="session")
+def paper_modes(hydro_unit):
+    """Paper-style synthetic modal data (Figure 2 procedure), J = 100, seed 1."""
+    from twin.update import synthesize_modes
+
+    return synthesize_modes(hydro_unit, samples=100, seed=1)

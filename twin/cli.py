@@ -5,6 +5,8 @@
     twin export-fmu MODEL.toml -o unit.fmu [--fs HZ] [--basis full|modal] [--fmax HZ] [--inputs runner.x,...]
     twin simulate MODEL.toml --duration S --fs HZ --seed N [--truth truth.toml|paper] -o signals.nc
     twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
+    twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
+    twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -16,13 +18,14 @@ import argparse
 import json
 import logging
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from twin import __version__
-from twin.errors import TwinError
+from twin.errors import TwinError, TwinWarning
 
 log = logging.getLogger("twin")
 
@@ -139,6 +142,45 @@ def _extract(args: argparse.Namespace) -> int:
     return 0
 
 
+def _synthesize_modes(args: argparse.Namespace) -> int:
+    from twin.extract.modesfile import write_modes
+    from twin.fem import load_model
+    from twin.fem.truthfile import load_truth
+    from twin.netcdf import check_writable
+    from twin.update import synthesize_modes
+
+    check_writable(args.output)
+    model = load_model(args.model)
+    truth = load_truth(args.truth, model)
+    ds = synthesize_modes(model, truth, samples=args.samples, seed=args.seed, n_modes=args.modes,
+                          command=" ".join(sys.argv))  # fmt: skip
+    write_modes(ds, args.output)
+    print(f"{ds.sizes['mode']} modes x {ds.sizes['sample']} samples ({truth.source}); wrote {args.output}")
+    return 0
+
+
+def _update(args: argparse.Namespace) -> int:
+    from twin.update import summary, update
+
+    if args.params is None and not args.fsi:
+        raise TwinError("nothing to update: give --params and/or --fsi")
+    tree = update(args.model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
+                  burn_in=args.burn_in, seed=args.seed, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+    table = summary(tree["posterior"].to_dataset())
+    print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
+          f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
+    print(f"{'parameter':<22} {'MAP':>11} {'mean':>11} {'std':>10} {'5%':>11} {'95%':>11} {'R-hat':>6} {'ESS':>6}")
+    has_diag = "r_hat" in table
+    for k, p in enumerate(table["parameter"].values):
+        row = table.isel(parameter=k)
+        r_hat = f"{float(row.r_hat):>6.3f}" if has_diag else f"{'-':>6}"
+        diag = f"{r_hat} {float(row.ess_bulk):>6.0f}" if "ess_bulk" in table else f"{r_hat} {'-':>6}"
+        print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
+              f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}")  # fmt: skip
+    print(f"wrote {args.output}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -199,13 +241,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
     p.set_defaults(func=_extract)
+
+    p = sub.add_parser("synthesize-modes", help="paper-style synthetic modal data (noisy pole and shape samples)")
+    p.add_argument("model", help="model file (TOML), the calibrated FEM")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--truth", default="paper", help="truth file with hidden effects, or 'paper' (default: Table 2 FSI)")
+    p.add_argument("--samples", type=int, default=100, help="samples per mode J (default: 100)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default: 1)")
+    p.add_argument("--modes", type=int, default=None, help="number of modes (for a truth without per-mode effect)")
+    p.set_defaults(func=_synthesize_modes)
+
+    p = sub.add_parser("update", help="Bayesian updating from mode samples (APerCEM Gibbs sampler)")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("modes", help="modes file (NetCDF, mode x sample x channel)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (posterior.nc, ArviZ groups)")
+    p.add_argument("--params", default=None,
+                   help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks)")
+    p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
+    p.add_argument("--draws", type=int, default=500, help="draws kept per chain (default: 500)")
+    p.add_argument("--chains", type=int, default=4, help="number of chains (default: 4)")
+    p.add_argument("--burn-in", type=int, default=20, help="sweeps discarded per chain (default: 20)")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the chains")
+    p.set_defaults(func=_update)
     return parser
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings of the loop on one line (``twin: warning: ...``), others as Python prints them."""
+    if issubclass(category, TwinWarning):
+        print(f"twin: warning: {message}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr, end="")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``twin`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    warnings.showwarning = _show_warning
     try:
         return args.func(args)
     except TwinError as exc:

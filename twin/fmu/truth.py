@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from dataclasses import dataclass
 import logging
 
 import numpy as np
@@ -102,8 +103,67 @@ def truth_state_space(
     return dataclasses.replace(ss, attrs=attrs)
 
 
-def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping: tuple) -> StateSpace:
-    """Modal synthesis: target mode ``i`` from the FEM altered by ``(added_mass[i], added_damping[i])``.
+@dataclass(frozen=True)
+class TruthModes:
+    """Target modes of a truth, each from its own (altered) FEM.
+
+    Attributes
+    ----------
+    poles : (r,) complex
+        Poles [1/s], Im > 0, in target-mode order.
+    right, left : (r, 2 n_dof) complex
+        Right and left *state* eigenvectors (``left_i right_i = 1``); the
+        first ``n_dof`` entries of ``right`` are the mode shape on all DOFs.
+    wb : (r, p) complex
+        Input projection ``left_i B`` of each mode, ``B`` from its own FEM.
+    targets : (r,) int
+        Index of each mode among the dry FEM's modes (by frequency).
+    ss : StateSpace
+        The dry (no per-mode effect) full state space: ports, outputs, speed.
+    """
+
+    poles: np.ndarray
+    right: np.ndarray
+    left: np.ndarray
+    wb: np.ndarray
+    targets: np.ndarray
+    ss: StateSpace
+
+    @property
+    def shapes(self) -> np.ndarray:
+        """Mode shapes on all DOFs, ``(r, n_dof)`` complex (not normalised)."""
+        return self.right[:, : self.right.shape[1] // 2]
+
+
+def truth_modes(model: RotorModel, truth: Truth, n_modes: int | None = None) -> TruthModes:
+    """The truth's target modes on all DOFs (the paper's Figure 2 for a per-mode truth).
+
+    With a per-mode effect, mode ``i`` is taken from the FEM altered by that
+    mode's ``(m_i, c_i)`` (and ``n_modes`` defaults to the effect's count);
+    otherwise the lowest ``n_modes`` target modes of the altered FEM.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.fem.truthfile import paper_truth
+    >>> tm = truth_modes(load_model("models/hydro_unit.toml"), paper_truth())
+    >>> tm.shapes.shape
+    (15, 116)
+    """
+    altered = truth_model(model, truth)
+    per_mode = truth.per_mode
+    if per_mode is None:
+        ss = full_state_space(altered)
+        lam, right, left = state_modes(ss.A)
+        targets = target_mode_indices(lam, n_modes or len(lam))
+        return TruthModes(lam[targets], right[targets], left[targets], left[targets] @ ss.B, targets, ss)
+    if n_modes not in (None, per_mode.n_modes):
+        raise ModelError(f"the truth gives per-mode values for {per_mode.n_modes} modes, not {n_modes}")
+    return per_mode_fsi_modes(altered, per_mode.added_mass, per_mode.added_damping)
+
+
+def per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tuple) -> TruthModes:
+    """Target mode ``i`` from the FEM altered by ``(added_mass[i], added_damping[i])``.
 
     The added mass and damping are shared over the immersed DOFs like the
     mode-independent FSI effect (on top of it if the model has one).
@@ -119,7 +179,7 @@ def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping:
     dry = state(0.0, 0.0)
     lam0, right0, _ = state_modes(dry.A)
     targets = target_mode_indices(lam0, len(added_mass))
-    poles, cv, wb = [], [], []
+    poles, rights, lefts, wb = [], [], [], []
     for i, k in enumerate(targets):
         shape, lam = right0[k, :n_dof], lam0[k]
         for s in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
@@ -138,8 +198,16 @@ def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping:
                 log.warning("mode %d: continuation step s=%.2f matched with MAC %.2f only", i + 1, s, similarity[j])
             shape, lam = vecs[:n_dof, j], cand[j]
         poles.append(lam)
-        cv.append(ss.C @ right[j])
+        rights.append(right[j])
+        lefts.append(left[j])
         wb.append(left[j] @ ss.B)
-    attrs = {"basis": "modal", "synthesis": "per-mode FSI", "target_modes": [int(k) + 1 for k in targets]}
-    return modal_state_space(np.array(poles), np.array(cv).T, np.array(wb), dry.ports, dry.outputs,
+    return TruthModes(np.array(poles), np.array(rights), np.array(lefts), np.array(wb), targets, dry)
+
+
+def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping: tuple) -> StateSpace:
+    """Modal synthesis: target mode ``i`` from the FEM altered by ``(added_mass[i], added_damping[i])``."""
+    tm = per_mode_fsi_modes(model, added_mass, added_damping)
+    dry = tm.ss
+    attrs = {"basis": "modal", "synthesis": "per-mode FSI", "target_modes": [int(k) + 1 for k in tm.targets]}
+    return modal_state_space(tm.poles, dry.C @ tm.right.T, tm.wb, dry.ports, dry.outputs,
                              dry.speed_rpm, attrs)  # fmt: skip

@@ -1,0 +1,161 @@
+"""The Gibbs conditionals against brute force, on a small hand-built problem."""
+
+import numpy as np
+import pytest
+from scipy.integrate import trapezoid
+
+from twin.update.gibbs import (Prior, State, conditional_noise, conditional_own, conditional_shape, conditional_shared,
+                               gaussian_draw, initial_state, log_density, run_chain, sweep)  # fmt: skip
+from twin.update.problem import Problem, UpdateError, sparse_blocks
+
+I, J, N_R, N_PSI, N_E = 2, 6, 3, 2, 2
+N_Z = N_PSI + N_E
+
+
+@pytest.fixture
+def toy():
+    """Two modes, one shared and one own parameter, 3 residual rows, z = (2 shape entries, 2 perturbations)."""
+    rng = np.random.default_rng(3)
+    H = rng.standard_normal((I, 3, J, N_R, N_Z))
+    H[:, 2, :, 0] = 0.0  # the own parameter does not touch row 0: blocks must handle it
+    problem = Problem(
+        H0=H[:, 0].copy(), blocks=sparse_blocks(H[:, 1:]), data_index=np.arange(N_PSI),
+        eps_index=N_PSI + np.arange(N_E), psi_hat=rng.standard_normal((I, J, N_PSI)),
+        psi_var=np.full((I, N_PSI), 0.3), global_names=["a"], global_scale=np.ones(1), global_nominal=np.ones(1),
+        mode_names=["b"], mode_scale=np.ones((I, 1)), mode_nominal=np.zeros((I, 1)), modes=np.array([1, 2]),
+        channels=["c"], method="stage 2", eps_std=0.2, margin=np.full(I, np.inf), resonance_hz=np.full(I, np.nan),
+    )  # fmt: skip
+    state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_Z)),
+                  rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
+    return problem, state, H
+
+
+def _residual(H, c, z):
+    """r[i, j, :] = Σ_k c[i, k] H[i, k, j] z[i]: the definition, written out."""
+    return np.einsum("ik,ikjrz,iz->ijr", c, H, z)
+
+
+def _log_lik(H, c, z, w):
+    return -0.5 * np.sum(w[:, None, :] * _residual(H, c, z) ** 2)
+
+
+def _grid_moments(logp, lo, hi, n=20001):
+    x = np.linspace(lo, hi, n)
+    lp = np.array([logp(v) for v in x])
+    p = np.exp(lp - lp.max())
+    p /= trapezoid(p, x)
+    mean = trapezoid(x * p, x)
+    return mean, trapezoid((x - mean) ** 2 * p, x)
+
+
+def test_shared_parameter_conditional_matches_numerical_integration(toy):
+    problem, state, H = toy
+    P, b = conditional_shared(problem, state, Prior.flat(problem))
+
+    def logp(t):
+        c = np.stack([np.ones(I), np.full(I, t), state.eta[:, 0]], axis=1)
+        return _log_lik(H, c, state.z, state.w)
+
+    assert P.shape == (1, 1)
+    mean, var = _grid_moments(logp, -20, 20)
+    np.testing.assert_allclose([b[0] / P[0, 0], 1 / P[0, 0]], [mean, var], rtol=1e-6, atol=1e-9)
+
+
+def test_own_parameter_conditional_matches_numerical_integration(toy):
+    problem, state, H = toy
+    P, b = conditional_own(problem, state, Prior.flat(problem))
+    for i in range(I):
+        def logp(e, i=i):
+            eta = state.eta.copy()
+            eta[i, 0] = e
+            c = np.stack([np.ones(I), np.full(I, state.t[0]), eta[:, 0]], axis=1)
+            return _log_lik(H, c, state.z, state.w)
+
+        mean, var = _grid_moments(logp, -20, 20)
+        np.testing.assert_allclose([b[i, 0] / P[i, 0, 0], 1 / P[i, 0, 0]], [mean, var], rtol=1e-6, atol=1e-9)
+
+
+def test_gaussian_prior_adds_its_precision(toy):
+    problem, state, _ = toy
+    flat = conditional_shared(problem, state, Prior.flat(problem))
+    prior = Prior(np.array([2.0]), np.array([5.0]), np.zeros((I, 1)), np.zeros((I, 1)))
+    P, b = conditional_shared(problem, state, prior)
+    np.testing.assert_allclose([P[0, 0], b[0]], [flat[0][0, 0] + 5.0, flat[1][0] + 10.0])
+
+
+def test_shape_conditional_matches_the_brute_force_quadratic_form(toy):
+    problem, state, H = toy
+    P, b = conditional_shape(problem, state)
+    c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
+    for i in range(I):
+        def logp(z, i=i):
+            zz = state.z.copy()
+            zz[i] = z
+            data = -0.5 * np.sum((problem.psi_hat[i] - z[:N_PSI]) ** 2 / problem.psi_var[i])
+            return _log_lik(H, c, zz, state.w) + data - 0.5 * np.sum(z[N_PSI:] ** 2) / problem.eps_std**2
+
+        # the log density is quadratic: its Hessian (central differences) is -P, its gradient at 0 is b
+        h, e = 1e-3, np.eye(N_Z)
+        hess = np.array([[(logp(h * (e[a] + e[d])) - logp(h * (e[a] - e[d])) - logp(h * (e[d] - e[a]))
+                           + logp(-h * (e[a] + e[d]))) / (4 * h * h) for d in range(N_Z)] for a in range(N_Z)])  # fmt: skip
+        grad = np.array([(logp(h * e[a]) - logp(-h * e[a])) / (2 * h) for a in range(N_Z)])
+        np.testing.assert_allclose(-hess, P[i], rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(grad, b[i], rtol=1e-5, atol=1e-6)
+
+
+def test_noise_conditional_matches_numerical_integration(toy):
+    problem, state, H = toy
+    a, rate = conditional_noise(problem, state)
+    c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
+    ss = np.sum(_residual(H, c, state.z) ** 2, axis=1)  # (I, n_r)
+    for i, r in [(0, 0), (1, 2)]:
+        # Jeffreys prior 1/Δ times the Gaussian likelihood of the J residuals of that row
+        def logp(log_d, i=i, r=r):
+            d = np.exp(log_d)
+            return -0.5 * J * log_d - 0.5 * ss[i, r] / d  # density of log Δ (the Jacobian cancels 1/Δ)
+
+        # E[1/Δ] by integration over log Δ against the Gamma(a, rate) mean a / rate
+        x = np.linspace(-12, 8, 40001)
+        lp = np.array([logp(v) for v in x])
+        p = np.exp(lp - lp.max())
+        mean_w = trapezoid(np.exp(-x) * p, x) / trapezoid(p, x)
+        np.testing.assert_allclose(a / rate[i, r], mean_w, rtol=1e-6)
+
+
+def test_gaussian_draw_has_the_right_mean_and_covariance():
+    rng = np.random.default_rng(0)
+    P = np.array([[4.0, 1.0], [1.0, 2.0]])
+    b = np.array([1.0, -1.0])
+    x = gaussian_draw(np.broadcast_to(P, (200_000, 2, 2)), np.broadcast_to(b, (200_000, 2)), rng)
+    np.testing.assert_allclose(x.mean(axis=0), np.linalg.solve(P, b), atol=5e-3)
+    np.testing.assert_allclose(np.cov(x.T), np.linalg.inv(P), atol=5e-3)
+
+
+def test_sweeps_sample_the_shared_conditional(toy):
+    # with z and Δ fixed, the t-step alone draws from N(P^-1 b, P^-1)
+    problem, state, _ = toy
+    P, b = conditional_shared(problem, state, Prior.flat(problem))
+    rng = np.random.default_rng(1)
+    draws = [gaussian_draw(P, b, rng)[0] for _ in range(20000)]
+    assert abs(np.mean(draws) - b[0] / P[0, 0]) < 4 * np.sqrt(1 / P[0, 0] / 20000)
+    assert np.std(draws) == pytest.approx(np.sqrt(1 / P[0, 0]), rel=0.03)
+
+
+def test_chain_runs_from_zero_and_reports_the_log_density(toy):
+    problem, _, _ = toy
+    chain = run_chain(problem, 50, burn_in=5, rng=np.random.default_rng(2))
+    assert chain.t.shape == (50, 1) and chain.eta.shape == (50, I, 1) and chain.psi.shape == (50, I, N_PSI)
+    assert np.all(np.isfinite(chain.lp)) and np.all(chain.noise > 0)
+    state = initial_state(problem)
+    assert np.all(state.t == 0) and np.all(state.eta == 0)
+    lp = sweep(problem, state, Prior.flat(problem), np.random.default_rng(3))
+    assert lp == pytest.approx(log_density(problem, state))
+
+
+def test_a_parameter_with_no_effect_is_named(toy):
+    problem, state, H = toy
+    H = H.copy()
+    H[:, 1] = 0.0  # the shared parameter touches nothing
+    dead = Problem(**{**problem.__dict__, "blocks": sparse_blocks(H[:, 1:])})
+    with pytest.raises(UpdateError, match="cannot determine.*: a"):
+        sweep(dead, state, Prior.flat(dead), np.random.default_rng(0))

@@ -1,0 +1,161 @@
+"""update(): paper Cases A and B, the zero-noise limit, the posterior file, bad input, the CLI."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from twin.cli import main
+from twin.errors import ModelError, TwinWarning
+from twin.extract.modesfile import write_modes
+from twin.fem.effects import FluidAddedMassPerMode
+from twin.fem.truthfile import PAPER_TABLE2
+from twin.update import UpdateError, apply_posterior, read_posterior, summary, synthesize_modes, update
+from twin.update.problem import select_parameters
+
+
+def _truth(model):
+    out = {n: model.parameter(n).nominal for n in select_parameters(model, "bearings")}
+    for i, (m, c) in enumerate(zip(PAPER_TABLE2.added_mass, PAPER_TABLE2.added_damping), start=1):
+        out[f"FSI.added_mass_{i}"], out[f"FSI.added_damping_{i}"] = m, c
+    return out
+
+
+def _run(model, data, params, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", TwinWarning)
+        tree = update(model, data, params, fsi=True, progress=False, **kw)
+    return tree, [str(w.message) for w in caught]
+
+
+def test_gibbs_reduces_to_the_exact_answer_as_the_noise_goes_to_zero(hydro_unit):
+    data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
+    tree, _ = _run(hydro_unit, data, "bearings", draws=30, chains=1, seed=0, eps_std=1e-9)
+    table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
+    assert table.sizes["parameter"] == 46
+    np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
+
+
+def test_case_b_regression_on_paper_data(hydro_unit, paper_modes):
+    tree, messages = _run(hydro_unit, paper_modes, "bearings", draws=200, chains=2, seed=1)
+    table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
+    err = {str(p): float(e) for p, e in zip(table["parameter"].values, table["map_error"].values)}
+    well_determined = ["UGB.kxx", "UGB.kyx", "UGB.kyy", "UGB.cxx", "UGB.cyy", "LGB.kxy", "LGB.kyx", "LGB.cxx",
+                       "LGB.cyy", "FSI.added_mass_3", "FSI.added_mass_4", "FSI.added_mass_10",
+                       "FSI.added_damping_2", "FSI.added_damping_4", "FSI.added_damping_10",
+                       "FSI.added_damping_11", "FSI.added_damping_14"]  # fmt: skip
+    for name in well_determined:
+        assert abs(err[name]) < 0.035, (name, err[name])
+    # the modes near a resonance of the unobserved DOFs are flagged, and the hardly determined parameters named
+    flagged = {int(m.split()[1]) for m in messages if "resonance of the unobserved" in m}
+    assert flagged == {5, 6, 12, 13, 15}
+    assert any("hardly determine" in m and "LGB.kyy" in m for m in messages)
+    assert float(table["r_hat"].sel(parameter="UGB.kxx")) < 1.05
+
+
+def test_case_a_regression_and_burn_in_from_zero(hydro_unit, paper_modes):
+    tree, _ = _run(hydro_unit, paper_modes, None, draws=150, chains=1, seed=2, burn_in=0)
+    post = tree["posterior"]
+    mass = post["added_mass"].isel(chain=0).values
+    for mode in (3, 4, 10, 11):  # runner-dominated modes: ~1-3% as in the paper
+        assert abs(np.median(mass[:, mode - 1]) / PAPER_TABLE2.added_mass[mode - 1] - 1) < 0.04
+    # started from zero, the chain is in its stationary range within 10 sweeps (the paper: burn-in < 10)
+    m10 = mass[:, 9]
+    lo, hi = np.quantile(m10[50:], [0.005, 0.995])
+    assert np.all((m10[10:] > lo - (hi - lo)) & (m10[10:] < hi + (hi - lo)))
+    assert post["added_damping"].attrs["units"] == "N s/m"
+
+
+def test_posterior_file_round_trip_through_arviz_and_datatree(hydro_unit, paper_modes, tmp_path):
+    az = pytest.importorskip("arviz")
+    sub = paper_modes.isel(mode=[2, 3, 9])
+    out = tmp_path / "posterior.nc"
+    tree, _ = _run(hydro_unit, sub, "LGB.k*", draws=40, chains=2, seed=5, output=out)
+    idata = az.from_netcdf(out)
+    assert set(idata.groups()) >= {"posterior", "sample_stats", "observed_data", "constant_data"}
+    assert idata.posterior["theta"].dims == ("chain", "draw", "parameter")
+    assert list(idata.posterior["parameter"].values) == ["LGB.kxx", "LGB.kxy", "LGB.kyx", "LGB.kyy"]
+    assert idata.posterior["added_mass"].dims == ("chain", "draw", "mode")
+    back = read_posterior(out)
+    xr.testing.assert_allclose(back["posterior"]["theta"], tree["posterior"]["theta"])
+    with xr.open_datatree(out) as dt:
+        assert "shape_real" in dt["posterior"] and dt.attrs["condensation"] == "stage 2"
+    settings = json.loads(back.attrs["settings"])
+    assert settings["draws"] == 40 and settings["params"][0] == "LGB.kxx"
+    assert "truth" in back.attrs and set(json.loads(back.attrs["diagnostics"])) >= {"LGB.kxy", "FSI.added_mass_3"}
+
+
+def test_apply_posterior_updates_the_twin(hydro_unit):
+    post = xr.Dataset(
+        {"theta": (("chain", "draw", "parameter"), np.full((1, 4, 1), 7.0e8)),
+         "added_mass": (("chain", "draw", "mode"), np.full((1, 4, 2), 5.0e4)),
+         "added_damping": (("chain", "draw", "mode"), np.full((1, 4, 2), 1.0e6))},
+        coords={"parameter": ["UGB.kxx"], "mode": [1, 2]},
+    )  # fmt: skip
+    m = apply_posterior(hydro_unit, post, "mean")
+    assert m.parameter("UGB.kxx").nominal == 7.0e8
+    fsi = [e for e in m.effects if isinstance(e, FluidAddedMassPerMode)]
+    assert fsi and fsi[0].added_mass == (5.0e4, 5.0e4)
+    assert m.parameter("FSI.added_damping_2").nominal == 1.0e6
+    with pytest.raises(Exception, match="modes 1..n"):
+        apply_posterior(hydro_unit, post.assign_coords(mode=[3, 4]))
+
+
+def test_bad_requests_are_named(hydro_unit, paper_modes):
+    sub = paper_modes.isel(mode=[2, 3])
+    with pytest.raises(UpdateError, match="nothing to update"):
+        update(hydro_unit, sub, None, progress=False)
+    with pytest.raises(ModelError, match="no parameter 'UGB.kzz'"):
+        update(hydro_unit, sub, "UGB.kzz", progress=False)
+    with pytest.raises(ModelError, match="matches no parameter"):
+        update(hydro_unit, sub, "XYZ.*", progress=False)
+    with pytest.raises(UpdateError, match="draws must be"):
+        update(hydro_unit, sub, None, fsi=True, draws=0, progress=False)
+    bad = sub.copy(deep=True)
+    bad["pole"][1, 7] = np.nan
+    with pytest.raises(UpdateError, match="'pole' is not finite at mode=4, sample=7"):
+        update(hydro_unit, bad, None, fsi=True, progress=False)
+    renamed = sub.assign_coords(channel=["SEAL_x", "SEAL_y", "UGB_x", "UGB_y", "LGB_x", "LGB_y", "GEN_x", "EXC_y"])
+    with pytest.raises(UpdateError, match=r"channel\(s\) \['EXC_y'\] are not sensors"):
+        update(hydro_unit, renamed, None, fsi=True, progress=False)
+    with pytest.raises(UpdateError, match="prior given for 'UGB.kxx', which is not updated"):
+        update(hydro_unit, sub, None, fsi=True, priors={"UGB.kxx": (1e9, 1e8)}, progress=False)
+    # the runner mass and the per-mode added mass have the same footprint: not identifiable together
+    with pytest.raises(UpdateError, match="cannot determine.*runner.m"):
+        update(hydro_unit, sub, "runner.m", fsi=True, draws=5, chains=1, progress=False)
+
+
+def test_synthetic_modes_follow_the_paper_noise_model(hydro_unit, paper_truth_modes):
+    ds = synthesize_modes(hydro_unit, samples=4000, seed=7)
+    dev = ds["pole"].values - paper_truth_modes.poles[:, None]
+    np.testing.assert_allclose(np.var(dev.real, axis=1).mean(), 1.58, rtol=0.03)
+    np.testing.assert_allclose(np.var(dev.imag, axis=1).mean(), 1.1, rtol=0.03)
+    shape = ds["shape"].values
+    true = ds["sensor_shape"].values
+    big = np.abs(true.real) > 0.1
+    cov = np.std(shape.real, axis=1) / np.abs(true.real)
+    np.testing.assert_allclose(cov[big].mean(), 0.05, rtol=0.05)
+    assert json.loads(ds.attrs["truth"])["effects"]["fsi_per_mode"]["added_mass"][0] == 1.0e5
+    np.testing.assert_allclose(ds["frequency"].values, paper_truth_modes.poles.imag / (2 * np.pi))
+
+
+def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
+    modes = tmp_path / "modes.nc"
+    assert main(["synthesize-modes", "models/hydro_unit.toml", "-o", str(modes), "--samples", "20", "--seed", "4"]) == 0
+    sub = tmp_path / "sub.nc"
+    from twin.extract.modesfile import read_modes
+
+    write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
+    post = tmp_path / "post.nc"
+    code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
+                 "--chains", "2", "--seed", "1"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
+    assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
+    assert "nothing to update" in capsys.readouterr().err
+    assert main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"),
+                 "--fsi"]) == 2  # fmt: skip
+    assert "no such modes file" in capsys.readouterr().err
+    assert not (tmp_path / "x.nc").exists()

@@ -1,0 +1,339 @@
+"""The APerCEM Gibbs sampler (DESIGN section 5, the paper's Table 1).
+
+For mode ``i`` and pole sample ``j`` the real-augmented PerCEM residual is
+
+    r_ij = Σ_k c_ik H_ijk z_i,   c_i = [1, t, η_i],   z_i = [x_i*; e_i*],
+
+linear in the parameters ``c`` for fixed ``z`` and in ``z`` for fixed ``c``.
+The statistical model: ``r_ij ~ N(0, Δ_i)`` with diagonal unknown ``Δ_i``
+(Jeffreys prior), shape samples ``ψ̂_ij* ~ N(ψ_i*, Σ_i)`` (Σ_i from the data),
+``e_i* ~ N(0, σ² I)``, flat or Gaussian priors on the scaled parameters.
+
+One sweep draws, each from its closed-form conditional:
+
+1. ``t | rest`` (shared parameters): Gaussian;
+2. ``η_i | rest`` for every mode (the mode's own parameters): Gaussian;
+3. ``(ψ_i, ε_i) | rest``: Gaussian, drawn as one block (their joint
+   conditional; a blocked version of the paper's two steps, which mixes at
+   least as well);
+4. ``Δ_i | rest``: inverse-gamma per row.
+
+All modes are handled at once with batched dense algebra; the basis matrices
+were built once (:func:`twin.update.problem.build_problem`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from twin.update.problem import Problem, UpdateError
+
+log = logging.getLogger(__name__)
+
+#: Eigenvalue ratio of the (unit-diagonal) parameter precision below which parameters are not identifiable.
+SINGULAR_RATIO = 1e-13
+
+
+@dataclass
+class State:
+    """One state of the chain, in scaled coordinates."""
+
+    t: np.ndarray  # (Kg,)
+    eta: np.ndarray  # (I, Km)
+    z: np.ndarray  # (I, n_z)
+    w: np.ndarray  # (I, n_r) = 1 / Δ
+
+
+@dataclass(frozen=True)
+class Prior:
+    """Independent Gaussian priors on the scaled parameters (precision 0: flat).
+
+    ``global_mean``/``global_precision`` are ``(Kg,)``, ``mode_mean``/``mode_precision`` ``(I, Km)``.
+    """
+
+    global_mean: np.ndarray
+    global_precision: np.ndarray
+    mode_mean: np.ndarray
+    mode_precision: np.ndarray
+
+    @classmethod
+    def flat(cls, problem: Problem) -> Prior:
+        """Flat priors on every parameter (the paper's choice)."""
+        I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
+        return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)))
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Draws of one chain (scaled parameters; see :class:`Problem` for the scales)."""
+
+    t: np.ndarray  # (draws, Kg)
+    eta: np.ndarray  # (draws, I, Km)
+    psi: np.ndarray  # (draws, I, n_psi)
+    noise: np.ndarray  # (draws, I): mean of Δ_i over rows
+    lp: np.ndarray  # (draws,): log joint density, up to a constant
+
+
+def gaussian_draw(P: np.ndarray, b: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw from ``N(P⁻¹ b, P⁻¹)`` for a batch of precisions ``P`` (..., n, n) and ``b`` (..., n).
+
+    Raises ``numpy.linalg.LinAlgError`` when a ``P`` is not positive definite.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> x = gaussian_draw(np.eye(2)[None] * 1e12, np.array([[2e12, 3e12]]), rng)
+    >>> np.round(x, 3)
+    array([[2., 3.]])
+    """
+    L = np.linalg.cholesky(P)
+    mean = np.linalg.solve(P, b[..., None])[..., 0]
+    xi = rng.standard_normal(b.shape)
+    return mean + np.linalg.solve(np.swapaxes(L, -1, -2), xi[..., None])[..., 0]
+
+
+def _design(problem: Problem, z: np.ndarray) -> np.ndarray:
+    """``D[i, k, (j, r)] = (H_ijk z_i)_r``: the residual's column per basis (k = 0 the fixed part)."""
+    I, J, n_r, n_z = problem.H0.shape
+    K = problem.n_global + problem.n_per_mode
+    D = np.zeros((I, 1 + K, J, n_r))
+    for i in range(I):
+        D[i, 0] = (problem.H0[i].reshape(-1, n_z) @ z[i]).reshape(J, n_r)
+        for b in problem.blocks:
+            D[i, 1 + b.columns[:, None], :, b.rows] = np.moveaxis((b.H[i].reshape(-1, n_z) @ z[i]).reshape(
+                len(b.columns), J, len(b.rows)), 2, 1)  # fmt: skip
+    return D.reshape(I, 1 + K, J * n_r)
+
+
+def _coefficients(problem: Problem, state: State) -> np.ndarray:
+    I = problem.n_modes
+    return np.concatenate([np.ones((I, 1)), np.broadcast_to(state.t, (I, problem.n_global)), state.eta], axis=1)
+
+
+def _combined(problem: Problem, c: np.ndarray) -> np.ndarray:
+    """``Σ_k c_ik H_ijk``: shape (I, J n_r, n_z)."""
+    I, J, n_r, n_z = problem.H0.shape
+    Hc = problem.H0.copy()
+    for i in range(I):
+        for b in problem.blocks:
+            Hc[i][:, b.rows] += np.tensordot(c[i, 1 + b.columns], b.H[i], axes=1)
+    return Hc.reshape(I, J * n_r, n_z)
+
+
+def parameter_precision(problem: Problem, state: State) -> np.ndarray:
+    """Joint conditional precision of all scaled parameters ``[t, η_1, ..., η_I]`` at ``state``."""
+    I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
+    D = _design(problem, state.z)[:, 1:]
+    wJ = np.tile(state.w, problem.n_samples)
+    blocks = (D * wJ[:, None, :]) @ np.swapaxes(D, 1, 2)  # (I, K, K)
+    n = Kg + I * Km
+    P = np.zeros((n, n))
+    P[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
+    for i in range(I):
+        sl = slice(Kg + i * Km, Kg + (i + 1) * Km)
+        P[:Kg, sl] = blocks[i, :Kg, Kg:]
+        P[sl, :Kg] = blocks[i, Kg:, :Kg]
+        P[sl, sl] = blocks[i, Kg:, Kg:]
+    return P
+
+
+def not_identifiable(problem: Problem, state: State) -> list[str]:
+    """Parameters the data cannot determine at ``state`` (empty when all can be).
+
+    Works on the unit-diagonal joint conditional precision of the scaled
+    parameters: a parameter with no effect on the residual, or with a large
+    share in a near-null direction (eigenvalue ratio below
+    :data:`SINGULAR_RATIO`), is named.
+    """
+    names = problem.parameter_labels
+    P = parameter_precision(problem, state)
+    diag = np.diag(P).copy()
+    dead = [names[k] for k in np.flatnonzero(diag <= 0)]
+    if dead:
+        return dead
+    d = 1 / np.sqrt(diag)
+    ev, vec = np.linalg.eigh(P * d[:, None] * d[None, :])
+    small = ev < SINGULAR_RATIO * ev[-1]
+    involved = np.flatnonzero(np.any(np.abs(vec[:, small]) > 0.2, axis=1))
+    return [names[k] for k in involved]
+
+
+def initial_state(problem: Problem) -> State:
+    """Parameters at zero; ``z`` its conditional mean there (ψ near the data mean); ``Δ`` from the residual."""
+    I, J, n_r, n_z = problem.H0.shape
+    state = State(np.zeros(problem.n_global), np.zeros((I, problem.n_per_mode)), np.zeros((I, n_z)), np.ones((I, n_r)))
+    Hc = _combined(problem, _coefficients(problem, state))
+    P, b = _shape_system(problem, Hc, np.tile(state.w, J))
+    state.z = np.linalg.solve(P, b[..., None])[..., 0]
+    r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
+    ms = np.mean(r**2, axis=1)
+    state.w = 1.0 / np.where(ms > 0, ms, 1.0)
+    return state
+
+
+def _shape_system(problem: Problem, Hc: np.ndarray, wJ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Precision and right-hand side of the ``z = (ψ, ε)`` conditional."""
+    I, J, n_r, n_z = problem.H0.shape
+    prec = np.zeros((I, n_z))
+    prec[:, problem.data_index] = J / problem.psi_var
+    prec[:, problem.eps_index] = 1.0 / problem.eps_std**2
+    b = np.zeros((I, n_z))
+    b[:, problem.data_index] = problem.psi_hat.sum(axis=1) / problem.psi_var
+    P = np.swapaxes(Hc * wJ[:, :, None], 1, 2) @ Hc
+    P[:, np.arange(n_z), np.arange(n_z)] += prec
+    return P, b
+
+
+def _not_identifiable(problem: Problem, state: State) -> UpdateError:
+    bad = not_identifiable(problem, state)
+    which = ", ".join(bad) if bad else "(no single parameter stands out)"
+    return UpdateError(f"the data cannot determine these parameters (singular conditional): {which}")
+
+
+def conditional_shared(
+    problem: Problem, state: State, prior: Prior, D: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Precision ``P`` and ``b`` (mean ``P⁻¹ b``) of the shared parameters ``t | rest``.
+
+    ``D`` is the design at ``state.z`` when already computed.
+    """
+    Kg = problem.n_global
+    wJ = np.tile(state.w, problem.n_samples)  # (I, J n_r), row index fastest
+    D = _design(problem, state.z) if D is None else D
+    D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
+    DgW = Dg * wJ[:, None, :]
+    off = D0 + np.einsum("ik,ikn->in", state.eta, Dm)
+    P = (DgW @ np.swapaxes(Dg, 1, 2)).sum(axis=0) + np.diag(prior.global_precision)
+    b = -np.einsum("ikn,in->k", DgW, off) + prior.global_precision * prior.global_mean
+    return P, b
+
+
+def conditional_own(
+    problem: Problem, state: State, prior: Prior, D: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Precisions ``(I, Km, Km)`` and ``b`` ``(I, Km)`` of each mode's own parameters ``η_i | rest``."""
+    Kg = problem.n_global
+    wJ = np.tile(state.w, problem.n_samples)
+    D = _design(problem, state.z) if D is None else D
+    D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
+    DmW = Dm * wJ[:, None, :]
+    off = D0 + np.einsum("k,ikn->in", state.t, Dg)
+    P = DmW @ np.swapaxes(Dm, 1, 2) + prior.mode_precision[:, :, None] * np.eye(problem.n_per_mode)
+    b = -np.einsum("ikn,in->ik", DmW, off) + prior.mode_precision * prior.mode_mean
+    return P, b
+
+
+def conditional_shape(problem: Problem, state: State, Hc: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Precisions ``(I, n_z, n_z)`` and ``b`` of ``z_i = (ψ_i, ε_i) | rest``.
+
+    ``Hc`` is ``Σ_k c_k H_k`` at the state's parameters when already computed.
+    """
+    Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
+    return _shape_system(problem, Hc, np.tile(state.w, problem.n_samples))
+
+
+def conditional_noise(problem: Problem, state: State, Hc: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """Shape ``a`` and rates ``(I, n_r)`` of ``1/Δ_ir | rest ~ Gamma(a, rate)`` (Jeffreys prior on Δ)."""
+    I, J, n_r, n_z = problem.H0.shape
+    Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
+    r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
+    return J / 2.0, np.maximum(0.5 * np.sum(r**2, axis=1), np.finfo(float).tiny)
+
+
+def log_density(problem: Problem, state: State, rate: np.ndarray | None = None) -> float:
+    """Log joint density of ``state`` and the data, up to a constant (flat parameter priors).
+
+    ``rate`` is :func:`conditional_noise`'s at the state when already computed.
+    """
+    J = problem.n_samples
+    rate = conditional_noise(problem, state)[1] if rate is None else rate
+    psi = state.z[:, problem.data_index]
+    return float(0.5 * J * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w))
+                 - 0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
+                 - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2)  # fmt: skip
+
+
+def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator) -> float:
+    """One Gibbs sweep (t, then η_i, then (ψ_i, ε_i), then Δ_i), updating ``state`` in place.
+
+    Returns the log joint density at the new state (up to a constant).
+    """
+    D = _design(problem, state.z)  # depends on z only: shared by the t and η steps
+    try:
+        if problem.n_global:
+            state.t = gaussian_draw(*conditional_shared(problem, state, prior, D), rng)
+        if problem.n_per_mode:
+            state.eta = gaussian_draw(*conditional_own(problem, state, prior, D), rng)
+    except np.linalg.LinAlgError:
+        raise _not_identifiable(problem, state) from None
+    Hc = _combined(problem, _coefficients(problem, state))
+    try:
+        state.z = gaussian_draw(*conditional_shape(problem, state, Hc), rng)
+    except np.linalg.LinAlgError:
+        raise UpdateError("the shape conditional is singular: too few rows for the latent shape entries") from None
+    a, rate = conditional_noise(problem, state, Hc)
+    state.w = rng.gamma(a, 1.0 / rate)
+    return log_density(problem, state, rate)
+
+
+def run_chain(
+    problem: Problem,
+    draws: int,
+    *,
+    burn_in: int = 0,
+    prior: Prior | None = None,
+    rng: np.random.Generator | None = None,
+    state: State | None = None,
+    progress: bool = False,
+    label: str = "Gibbs",
+) -> Chain:
+    """Run one chain: ``burn_in`` sweeps discarded, then ``draws`` kept.
+
+    Starts from :func:`initial_state` (parameters at zero) unless ``state`` is given.
+    """
+    prior = prior or Prior.flat(problem)
+    rng = rng or np.random.default_rng()
+    state = state or initial_state(problem)
+    I = problem.n_modes
+    out_t = np.empty((draws, problem.n_global))
+    out_eta = np.empty((draws, I, problem.n_per_mode))
+    out_psi = np.empty((draws, I, len(problem.data_index)))
+    noise, lps = np.empty((draws, I)), np.empty(draws)
+    for n in tqdm(range(burn_in + draws), desc=label, disable=not progress, leave=False):
+        lp = sweep(problem, state, prior, rng)
+        k = n - burn_in
+        if k >= 0:
+            out_t[k], out_eta[k] = state.t, state.eta
+            out_psi[k] = state.z[:, problem.data_index]
+            noise[k] = np.mean(1.0 / state.w, axis=1)
+            lps[k] = lp
+    return Chain(out_t, out_eta, out_psi, noise, lps)
+
+
+def run_chains(
+    problem: Problem,
+    draws: int,
+    chains: int,
+    *,
+    burn_in: int = 0,
+    prior: Prior | None = None,
+    seed: int | None = None,
+    progress: bool = False,
+) -> list[Chain]:
+    """Run independent chains (seeds spawned from ``seed``), each from zero."""
+    seeds = np.random.SeedSequence(seed).spawn(chains)
+    return [
+        run_chain(problem, draws, burn_in=burn_in, prior=prior, rng=np.random.default_rng(s), progress=progress,
+                  label=f"chain {c + 1}/{chains}")  # fmt: skip
+        for c, s in enumerate(seeds)
+    ]
+
+
+def stack(chains: Sequence[Chain]) -> Chain:
+    """Chains stacked on a leading ``chain`` axis."""
+    return Chain(*(np.stack([getattr(c, f) for c in chains]) for f in ("t", "eta", "psi", "noise", "lp")))
