@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -336,4 +336,4 @@ def run_chains(
 
 def stack(chains: Sequence[Chain]) -> Chain:
     """Chains stacked on a leading ``chain`` axis."""
-    return Chain(*(np.stack([getattr(c, f) for c in chains]) for f in ("t", "eta", "psi", "noise", "lp")))
+    return Chain(*(np.stack([getattr(c, f.name) for c in chains]) for f in fields(Chain)))

@@ -98,7 +98,7 @@ def summary(posterior: xr.Dataset, truth: Mapping[str, float] | None = None) -> 
         {
             "mean": flat.mean("sample"),
             "std": flat.std("sample", ddof=1),
-            "map": ("parameter", [posterior_mode(flat.sel(parameter=p).values) for p in draws["parameter"].values]),
+            "map": ("parameter", list(estimates(posterior, "map").values())),
             "q05": flat.quantile(0.05, "sample").drop_vars("quantile"),
             "q95": flat.quantile(0.95, "sample").drop_vars("quantile"),
         }

@@ -28,7 +28,7 @@ import xarray as xr
 from twin.errors import ModelError, TwinError
 from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
-from twin.fem.parameters import Parameter
+from twin.fem.parameters import MATRIX_KINDS, Parameter
 from twin.modes.analysis import state_matrix
 from twin.update.condense import LATENT_SHAPE, condense, dynamic_stiffness, parametrised_dofs, real_augment
 
@@ -192,8 +192,7 @@ def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> li
         elif any(ch in item for ch in "*?["):
             found = fnmatch.filter(names, item)
         else:
-            model.parameter(item)  # error with close names if unknown
-            if model.parameter(item).per_mode:
+            if model.parameter(item).per_mode:  # an unknown name raises, listing close names
                 raise ModelError(f"'{item}' is a per-mode parameter: update it with --fsi")
             found = [item]
         if not found:
@@ -204,15 +203,13 @@ def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> li
 
 
 def _basis(p: Parameter, n: int) -> dict[str, np.ndarray]:
-    out = {k: np.zeros((n, n)) for k in "MCGK"}
-    for t in p.terms:
-        t.add_to(out[t.kind])
-    return out
+    """The parameter's footprint matrices ``M, C, G, K``, dense."""
+    return {k: p.footprint(k, n).toarray() for k in MATRIX_KINDS}
 
 
 def _zero_nominal_scale(nominal_mats, basis, poles: np.ndarray, speed: float) -> float:
     """Parameter value at which its dynamic stiffness equals the nominal one on its DOFs."""
-    dofs = np.flatnonzero(np.any([np.any(m != 0, axis=0) for m in basis.values()], axis=0))
+    dofs = parametrised_dofs([basis])
     idx = np.ix_(dofs, dofs)
     lam = np.array([np.mean(poles)])
     z_nom = dynamic_stiffness({k: v[idx] for k, v in nominal_mats.items()}, lam, speed)[0]
@@ -270,8 +267,9 @@ def check_modes(modes: xr.Dataset, source: str) -> None:
             idx = np.argwhere(bad)[0]
             where = ", ".join(f"{d}={modes[d].values[i]}" for d, i in zip(modes[v].dims, idx))
             raise UpdateError(f"{source}: '{v}' is not finite at {where}")
-    if np.any(modes["pole"].values.imag <= 0):
-        mode = modes["mode"].values[np.any(modes["pole"].values.imag <= 0, axis=1)][0]
+    wrong_half = np.any(modes["pole"].values.imag <= 0, axis=1)
+    if wrong_half.any():
+        mode = modes["mode"].values[wrong_half][0]
         raise UpdateError(f"{source}: mode {mode} has pole samples with Im <= 0 (expected the Im > 0 pole)")
 
 
@@ -328,8 +326,9 @@ def build_problem(
     global_scale = np.abs(global_nominal)
     for k in np.flatnonzero(global_scale == 0):
         global_scale[k] = np.median([_zero_nominal_scale(nominal_mats, bases[k], pm, speed) for pm in poles])
-    mode_scale = np.array([[_zero_nominal_scale(nominal_mats, b, pm, speed) for b in fsi_bases] for pm in poles])
-    mode_scale = np.where(mode_nominal != 0, np.abs(mode_nominal), mode_scale.reshape(mode_nominal.shape))
+    # per-mode FSI has no nominal value in the model: its scale is always the dynamic-stiffness one
+    mode_scale = np.array([[_zero_nominal_scale(nominal_mats, b, pm, speed) for b in fsi_bases]
+                           for pm in poles]).reshape(mode_nominal.shape)  # fmt: skip
 
     margin, resonance = _condensation_margins(fixed, bases + fsi_bases, observed, poles, speed)
     condensed = [condense(fixed, bases + fsi_bases, observed, pm, speed) for pm in poles]
