@@ -58,3 +58,48 @@ def test_export_fmu_command(tmp_path, capsys):
     assert main(["export-fmu", "models/hydro_unit.toml", "-o", str(tmp_path / "b.fmu"), "--inputs", "shaft.x"]) == 2
     assert "no node, disk, bearing or sensor called 'shaft'" in capsys.readouterr().err
     assert not (tmp_path / "b.fmu").exists()
+
+
+def _hidden_pull_modes(tmp_path):
+    from twin import load_model
+    from twin.extract import write_modes
+    from twin.fem.effects import MagneticPull
+    from twin.fem.truthfile import Truth
+    from twin.update import synthesize_modes
+
+    data = synthesize_modes(load_model("models/hydro_unit.toml"), Truth((MagneticPull(-1e8),)), n_modes=13,
+                            samples=50, seed=3, pole_variance=(0.01, 0.01))  # fmt: skip
+    return str(write_modes(data, tmp_path / "modes.nc"))
+
+
+def test_compare_and_diagnose_commands(tmp_path, capsys):
+    import json
+
+    modes = _hidden_pull_modes(tmp_path)
+    assert main(["compare", "models/hydro_unit.toml", modes, "--plot", str(tmp_path / "figs")]) == 0
+    out = capsys.readouterr().out
+    assert "error E = 3.4" in out and "GEN_y" in out
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["errors.png", "mac.png", "spectra.png"]
+    assert main(["diagnose", "models/hydro_unit.toml", modes, "--json",
+                 "--candidates", "magnetic_pull,seal_cross_coupling,bearing_change:UGB"]) == 0  # fmt: skip
+    report = json.loads(capsys.readouterr().out)
+    assert report["verdict"] == "missing effect" and report["ranking"][0]["effect"] == "magnetic_pull"
+    assert report["ranking"][0]["error_after"] < 0.2 * report["error"]
+    assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["error"] > 0.03  # a zero-valued effect changes nothing
+    assert main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_push"]) == 2
+    assert "no candidate effect ['magnetic_push']" in capsys.readouterr().err
+
+
+def test_update_with_an_added_effect_then_compare(tmp_path, capsys):
+    import json
+
+    modes = _hidden_pull_modes(tmp_path)
+    post = str(tmp_path / "posterior.nc")
+    assert main(["update", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--params",
+                 "MAG.stiffness", "--draws", "200", "--chains", "2", "--seed", "1", "-o", post]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--posterior", post,
+                 "--json"]) == 0  # fmt: skip
+    after = json.loads(capsys.readouterr().out)["error"]
+    assert after < 0.2 * 0.0338

@@ -1,9 +1,11 @@
 """Physical effects: footprints on model regions and their physical sign."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from twin import modal
+from twin import ModelError, modal
 from twin.fem.effects import EFFECTS, FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling
 
 
@@ -82,6 +84,41 @@ def test_seal_cross_coupling_destabilises_forward_whirl(ross_model):
     assert K[12, 13] == 1.0 and K[13, 12] == -1.0
 
 
-def test_every_effect_has_a_region_and_an_explanation():
+def test_every_effect_has_a_region_or_an_element_and_an_explanation():
     for key, cls in EFFECTS.items():
-        assert cls.key == key and cls.region and len(cls.explanation) > 20
+        assert cls.key == key and (cls.region is None) != (cls.element is None) and len(cls.explanation) > 20
+
+
+def test_element_effects_change_the_named_element(hydro_unit):
+    from twin.fem.effects import BearingChange, ThrustTilt
+
+    model = dataclasses.replace(hydro_unit, effects=(BearingChange("LGB", -2e7, 1e8), ThrustTilt("thrust", 1e8)))
+    base, changed = hydro_unit.matrices(), model.matrices()
+    x, y = 4 * 25, 4 * 25 + 1
+    assert changed["K"][x, x] - base["K"][x, x] == pytest.approx(-2e7)
+    assert changed["K"][y, y] - base["K"][y, y] == pytest.approx(-2e7)
+    assert changed["C"][x, x] - base["C"][x, x] == pytest.approx(1e8)
+    assert changed["K"][x, y] == base["K"][x, y]
+    a = 4 * 3 + 2
+    assert changed["K"][a, a] - base["K"][a, a] == pytest.approx(1e8)
+    scales = BearingChange("LGB").plausible_scale(hydro_unit)
+    assert scales["LGB.stiffness_change"] == pytest.approx(0.5 * (1.1e8 + 5.47e7) / 2)
+
+
+def test_element_effect_on_a_missing_element_names_it(hydro_unit):
+    from twin.fem.effects import BearingChange
+
+    with pytest.raises(ModelError, match="no bearing 'XGB'.*'UGB', 'LGB'"):
+        dataclasses.replace(hydro_unit, effects=(BearingChange("XGB"),)).parameters
+
+
+def test_every_effect_states_a_positive_scale_for_each_parameter(hydro_unit):
+    from twin.fem.effects import BearingChange, ThrustTilt
+
+    for cls in EFFECTS.values():
+        effect = {"bearing": BearingChange("UGB"), "thrust": ThrustTilt("thrust")}.get(cls.element) or (
+            cls((0.0,), (0.0,)) if cls.per_mode else cls()
+        )
+        scales = effect.plausible_scale(hydro_unit)
+        assert set(scales) == {p.name for p in effect.parameters(hydro_unit)}
+        assert all(v > 0 for v in scales.values())

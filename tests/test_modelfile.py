@@ -106,3 +106,13 @@ def test_effects_in_model_files(tmp_path):
         _load(tmp_path, BASE + "\n[regions]\nimmersed = [6]\n\n[effects.fsi_per_mode]\nadded_mass = [1.0]\n")
     with pytest.raises(ModelFileError, match=r"\[effects.magnetic_pull\]: key 'stiffness': missing key \(the table has 'stifness'"):
         _load(tmp_path, text.replace("stiffness = ", "stifness = "))
+
+
+def test_element_effects_in_model_files(tmp_path):
+    table = '\n[effects.bearing_change]\nbearing = {}\nstiffness = -2.0e5\ndamping = 0.0\n'
+    model = _load(tmp_path, BASE + table.format('"B6"'))
+    assert model.parameter("B6.stiffness_change").nominal == -2.0e5
+    with pytest.raises(ModelFileError, match=r"\[effects.bearing_change\]: key 'bearing': no bearing named 'B7'.*'B0', 'B6'"):
+        _load(tmp_path, BASE + table.format('"B7"'))
+    with pytest.raises(ModelFileError, match=r"\[effects.bearing_change\]: key 'bearing'"):
+        _load(tmp_path, BASE + table.format("6"))

@@ -7,6 +7,9 @@
     twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
     twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
     twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
+                [--effect LABEL]
+    twin compare MODEL.toml modes.nc [--posterior posterior.nc] [--effect LABEL] [--json] [--plot DIR]
+    twin diagnose MODEL.toml modes.nc [--candidates LABEL,...] [--json]
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -164,7 +167,8 @@ def _update(args: argparse.Namespace) -> int:
 
     if args.params is None and not args.fsi:
         raise TwinError("nothing to update: give --params and/or --fsi")
-    tree = update(args.model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
+    model = _model_with_effects(args.model, args.effect)
+    tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
                   burn_in=args.burn_in, seed=args.seed, output=args.output, command=" ".join(sys.argv))  # fmt: skip
     table = summary(tree["posterior"].to_dataset())
     print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
@@ -178,6 +182,58 @@ def _update(args: argparse.Namespace) -> int:
         print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
               f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}")  # fmt: skip
     print(f"wrote {args.output}")
+    return 0
+
+
+def _model_with_effects(path: str, labels: list[str] | None):
+    from twin.fem import load_model
+    from twin.loop.candidates import add_effects
+
+    model = load_model(path)
+    return add_effects(model, labels) if labels else model
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.compare import compare
+    from twin.loop.report import comparison_text
+
+    model = _model_with_effects(args.model, args.effect)
+    if args.posterior:
+        from twin.update import apply_posterior, read_posterior
+
+        model = apply_posterior(model, read_posterior(args.posterior), args.estimate)
+    table = compare(model, read_modes(args.modes), tolerance=args.tolerance)
+    if args.plot:
+        from twin.loop.plots import comparison_figures
+
+        for path in comparison_figures(table, args.plot):
+            log.info("wrote %s", path)
+    if args.json:
+        keep = ["measured_frequency", "model_frequency", "frequency_error", "measured_damping_ratio",
+                "model_damping_ratio", "damping_error", "pole_error", "z_frequency", "z_damping", "mac"]  # fmt: skip
+        rows = [{"mode": int(m), **{k: float(table[k].sel(mode=m)) for k in keep}} for m in table["mode"].values]
+        shape = {str(c): float(v) for c, v in zip(table["channel"].values, table["channel_shape_error"].values)}
+        print(json.dumps({"error": table.attrs["error"], "error_definition": table.attrs["error_definition"],
+                          "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
+                          "channel_shape_error": shape,
+                          "unpaired": [int(m) for m in np.atleast_1d(table.attrs["unpaired"])]}, indent=2))  # fmt: skip
+    else:
+        print(comparison_text(table))
+    return 0
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.compare import measured_modes
+    from twin.loop.diagnose import diagnose
+    from twin.loop.report import diagnosis_text
+
+    model = _model_with_effects(args.model, args.effect)
+    meas = measured_modes(read_modes(args.modes), args.tolerance)
+    labels = args.candidates.split(",") if args.candidates else None
+    d = diagnose(model, meas, candidates=labels, tolerance=args.tolerance)
+    print(d.to_json(meas) if args.json else diagnosis_text(d, meas))
     return 0
 
 
@@ -262,7 +318,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chains", type=int, default=4, help="number of chains (default: 4)")
     p.add_argument("--burn-in", type=int, default=20, help="sweeps discarded per chain (default: 20)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
     p.set_defaults(func=_update)
+
+    p = sub.add_parser("compare", help="compare a model with measured modes: per-mode errors and the overall error")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("modes", help="modes file (NetCDF, mode x sample x channel)")
+    p.add_argument("--posterior", default=None, help="apply this posterior (posterior.nc) to the model first")
+    p.add_argument("--estimate", choices=("map", "mean"), default="map", help="posterior point estimate (default: map)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull); repeatable")
+    p.add_argument("--tolerance", type=float, default=1e-3,
+                   help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
+    p.add_argument("--plot", default=None, metavar="DIR", help="write the figures (errors, MAC, spectra) into DIR")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_compare)
+
+    p = sub.add_parser("diagnose", help="where the model fails and which library effect is missing")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("modes", help="modes file (NetCDF, mode x sample x channel)")
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect to the model first; repeatable")
+    p.add_argument("--tolerance", type=float, default=1e-3,
+                   help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_diagnose)
     return parser
 
 

@@ -11,11 +11,19 @@ key                       region      parameters
 ``fsi_per_mode``          immersed    ``FSI.added_mass_<i>``, ``FSI.added_damping_<i>`` per mode i
 ``magnetic_pull``         generator   ``MAG.stiffness`` [N/m] (negative: unbalanced magnetic pull)
 ``seal_cross_coupling``   seal        ``SEAL.kxy`` [N/m] (cross-coupled, forward destabilising)
+``bearing_change``        (bearing)   ``<B>.stiffness_change`` [N/m], ``<B>.damping_change`` [N s/m]
+``thrust_tilt``           (thrust)    ``<T>.k_tilt_change`` [N m/rad]
 ========================  ==========  ==================================================
 
 Added mass and damping are shared equally over the region's translational
 DOFs (``m/n`` and ``c/n`` on each of the ``n`` immersed DOFs), as DESIGN
-section 2 prescribes.
+section 2 prescribes. The last two act on a named element of the model
+(``bearing = "LGB"``, ``thrust = "thrust"``) instead of a region; their
+parameters are *changes* added to the element's own coefficients.
+
+Every effect also states :meth:`plausible_scale`: for each parameter, a
+generous magnitude a real machine could show. The diagnosis uses it as the
+prior scale of the parameter (the Occam factor of its evidence).
 """
 
 from __future__ import annotations
@@ -26,13 +34,49 @@ from typing import ClassVar
 
 import numpy as np
 
+from twin.errors import ModelError
 from twin.fem.elements import node_dofs
 from twin.fem.parameters import Parameter, Term
+
+#: Ratio of a plausible water added damping to added mass [1/s] (the paper's
+#: Table 2 spans 13 to 2700 1/s over its 15 modes).
+FSI_DAMPING_PER_MASS = 1000.0
+#: Plausible magnetic or seal stiffness, as a fraction of the guide bearings' direct stiffness.
+FLUID_MAGNETIC_FRACTION = 0.3
+#: Plausible change of a bearing or thrust coefficient, as a fraction of its value.
+CHANGE_FRACTION = 0.5
 
 
 def _shared(kind: str, dofs: tuple[int, ...]) -> tuple[Term, ...]:
     """One unit shared equally over ``dofs`` on the diagonal of ``kind``."""
     return (Term(kind, dofs, np.eye(len(dofs)) / len(dofs)),)
+
+
+def _region_mass(model, region: str) -> float:
+    """Mass of the disks on a region's nodes [kg] (a tenth of the rotor's if none)."""
+    nodes = set(model.regions[region])
+    disks = [d for d in model.disks if d.node in nodes]
+    if not disks:
+        return 0.1 * model.total_mass
+    return sum(model.parameter(f"{d.name}.m").nominal for d in disks)
+
+
+def _direct_stiffness(model) -> float:
+    """Geometric mean of the guide bearings' direct stiffnesses |kxx|, |kyy| [N/m]."""
+    values = [abs(model.parameter(f"{b.name}.{k}").nominal) for b in model.bearings for k in ("kxx", "kyy")]
+    values = [v for v in values if v > 0]
+    if not values:
+        raise ModelError(f"model '{model.name}' has no bearing stiffness to scale a stiffness effect by")
+    return float(np.exp(np.mean(np.log(values))))
+
+
+def _element(model, kind: str, name: str):
+    items = {"bearing": model.bearings, "thrust": model.thrusts}[kind]
+    for item in items:
+        if item.name == name:
+            return item
+    known = ", ".join(repr(i.name) for i in items) or "none"
+    raise ModelError(f"model '{model.name}' has no {kind} '{name}' (its {kind}s: {known})")
 
 
 def _cross_coupled(model, region: str) -> tuple[Term, ...]:
@@ -47,7 +91,10 @@ class FluidAddedMass:
     """Mode-independent added mass and damping of the water around the runner."""
 
     key: ClassVar[str] = "fsi"
-    region: ClassVar[str] = "immersed"
+    region: ClassVar[str | None] = "immersed"
+    element: ClassVar[str | None] = None
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (1, 1)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "the water around the runner moves with it, adding mass and damping to every mode alike"
@@ -65,6 +112,11 @@ class FluidAddedMass:
                       "added damping of the water, shared over the immersed DOFs"),
         ]  # fmt: skip
 
+    def plausible_scale(self, model) -> dict[str, float]:
+        """Twice the immersed disks' mass [kg]; that times 1000 1/s for the damping [N s/m]."""
+        m = 2.0 * _region_mass(model, self.region)
+        return {"FSI.added_mass": m, "FSI.added_damping": m * FSI_DAMPING_PER_MASS}
+
 
 @dataclass(frozen=True)
 class FluidAddedMassPerMode:
@@ -76,7 +128,10 @@ class FluidAddedMassPerMode:
     """
 
     key: ClassVar[str] = "fsi_per_mode"
-    region: ClassVar[str] = "immersed"
+    region: ClassVar[str | None] = "immersed"
+    element: ClassVar[str | None] = None
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (1, 1)
     per_mode: ClassVar[bool] = True
     explanation: ClassVar[str] = (
         "the water around the runner adds a different mass and damping to each mode"
@@ -109,13 +164,25 @@ class FluidAddedMassPerMode:
                                  f"added damping of the water in mode {i}", per_mode=True))
         return out  # fmt: skip
 
+    def plausible_scale(self, model) -> dict[str, float]:
+        """Per mode, the scales of :meth:`FluidAddedMass.plausible_scale`."""
+        base = FluidAddedMass().plausible_scale(model)
+        out = {}
+        for i in range(1, self.n_modes + 1):
+            out[f"FSI.added_mass_{i}"] = base["FSI.added_mass"]
+            out[f"FSI.added_damping_{i}"] = base["FSI.added_damping"]
+        return out
+
 
 @dataclass(frozen=True)
 class MagneticPull:
     """Negative radial stiffness of unbalanced magnetic pull at the generator air gap."""
 
     key: ClassVar[str] = "magnetic_pull"
-    region: ClassVar[str] = "generator"
+    region: ClassVar[str | None] = "generator"
+    element: ClassVar[str | None] = None
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (-1,)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "an off-centre generator rotor is pulled further off centre by the magnetic field: a negative stiffness"
@@ -131,13 +198,20 @@ class MagneticPull:
         return [Parameter("MAG.stiffness", self.stiffness, "N/m", terms,
                           "radial magnetic stiffness at the air gap (negative: pull)")]  # fmt: skip
 
+    def plausible_scale(self, model) -> dict[str, float]:
+        """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""
+        return {"MAG.stiffness": FLUID_MAGNETIC_FRACTION * _direct_stiffness(model)}
+
 
 @dataclass(frozen=True)
 class SealCrossCoupling:
     """Cross-coupled stiffness of the runner labyrinth seals (swirling leakage flow)."""
 
     key: ClassVar[str] = "seal_cross_coupling"
-    region: ClassVar[str] = "seal"
+    region: ClassVar[str | None] = "seal"
+    element: ClassVar[str | None] = None
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (0,)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "swirling leakage flow in the runner seals pushes the runner tangentially: a cross-coupled stiffness"
@@ -149,11 +223,100 @@ class SealCrossCoupling:
         return [Parameter("SEAL.kxy", self.kxy, "N/m", _cross_coupled(model, self.region),
                           "cross-coupled seal stiffness (positive destabilises forward whirl)")]  # fmt: skip
 
+    def plausible_scale(self, model) -> dict[str, float]:
+        """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""
+        return {"SEAL.kxy": FLUID_MAGNETIC_FRACTION * _direct_stiffness(model)}
+
+
+@dataclass(frozen=True)
+class BearingChange:
+    """A change of a guide bearing's direct stiffness and damping, alike in x and y.
+
+    Wear, a changed clearance or oil temperature, or re-shimming change a
+    guide bearing's coefficients. The change is added to ``kxx``, ``kyy``
+    (``stiffness``) and ``cxx``, ``cyy`` (``damping``) of the named bearing.
+    """
+
+    key: ClassVar[str] = "bearing_change"
+    region: ClassVar[str | None] = None
+    element: ClassVar[str | None] = "bearing"
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (0, 0)
+    per_mode: ClassVar[bool] = False
+    explanation: ClassVar[str] = (
+        "the guide bearing is softer or stiffer than modelled (wear, clearance, oil temperature)"
+    )
+    bearing: str = ""
+    stiffness: float = 0.0  # N/m, added to kxx and kyy
+    damping: float = 0.0  # N s/m, added to cxx and cyy
+
+    def parameters(self, model) -> list[Parameter]:
+        """``<bearing>.stiffness_change`` and ``<bearing>.damping_change`` on the bearing's x, y."""
+        b = _element(model, "bearing", self.bearing)
+        dofs = node_dofs(b.node)[:2]
+        return [
+            Parameter(f"{b.name}.stiffness_change", self.stiffness, "N/m", (Term("K", dofs, np.eye(2)),),
+                      f"change of {b.name}'s direct stiffness kxx and kyy"),
+            Parameter(f"{b.name}.damping_change", self.damping, "N s/m", (Term("C", dofs, np.eye(2)),),
+                      f"change of {b.name}'s direct damping cxx and cyy"),
+        ]  # fmt: skip
+
+    def plausible_scale(self, model) -> dict[str, float]:
+        """Half the bearing's mean direct stiffness and damping."""
+        b = _element(model, "bearing", self.bearing)
+        k = np.mean([abs(model.parameter(f"{b.name}.{c}").nominal) for c in ("kxx", "kyy")])
+        c = np.mean([abs(model.parameter(f"{b.name}.{c}").nominal) for c in ("cxx", "cyy")])
+        return {f"{b.name}.stiffness_change": CHANGE_FRACTION * float(k),
+                f"{b.name}.damping_change": CHANGE_FRACTION * float(c)}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ThrustTilt:
+    """A change of the thrust bearing's tilt stiffness."""
+
+    key: ClassVar[str] = "thrust_tilt"
+    region: ClassVar[str | None] = None
+    element: ClassVar[str | None] = "thrust"
+    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
+    signs: ClassVar[tuple[int, ...]] = (0,)
+    per_mode: ClassVar[bool] = False
+    explanation: ClassVar[str] = (
+        "the thrust pads resist tilting of the collar more or less than modelled (load, pad wear)"
+    )
+    thrust: str = ""
+    k_tilt: float = 0.0  # N m/rad, added to the thrust's tilt stiffness
+
+    def parameters(self, model) -> list[Parameter]:
+        """``<thrust>.k_tilt_change`` on the thrust node's alpha, beta."""
+        t = _element(model, "thrust", self.thrust)
+        return [Parameter(f"{t.name}.k_tilt_change", self.k_tilt, "N m/rad",
+                          (Term("K", node_dofs(t.node)[2:], np.eye(2)),),
+                          f"change of {t.name}'s tilt stiffness")]  # fmt: skip
+
+    def plausible_scale(self, model) -> dict[str, float]:
+        """Half the thrust's tilt stiffness."""
+        t = _element(model, "thrust", self.thrust)
+        return {f"{t.name}.k_tilt_change": CHANGE_FRACTION * abs(model.parameter(f"{t.name}.k_tilt").nominal)}
+
 
 #: Effects by the key used in model and truth files.
 EFFECTS: dict[str, type] = {
-    cls.key: cls for cls in (FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling)
+    cls.key: cls
+    for cls in (FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling, BearingChange, ThrustTilt)
 }
+
+
+def effect_label(effect) -> str:
+    """A name unique among a model's effects: the key, with the element for element effects.
+
+    Examples
+    --------
+    >>> effect_label(MagneticPull()), effect_label(BearingChange("LGB"))
+    ('magnetic_pull', 'bearing_change:LGB')
+    """
+    if effect.element is None:
+        return effect.key
+    return f"{effect.key}:{getattr(effect, effect.element)}"
 
 
 def effect_fields(cls: type) -> dict[str, type]:
@@ -164,5 +327,5 @@ def effect_fields(cls: type) -> dict[str, type]:
     >>> effect_fields(MagneticPull)
     {'stiffness': <class 'float'>}
     """
-    hints = {"float": float, "tuple[float, ...]": tuple}
+    hints = {"float": float, "tuple[float, ...]": tuple, "str": str}
     return {f.name: hints[str(f.type)] for f in dataclasses.fields(cls)}

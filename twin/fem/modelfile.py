@@ -23,7 +23,7 @@ import difflib
 import math
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -240,7 +240,8 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
     rayleigh = _read_damping(top)
-    effects = _read_effects(top, regions)
+    elements = {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
+    effects = _read_effects(top, regions, elements)
     top.finish()
     return RotorModel(
         name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
@@ -358,15 +359,23 @@ def _read_damping(top: _Table) -> tuple[float, float]:
     return (a, b)
 
 
-def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]]) -> list:
+def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]]) -> list:
     tables = _Table(top.path, "[effects]", top._get("effects", {}))
-    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False)
+    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements)
 
 
 def read_effect_tables(
-    tables: _Table, regions: Mapping[str, tuple[int, ...]], prefix: str = "", per_mode_allowed: bool = True
+    tables: _Table,
+    regions: Mapping[str, tuple[int, ...]],
+    prefix: str = "",
+    per_mode_allowed: bool = True,
+    elements: Mapping[str, Sequence[str]] | None = None,
 ) -> list:
-    """Effects from tables keyed by effect name (``[prefix + key]``), validated against :data:`EFFECTS`."""
+    """Effects from tables keyed by effect name (``[prefix + key]``), validated against :data:`EFFECTS`.
+
+    ``elements`` maps ``"bearing"`` and ``"thrust"`` to the model's element
+    names, against which element effects (``bearing = "LGB"``) are checked.
+    """
     out = []
     for key in tables.data:
         tables.used.add(key)
@@ -378,11 +387,17 @@ def read_effect_tables(
         t = _Table(tables.path, f"[{prefix}{key}]", tables.data[key])
         if cls.per_mode and not per_mode_allowed:
             raise t.error(None, "a per-mode effect is not a single FEM; it belongs in a truth file")
-        if cls.region not in regions:
+        if cls.region is not None and cls.region not in regions:
             raise t.error(None, f"effect '{key}' acts on region '{cls.region}', which [regions] does not declare")
         values = {}
         for name, kind in effect_fields(cls).items():
-            if kind is tuple:
+            if kind is str:
+                values[name] = t.string(name)
+                known = elements.get(cls.element, ()) if elements is not None else None
+                if known is not None and values[name] not in known:
+                    raise t.error(name, f"no {cls.element} named {values[name]!r} in the model "
+                                        f"(its {cls.element}s: {', '.join(map(repr, known)) or 'none'})")
+            elif kind is tuple:
                 items = t.array(name)
                 for v in items:
                     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):

@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from twin.errors import ModelFileError
-from twin.fem.effects import FluidAddedMassPerMode
+from twin.fem.effects import FluidAddedMassPerMode, effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import _Table, read_effect_tables, read_toml
 
@@ -53,7 +53,7 @@ class Truth:
 
     def to_json(self) -> str:
         """The truth as JSON, for file attrs: ``{"source": ..., "effects": {key: {field: value}}}``."""
-        return json.dumps({"source": self.source, "effects": {e.key: asdict(e) for e in self.effects}})
+        return json.dumps({"source": self.source, "effects": {effect_label(e): asdict(e) for e in self.effects}})
 
 
 def paper_truth() -> Truth:
@@ -77,7 +77,8 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
         return paper_truth()
     path = Path(path)
     data = read_toml(path)
-    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions)
+    elements = {"bearing": [b.name for b in model.bearings], "thrust": [t.name for t in model.thrusts]}
+    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions, elements=elements)
     if not effects:
         raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")
     if sum(e.per_mode for e in effects) > 1:

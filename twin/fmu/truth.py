@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from twin.errors import ModelError
-from twin.fem.effects import FluidAddedMass
+from twin.fem.effects import FluidAddedMass, effect_label
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, model_state_space, state_modes
@@ -56,8 +56,8 @@ def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
 
 def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
     """The model with the truth's mode-independent effects switched on."""
-    present = {e.key for e in model.effects}
-    clash = present & {e.key for e in truth.mode_independent}
+    present = {effect_label(e) for e in model.effects}
+    clash = present & {effect_label(e) for e in truth.mode_independent}
     if clash:
         raise ModelError(f"the model already has effect(s) {sorted(clash)} that the truth sets")
     return dataclasses.replace(model, effects=tuple(model.effects) + truth.mode_independent)

@@ -19,6 +19,34 @@ from twin.modes.shapes import mac
 FREQUENCY_TIE_BREAK = 1e-3
 
 
+def assign_modes(
+    mac_matrix: np.ndarray,
+    f_reference: np.ndarray,
+    f_other: np.ndarray,
+    min_mac: float = 0.0,
+    max_ratio: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one assignment maximising the total MAC; returns ``(rows, cols)`` of the kept pairs.
+
+    A tiny relative-frequency term breaks ties; pairs below ``min_mac``, or
+    whose frequencies differ by more than a factor ``max_ratio``, are dropped.
+
+    Examples
+    --------
+    >>> assign_modes(np.array([[0.2, 0.9], [0.95, 0.1]]), np.array([1.0, 2.0]), np.array([2.1, 0.9]))
+    (array([0, 1]), array([1, 0]))
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        distance = np.abs(np.log(np.abs(np.asarray(f_other)[None, :] / np.asarray(f_reference)[:, None])))
+    distance = np.nan_to_num(distance, nan=1e3, posinf=1e3)
+    cost = -mac_matrix + FREQUENCY_TIE_BREAK * distance
+    allowed = np.ones_like(cost, dtype=bool) if max_ratio is None else distance <= np.log(max_ratio)
+    cost = np.where(allowed, cost, 1e6)
+    rows, cols = linear_sum_assignment(cost)
+    keep = (mac_matrix[rows, cols] >= min_mac) & allowed[rows, cols]
+    return rows[keep], cols[keep]
+
+
 def _shapes(ds: xr.Dataset, shape_var: str) -> xr.DataArray:
     if shape_var not in ds:
         raise TwinError(f"modal set '{ds.attrs.get('title', '?')}' has no variable '{shape_var}' to pair on")
@@ -73,12 +101,7 @@ def pair_modes(
         b = b.sel({dim: a[dim].values})
     m = mac(a.values, b.values)
     fa, fb = reference["frequency"].values, other["frequency"].values
-    with np.errstate(divide="ignore", invalid="ignore"):
-        distance = np.abs(np.log(np.abs(fb[None, :] / fa[:, None])))
-    cost = -m + FREQUENCY_TIE_BREAK * np.nan_to_num(distance, nan=1e3, posinf=1e3)
-    rows, cols = linear_sum_assignment(cost)
-    keep = m[rows, cols] >= min_mac
-    rows, cols = rows[keep], cols[keep]
+    rows, cols = assign_modes(m, fa, fb, min_mac)
     za, zb = reference["damping_ratio"].values[rows], other["damping_ratio"].values[cols]
     return xr.Dataset(
         {

@@ -1,0 +1,25 @@
+"""The candidate library a diagnosis tries."""
+
+import pytest
+
+from twin import ModelError
+from twin.loop.candidates import add_effects, library, select
+
+
+def test_library_follows_the_model(hydro_unit, ross_model):
+    labels = [c.label for c in library(hydro_unit)]
+    assert labels == ["fsi", "fsi_per_mode", "magnetic_pull", "seal_cross_coupling", "bearing_change:UGB",
+                      "bearing_change:LGB", "thrust_tilt:thrust"]  # fmt: skip
+    # the ROSS rotor declares no regions and no thrust bearing: only its bearings can change
+    assert [c.label for c in library(ross_model)] == ["bearing_change:B0", "bearing_change:B6"]
+
+
+def test_effects_already_in_the_model_are_no_candidates(hydro_unit):
+    model = add_effects(hydro_unit, ["magnetic_pull", "fsi"])
+    labels = [c.label for c in library(model)]
+    assert "magnetic_pull" not in labels and "fsi" not in labels and "fsi_per_mode" in labels
+
+
+def test_unknown_candidate_is_named(hydro_unit):
+    with pytest.raises(ModelError, match=r"no candidate effect \['magnetic_push'\].*available: fsi"):
+        select(hydro_unit, ["magnetic_push"])

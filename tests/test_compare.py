@@ -1,0 +1,80 @@
+"""Comparison of a model with measured modes: pairing, the error figure, the table, bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from twin.fem.effects import MagneticPull
+from twin.fem.truthfile import Truth
+from twin.loop.compare import CompareError, compare, measured_modes, overall_error
+from twin.update import synthesize_modes
+
+
+def _data(model, truth, seed=3, variance=(0.01, 0.01), samples=100):
+    return synthesize_modes(model, truth, n_modes=None if truth.per_mode else 13, samples=samples, seed=seed,
+                            pole_variance=variance)  # fmt: skip
+
+
+def test_error_is_the_rms_relative_pole_distance():
+    meas = np.array([-1 + 100j, -2 + 200j])
+    model = meas * np.array([1.01, 1.0])
+    assert overall_error(model, meas) == pytest.approx(0.01 / np.sqrt(2), rel=1e-12)
+
+
+def test_model_equal_to_the_truth_has_error_at_the_noise_floor(hydro_unit):
+    truth = Truth((MagneticPull(-1e8),))
+    data = _data(hydro_unit, truth, variance=(0.0, 0.0))
+    table = compare(dataclasses.replace(hydro_unit, effects=truth.effects), data)
+    assert table.sizes["mode"] == 13 and len(table.attrs["unpaired"]) == 0
+    assert table.attrs["error"] < 1e-12 and float(table["mac"].min()) > 0.99
+    assert float(table["shape_error"].max()) < 0.05 * 1.5  # the 5% shape noise, averaged over 100 samples
+
+
+def test_hidden_effect_shows_in_the_table(hydro_unit):
+    data = _data(hydro_unit, Truth((MagneticPull(-1e8),)))
+    table = compare(hydro_unit, data)
+    meas = measured_modes(data)
+    # mode 2 (generator mode) moves most: 11.7% in frequency, far beyond the measurement sigma
+    k = int(np.argmax(np.abs(table["frequency_error"].values)))
+    assert int(table["mode"][k]) == 2 and float(table["z_frequency"][k]) > 50
+    assert table.attrs["error"] == pytest.approx(overall_error(
+        table["model_frequency"].values * 0 + _poles(table), meas.pole[np.isin(meas.mode, table["mode"])]), rel=1e-9)
+
+
+def _poles(table):
+    z, f = table["model_damping_ratio"].values, table["model_frequency"].values
+    return 2 * np.pi * f * (-z / np.sqrt(1 - z**2) + 1j)
+
+
+def test_per_mode_model_compares_mode_by_mode(hydro_unit):
+    from twin.fem.truthfile import paper_truth
+
+    truth = paper_truth()
+    data = _data(hydro_unit, truth, variance=(0.0, 0.0))
+    fitted = dataclasses.replace(hydro_unit, effects=truth.effects)
+    table = compare(fitted, data)
+    assert table.attrs["error"] < 1e-9
+    assert table.sizes["mode"] == 15
+
+
+def test_uncertainty_is_the_standard_error_plus_the_tolerance(hydro_unit):
+    data = _data(hydro_unit, Truth((MagneticPull(0.0),)), variance=(1.0, 4.0), samples=400, seed=5)
+    meas = measured_modes(data, tolerance=0.0)
+    assert np.allclose(meas.sigma[:, 0], 1 / 20, rtol=0.1) and np.allclose(meas.sigma[:, 1], 2 / 20, rtol=0.1)
+    wide = measured_modes(data, tolerance=1e-2)
+    assert np.all(wide.sigma[:, 1] >= 1e-2 * np.abs(wide.pole))
+
+
+def test_bad_input_is_named(hydro_unit):
+    data = _data(hydro_unit, Truth((MagneticPull(0.0),)), samples=5)
+    with pytest.raises(CompareError, match=r"channel\(s\) \['XX_x'\] are not sensors"):
+        compare(hydro_unit, data.assign_coords(channel=["XX_x", *data["channel"].values[1:]]))
+    bad = data.copy(deep=True)
+    bad["pole"][2, 1] = np.nan
+    with pytest.raises(CompareError, match=r"mode\(s\) \[3\] have non-finite"):
+        compare(hydro_unit, bad)
+    with pytest.raises(CompareError, match="at least 2 samples"):
+        compare(hydro_unit, data.isel(sample=[0]))
+    with pytest.raises(CompareError, match="no variable 'pole'"):
+        compare(hydro_unit, data.drop_vars("pole"))

@@ -1,0 +1,113 @@
+"""The candidate effects a diagnosis tries: every library effect the model can take.
+
+A candidate is an effect of :mod:`twin.fem.effects` with zero values, added to
+the model: its parameters are what the diagnosis fits. The library offers,
+for a model with the matching regions and elements:
+
+* ``fsi``: mode-independent water added mass and damping at the runner;
+* ``fsi_per_mode``: a different added mass and damping for each mode;
+* ``magnetic_pull``: negative radial stiffness at the generator;
+* ``seal_cross_coupling``: cross-coupled stiffness at the runner seals;
+* ``bearing_change:<B>``: direct stiffness and damping change of each guide bearing;
+* ``thrust_tilt:<T>``: tilt stiffness change of each thrust bearing.
+
+Effects the model already has are not candidates.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from twin.errors import ModelError
+from twin.fem.effects import (
+    EFFECTS,
+    BearingChange,
+    FluidAddedMass,
+    FluidAddedMassPerMode,
+    MagneticPull,
+    SealCrossCoupling,
+    ThrustTilt,
+    effect_label,
+)
+from twin.fem.model import RotorModel
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect to try: its label, the zero-valued effect, and a plain-words explanation."""
+
+    label: str
+    effect: object
+
+    @property
+    def explanation(self) -> str:
+        """One line of physics."""
+        return self.effect.explanation
+
+    @property
+    def per_mode(self) -> bool:
+        """Whether each mode has its own parameters."""
+        return self.effect.per_mode
+
+
+def library(model: RotorModel) -> list[Candidate]:
+    """Every library effect that ``model`` can take and does not have yet.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> [c.label for c in library(load_model("models/hydro_unit.toml"))]  # doctest: +NORMALIZE_WHITESPACE
+    ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB',
+     'bearing_change:LGB', 'thrust_tilt:thrust']
+    """
+    effects: list = []
+    for cls in (FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling):
+        if cls.region in model.regions:
+            effects.append(cls())
+    effects += [BearingChange(b.name) for b in model.bearings]
+    effects += [ThrustTilt(t.name) for t in model.thrusts]
+    present = {effect_label(e) for e in model.effects}
+    has_fsi = any(isinstance(e, (FluidAddedMass, FluidAddedMassPerMode)) for e in model.effects)
+    out = []
+    for e in effects:
+        if effect_label(e) in present or (e.per_mode and any(x.per_mode for x in model.effects)):
+            continue
+        if isinstance(e, FluidAddedMass) and has_fsi:
+            continue
+        out.append(Candidate(effect_label(e), e))
+    return out
+
+
+def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
+    """The library candidates named by ``labels`` (all when None); unknown labels are an error."""
+    available = library(model)
+    if labels is None:
+        return available
+    by_label = {c.label: c for c in available}
+    unknown = [lab for lab in labels if lab not in by_label]
+    if unknown:
+        raise ModelError(f"no candidate effect {unknown} for model '{model.name}'; available: "
+                         f"{', '.join(by_label) or 'none'} (library keys: {', '.join(EFFECTS)})")  # fmt: skip
+    return [by_label[lab] for lab in labels]
+
+
+def with_effect(model: RotorModel, effect) -> RotorModel:
+    """The model with one more effect (zero-valued effects change nothing until their values are set)."""
+    return dataclasses.replace(model, effects=(*model.effects, effect))
+
+
+def add_effects(model: RotorModel, labels: Sequence[str]) -> RotorModel:
+    """The model with the library effects ``labels`` added, zero-valued (their values come from an update).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> m = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull", "bearing_change:LGB"])
+    >>> m.parameter_names[-3:]
+    ['MAG.stiffness', 'LGB.stiffness_change', 'LGB.damping_change']
+    """
+    for c in select(model, list(labels)):
+        model = with_effect(model, c.effect)
+    return model

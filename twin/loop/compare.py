@@ -1,0 +1,321 @@
+"""Compare a model with measured modes: per-mode errors, per-sensor shape errors, one overall error.
+
+The measured modes are the sample means of ``modes.nc`` (for SSI jackknife
+pseudo-values, the jackknife estimate), with standard errors ``std / √J``.
+Model modes are paired with them by complex MAC on the sensor channels.
+
+**The error** of a model is one number,
+
+    E = sqrt( mean_i |λ_i − λ̂_i|² / |λ̂_i|² ),
+
+the RMS over paired modes of the relative pole distance. Since
+``λ = ω (−ζ + i sqrt(1 − ζ²))``, ``|Δλ|/|λ| ≈ sqrt((Δf/f)² + Δζ²)``: a 1%
+frequency error weighs as much as a damping-ratio error of one percentage
+point, and neither needs a weight chosen by hand. The table behind ``E`` has
+the frequency and damping errors of every mode, their z-scores against the
+measurement uncertainty (standard error, plus a relative ``tolerance`` that
+stands for the model-form error one accepts), the MAC, and the shape error of
+every sensor.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from twin import __version__
+from twin.errors import TwinError
+from twin.fem.effects import FluidAddedMass
+from twin.fem.model import RotorModel
+from twin.loop.sensitivity import ModalSolution, solve_modes
+from twin.modes.analysis import damping_ratio
+from twin.modes.pairing import assign_modes
+from twin.modes.shapes import mac, normalise_shapes
+
+log = logging.getLogger(__name__)
+
+#: Relative pole uncertainty accepted as model-form error (added to the standard error).
+TOLERANCE = 1e-3
+#: Smallest MAC for a model mode to count as the measured mode's partner.
+MIN_MAC = 0.5
+#: Largest frequency ratio between partners (either way).
+MAX_FREQUENCY_RATIO = 1.5
+
+
+class CompareError(TwinError, ValueError):
+    """Measured modes that cannot be compared with the model."""
+
+
+@dataclass(frozen=True)
+class Measured:
+    """Measured modes reduced to what the comparison needs.
+
+    Attributes
+    ----------
+    mode : (n,) int
+        Mode labels of ``modes.nc``.
+    pole : (n,) complex
+        Mean pole [1/s].
+    sigma : (n, 2) float
+        Uncertainty of the real and imaginary part of ``pole`` [1/s]:
+        standard error and ``tolerance * |pole|`` added in quadrature.
+    shape : (n, c) complex
+        Mean shape on the channels (unit norm, largest entry real positive).
+    channels : list of str
+    source : str
+    """
+
+    mode: np.ndarray
+    pole: np.ndarray
+    sigma: np.ndarray
+    shape: np.ndarray
+    channels: list[str]
+    source: str = ""
+
+    @property
+    def frequency(self) -> np.ndarray:
+        """Damped frequency [Hz]."""
+        return self.pole.imag / (2 * np.pi)
+
+    def subset(self, keep: np.ndarray) -> Measured:
+        """The measured modes at indices ``keep``."""
+        return Measured(self.mode[keep], self.pole[keep], self.sigma[keep], self.shape[keep], self.channels, self.source)
+
+
+def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
+    """Sample means and uncertainties of a modes Dataset (``modes.nc`` layout).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.update import synthesize_modes
+    >>> meas = measured_modes(synthesize_modes(load_model("models/hydro_unit.toml"), samples=20))
+    >>> meas.pole.shape, meas.shape.shape
+    ((15,), (15, 8))
+    """
+    source = str(modes.attrs.get("source", modes.attrs.get("title", "modes")))
+    for name in ("pole", "shape"):
+        if name not in modes:
+            raise CompareError(f"{source}: no variable '{name}' (a modes.nc file has pole and shape samples)")
+    pole, shape = modes["pole"].transpose("mode", "sample").values, modes["shape"].transpose("mode", "sample", "channel").values
+    bad = ~np.isfinite(pole).all(axis=1) | ~np.isfinite(shape).all(axis=(1, 2))
+    if bad.any():
+        raise CompareError(f"{source}: mode(s) {modes['mode'].values[bad].tolist()} have non-finite pole or shape samples")
+    J = pole.shape[1]
+    if J < 2:
+        raise CompareError(f"{source}: the uncertainty needs at least 2 samples per mode, got {J}")
+    if not 0 <= tolerance < 1:
+        raise CompareError(f"tolerance must be in [0, 1), got {tolerance}")
+    mean = pole.mean(axis=1)
+    se = np.stack([pole.real.std(axis=1, ddof=1), pole.imag.std(axis=1, ddof=1)], axis=1) / np.sqrt(J)
+    sigma = np.sqrt(se**2 + (tolerance * np.abs(mean))[:, None] ** 2)
+    return Measured(modes["mode"].values, mean, sigma, normalise_shapes(shape.mean(axis=1)),
+                    [str(c) for c in modes["channel"].values], source)  # fmt: skip
+
+
+def _channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
+    dofs = dict(zip(model.channels, model.sensor_dofs))
+    missing = [c for c in channels if c not in dofs]
+    if missing:
+        raise CompareError(f"measured channel(s) {missing} are not sensors of model '{model.name}' "
+                           f"(its sensors: {', '.join(model.channels)})")  # fmt: skip
+    return np.array([dofs[c] for c in channels])
+
+
+def _per_mode_effect(model: RotorModel):
+    return next((e for e in model.effects if e.per_mode), None)
+
+
+@dataclass(frozen=True)
+class ModelModes:
+    """Model modes paired with measured modes: ``pairs[k]`` = (measured index, model pole, full shape)."""
+
+    measured: np.ndarray  # indices into Measured
+    poles: np.ndarray
+    shapes: np.ndarray  # on all DOFs
+    mac: np.ndarray
+    mac_matrix: np.ndarray  # measured x model, for plots (single-FEM modes)
+    model_frequency: np.ndarray  # Hz, the single-FEM modes of the matrix
+
+
+def _pair(sol: ModalSolution, meas: Measured, dofs: np.ndarray, min_mac: float):
+    m = mac(meas.shape, sol.right[:, dofs])
+    rows, cols = assign_modes(m, meas.frequency, sol.poles.imag / (2 * np.pi), min_mac, MAX_FREQUENCY_RATIO)
+    return m, rows, cols
+
+
+def model_modes(
+    model: RotorModel, meas: Measured, values: Mapping[str, float] | None = None, min_mac: float = MIN_MAC
+) -> ModelModes:
+    """The model's modes paired with the measured ones by MAC on the measured channels.
+
+    A model with a per-mode effect (per-mode FSI) gives measured mode ``k``
+    (label ``k``) from the FEM altered by that mode's values.
+    """
+    dofs = _channel_dofs(model, meas.channels)
+    sol = solve_modes(model, values)
+    m, rows, cols = _pair(sol, meas, dofs, min_mac)
+    per_mode = _per_mode_effect(model)
+    if per_mode is None:
+        return ModelModes(rows, sol.poles[cols], sol.right[cols], m[rows, cols], m, sol.poles.imag / (2 * np.pi))
+    fsi_values = {**model.values, **dict(values or {})}
+    poles, shapes, macs, keep = [], [], [], []
+    base = model_with_shared_fsi(model)
+    for r in range(len(meas.mode)):  # each measured mode against its own altered FEM
+        label = int(meas.mode[r])
+        if not 1 <= label <= per_mode.n_modes:
+            continue
+        altered = per_mode_values(model, base, label, fsi_values)
+        s = solve_modes(base, altered)
+        mm, rr, cc = _pair(s, meas.subset(np.array([r])), dofs, min_mac)
+        if len(rr):
+            keep.append(r)
+            poles.append(s.poles[cc[0]])
+            shapes.append(s.right[cc[0]])
+            macs.append(mm[0, cc[0]])
+    return ModelModes(np.array(keep, dtype=int), np.array(poles, dtype=complex),
+                      np.array(shapes).reshape(len(keep), -1), np.array(macs), m, sol.poles.imag / (2 * np.pi))  # fmt: skip
+
+
+def model_with_shared_fsi(model: RotorModel) -> RotorModel:
+    """The model with a mode-independent FSI effect (to carry one mode's per-mode values)."""
+    import dataclasses
+
+    if any(isinstance(e, FluidAddedMass) for e in model.effects):
+        return model
+    return dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
+
+
+def per_mode_values(model: RotorModel, base: RotorModel, label: int, values: Mapping[str, float]) -> dict[str, float]:
+    """Values of ``base`` (with shared FSI) that give mode ``label`` of a per-mode FSI model."""
+    shared_m = base.parameter("FSI.added_mass").nominal
+    shared_c = base.parameter("FSI.added_damping").nominal
+    m = values.get(f"FSI.added_mass_{label}", model.parameter(f"FSI.added_mass_{label}").nominal)
+    c = values.get(f"FSI.added_damping_{label}", model.parameter(f"FSI.added_damping_{label}").nominal)
+    return {"FSI.added_mass": shared_m + m, "FSI.added_damping": shared_c + c}
+
+
+def _shape_error(model_shape: np.ndarray, measured_shape: np.ndarray) -> np.ndarray:
+    """|ψ_model a − ψ̂| per channel, ``a`` the complex factor that fits best (unit-norm shapes)."""
+    mod = normalise_shapes(model_shape)
+    a = np.sum(mod.conj() * measured_shape, axis=-1, keepdims=True) / np.sum(np.abs(mod) ** 2, axis=-1, keepdims=True)
+    return np.abs(a * mod - measured_shape)
+
+
+def relative_pole_error(model_pole: np.ndarray, measured_pole: np.ndarray) -> np.ndarray:
+    """``|λ − λ̂| / |λ̂|`` (see the module docstring)."""
+    return np.abs(model_pole - measured_pole) / np.abs(measured_pole)
+
+
+def overall_error(model_pole: np.ndarray, measured_pole: np.ndarray) -> float:
+    """The error ``E``: RMS over modes of the relative pole distance (a fraction, not %).
+
+    Examples
+    --------
+    >>> round(overall_error(np.array([-1 + 101j]), np.array([-1 + 100j])), 7)
+    0.0099995
+    """
+    return float(np.sqrt(np.mean(relative_pole_error(model_pole, measured_pole) ** 2)))
+
+
+def compare(
+    model: RotorModel,
+    modes: xr.Dataset | Measured,
+    *,
+    values: Mapping[str, float] | None = None,
+    tolerance: float = TOLERANCE,
+    min_mac: float = MIN_MAC,
+) -> xr.Dataset:
+    """Model against measured modes: the per-mode and per-sensor table and the overall error.
+
+    Parameters
+    ----------
+    model : RotorModel
+    modes : xarray.Dataset or Measured
+        Measured modes (``modes.nc`` layout) or their summary.
+    values : mapping, optional
+        Parameter values overriding the model's.
+    tolerance : float
+        Relative pole uncertainty added to the standard error in the z-scores.
+    min_mac : float
+        Smallest MAC of a pair.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``mode`` (paired measured modes) and ``channel``;
+        ``model_mode``-free per-mode variables (frequencies, damping ratios,
+        their errors and z-scores, ``pole_error``, ``mac``), ``shape_error``
+        (mode x channel), ``channel_shape_error``, ``mac_matrix``; attrs
+        ``error`` (E, a fraction), ``chi2``, ``n_data``, ``unpaired``.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.update import synthesize_modes
+    >>> model = load_model("models/hydro_unit.toml")
+    >>> table = compare(model, synthesize_modes(model, samples=20, seed=1))
+    >>> round(100 * table.attrs["error"], 1)  # the model lacks the water's added mass: E in %
+    7.1
+    """
+    meas = modes if isinstance(modes, Measured) else measured_modes(modes, tolerance)
+    mm = model_modes(model, meas, values, min_mac)
+    if len(mm.measured) == 0:
+        raise CompareError(f"no model mode of '{model.name}' pairs with any measured mode of {meas.source} "
+                           f"(MAC >= {min_mac})")  # fmt: skip
+    m = meas.subset(mm.measured)
+    dofs = _channel_dofs(model, meas.channels)
+    f_meas, f_mod = m.pole.imag / (2 * np.pi), mm.poles.imag / (2 * np.pi)
+    z_meas, z_mod = damping_ratio(m.pole), damping_ratio(mm.poles)
+    resid = mm.poles - m.pole
+    z_re, z_im = resid.real / m.sigma[:, 0], resid.imag / m.sigma[:, 1]
+    shape_err = _shape_error(mm.shapes[:, dofs], m.shape)
+    unpaired = sorted(set(meas.mode.tolist()) - set(m.mode.tolist()))
+    error = overall_error(mm.poles, m.pole)
+    pct = {"units": "1"}
+    ds = xr.Dataset(
+        {
+            "measured_frequency": ("mode", f_meas, {"units": "Hz"}),
+            "model_frequency": ("mode", f_mod, {"units": "Hz"}),
+            "frequency_error": ("mode", f_mod / f_meas - 1, {**pct, "long_name": "relative frequency error (model / measured - 1)"}),
+            "measured_damping_ratio": ("mode", z_meas, pct),
+            "model_damping_ratio": ("mode", z_mod, pct),
+            "damping_error": ("mode", z_mod - z_meas, {**pct, "long_name": "damping ratio error (model - measured)"}),
+            "relative_damping_error": ("mode", z_mod / z_meas - 1, {**pct, "long_name": "relative damping ratio error"}),
+            "pole_error": ("mode", relative_pole_error(mm.poles, m.pole), {**pct, "long_name": "|model pole - measured pole| / |measured pole|"}),
+            "z_frequency": ("mode", z_im, {**pct, "long_name": "imaginary-part error in measurement sigmas"}),
+            "z_damping": ("mode", z_re, {**pct, "long_name": "real-part error in measurement sigmas"}),
+            "mac": ("mode", mm.mac, pct),
+            "measured_shape": (("mode", "channel"), m.shape, {**pct, "long_name": "measured mean shape"}),
+            "model_shape": (("mode", "channel"), normalise_shapes(mm.shapes[:, dofs]), {**pct, "long_name": "model shape"}),
+            "shape_error": (("mode", "channel"), shape_err, {**pct, "long_name": "|aligned model shape - measured shape| (unit norm)"}),
+            "channel_shape_error": ("channel", np.sqrt(np.mean(shape_err**2, axis=0)), {**pct, "long_name": "RMS shape error over modes"}),
+            "mac_matrix": (("mode_measured", "mode_model"), mm.mac_matrix, pct),
+            "model_mode_frequency": ("mode_model", mm.model_frequency, {"units": "Hz"}),
+        },
+        coords={
+            "mode": ("mode", m.mode),
+            "channel": ("channel", meas.channels),
+            "mode_measured": ("mode_measured", meas.mode),
+            "mode_model": ("mode_model", np.arange(1, len(mm.model_frequency) + 1)),
+        },
+        attrs={
+            "title": f"{model.name} against {meas.source}",
+            "producer": f"twin {__version__} twin.loop.compare",
+            "error": error,
+            "error_definition": "RMS over paired modes of |model pole - measured pole| / |measured pole|",
+            "chi2": float(np.sum(z_re**2 + z_im**2)),
+            "n_data": int(2 * len(m.mode)),
+            "tolerance": tolerance,
+            "min_mac": min_mac,
+            "unpaired": np.array(unpaired, dtype=int),
+            "model": model.name,
+        },
+    )  # fmt: skip
+    if unpaired:
+        log.info("measured mode(s) %s pair with no model mode (MAC < %g)", unpaired, min_mac)
+    return ds

@@ -1,0 +1,58 @@
+"""Plain-text tables of a comparison and a diagnosis (what the ``twin`` command prints)."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from twin.loop.compare import Measured
+from twin.loop.diagnose import Diagnosis
+
+
+def comparison_text(table: xr.Dataset) -> str:
+    """The per-mode and per-sensor table of :func:`twin.loop.compare.compare`, and the error.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.loop.compare import compare
+    >>> from twin.update import synthesize_modes
+    >>> model = load_model("models/hydro_unit.toml")
+    >>> print(comparison_text(compare(model, synthesize_modes(model, samples=20, seed=1))).splitlines()[-1])
+    error E = 7.10% (RMS over 13 paired modes of |model pole - measured pole| / |measured pole|)
+    """
+    lines = [f"{table.attrs['title']}",
+             f"{'mode':>4} {'f meas [Hz]':>11} {'f model [Hz]':>12} {'df [%]':>7} {'z_f':>7} "
+             f"{'zeta meas [%]':>13} {'zeta model [%]':>14} {'dzeta [pp]':>10} {'z_zeta':>7} {'MAC':>6} {'|dl|/|l| [%]':>12}"]  # fmt: skip
+    for k in range(table.sizes["mode"]):
+        r = table.isel(mode=k)
+        lines.append(
+            f"{int(r['mode']):>4} {float(r.measured_frequency):>11.4f} {float(r.model_frequency):>12.4f} "
+            f"{100 * float(r.frequency_error):>+7.2f} {float(r.z_frequency):>+7.1f} "
+            f"{100 * float(r.measured_damping_ratio):>13.3f} {100 * float(r.model_damping_ratio):>14.3f} "
+            f"{100 * float(r.damping_error):>+10.3f} {float(r.z_damping):>+7.1f} {float(r.mac):>6.3f} "
+            f"{100 * float(r.pole_error):>12.3f}"
+        )  # fmt: skip
+    unpaired = list(np.atleast_1d(table.attrs.get("unpaired", [])))
+    if unpaired:
+        lines.append(f"measured mode(s) {', '.join(map(str, unpaired))}: no model mode with MAC >= {table.attrs['min_mac']}")
+    lines.append("shape error per sensor (RMS over modes, unit-norm shapes): " + ", ".join(
+        f"{c} {float(v):.3f}" for c, v in zip(table["channel"].values, table["channel_shape_error"].values)))
+    lines.append(f"error E = {100 * table.attrs['error']:.2f}% ({table.attrs['error_definition']})"
+                 .replace("over paired modes", f"over {table.sizes['mode']} paired modes"))
+    return "\n".join(lines)
+
+
+def diagnosis_text(d: Diagnosis, meas: Measured) -> str:
+    """The verdict, the ranking with its reasons, and where the model fails."""
+    lines = [f"verdict: {d.verdict}" + (f" ({d.missing})" if d.missing else ""), d.summary, "",
+             f"{'rank':>4} {'effect':<22} {'ln B':>10} {'E before [%]':>12} {'E after [%]':>11}  parameters"]
+    for k, f in enumerate(d.ranking, start=1):
+        if len(f.names) <= 3:
+            params = ", ".join(f"{n} = {v:.3g} ± {s:.2g} {u}" for n, v, s, u in zip(f.names, f.values, f.std, f.units))
+        else:
+            params = f"{len(f.names)} per-mode values"
+        lines.append(f"{k:>4} {f.label:<22} {f.log_bayes_factor:>10.1f} {100 * f.error_before(meas):>12.3f} "
+                     f"{100 * f.error_after(meas):>11.3f}  {params}")  # fmt: skip
+    lines += ["", "why:"] + [f"  {d.explanations[f.label]}" for f in d.ranking]
+    return "\n".join(lines)
