@@ -1,0 +1,12 @@
+"""Stage 5: the twin loop — compare a model with measured modes, diagnose the missing effect.
+
+* :func:`compare`: per-mode and per-sensor errors and the overall error ``E``;
+* :func:`diagnose`: where the model fails and which library effect is missing;
+* :func:`library`, :func:`add_effects`: the candidate effects.
+"""
+
+from twin.loop.candidates import add_effects, library
+from twin.loop.compare import CompareError, compare, measured_modes
+from twin.loop.diagnose import diagnose
+
+__all__ = ["CompareError", "add_effects", "compare", "diagnose", "library", "measured_modes"]
