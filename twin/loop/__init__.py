@@ -2,11 +2,13 @@
 
 * :func:`compare`: per-mode and per-sensor errors and the overall error ``E``;
 * :func:`diagnose`: where the model fails and which library effect is missing;
-* :func:`library`, :func:`add_effects`: the candidate effects.
+* :func:`library`, :func:`add_effects`: the candidate effects;
+* :class:`Twin`: model + measured modes + the history of the error after each step.
 """
 
 from twin.loop.candidates import add_effects, library
 from twin.loop.compare import CompareError, compare, measured_modes
 from twin.loop.diagnose import diagnose
+from twin.loop.twin import Twin
 
-__all__ = ["CompareError", "add_effects", "compare", "diagnose", "library", "measured_modes"]
+__all__ = ["CompareError", "Twin", "add_effects", "compare", "diagnose", "library", "measured_modes"]
