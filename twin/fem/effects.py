@@ -306,6 +306,18 @@ EFFECTS: dict[str, type] = {
 }
 
 
+def with_shared_fsi(model):
+    """The model with a mode-independent FSI effect (zero-valued if it had none).
+
+    Per-mode FSI values act through the shared effect's footprint: mode ``i``
+    is a mode of this model with ``FSI.added_mass`` and ``FSI.added_damping``
+    raised by ``(m_i, c_i)``.
+    """
+    if any(isinstance(e, FluidAddedMass) for e in model.effects):
+        return model
+    return dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
+
+
 def effect_label(effect) -> str:
     """A name unique among a model's effects: the key, with the element for element effects.
 

@@ -240,8 +240,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
     rayleigh = _read_damping(top)
-    elements = {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
-    effects = _read_effects(top, regions, elements)
+    effects = _read_effects(top, regions, element_names(bearings, thrusts))
     top.finish()
     return RotorModel(
         name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
@@ -357,6 +356,11 @@ def _read_damping(top: _Table) -> tuple[float, float]:
     b = t.number("shaft_stiffness_proportional", 0.0, nonnegative=True)
     t.finish()
     return (a, b)
+
+
+def element_names(bearings, thrusts) -> dict[str, list[str]]:
+    """Names of the elements effects can act on, by element kind (``bearing_change``, ``thrust_tilt``)."""
+    return {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
 
 
 def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]]) -> list:

@@ -22,7 +22,7 @@ from pathlib import Path
 from twin.errors import ModelFileError
 from twin.fem.effects import FluidAddedMassPerMode, effect_label
 from twin.fem.model import RotorModel
-from twin.fem.modelfile import _Table, read_effect_tables, read_toml
+from twin.fem.modelfile import _Table, element_names, read_effect_tables, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
 PAPER_TABLE2 = FluidAddedMassPerMode(
@@ -77,7 +77,7 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
         return paper_truth()
     path = Path(path)
     data = read_toml(path)
-    elements = {"bearing": [b.name for b in model.bearings], "thrust": [t.name for t in model.thrusts]}
+    elements = element_names(model.bearings, model.thrusts)
     effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions, elements=elements)
     if not effects:
         raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from twin.errors import ModelError
-from twin.fem.effects import FluidAddedMass, effect_label
+from twin.fem.effects import effect_label, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, model_state_space, state_modes
@@ -168,9 +168,8 @@ def per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tupl
     The added mass and damping are shared over the immersed DOFs like the
     mode-independent FSI effect (on top of it if the model has one).
     """
-    existing = next((e for e in model.effects if isinstance(e, FluidAddedMass)), None)
-    fsi_model = model if existing else dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
-    m0, c0 = (existing.added_mass, existing.added_damping) if existing else (0.0, 0.0)
+    fsi_model = with_shared_fsi(model)
+    m0, c0 = fsi_model.parameter("FSI.added_mass").nominal, fsi_model.parameter("FSI.added_damping").nominal
     n_dof = model.n_dof
 
     def state(m: float, c: float) -> StateSpace:

@@ -29,7 +29,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.errors import TwinError
-from twin.fem.effects import FluidAddedMass
+from twin.fem.effects import with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.loop.sensitivity import ModalSolution, solve_modes
 from twin.modes.analysis import damping_ratio
@@ -117,7 +117,8 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
                     [str(c) for c in modes["channel"].values], source)  # fmt: skip
 
 
-def _channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
+def channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
+    """The model DOF of each measured channel (error naming the channels the model lacks)."""
     dofs = dict(zip(model.channels, model.sensor_dofs))
     missing = [c for c in channels if c not in dofs]
     if missing:
@@ -142,7 +143,8 @@ class ModelModes:
     model_frequency: np.ndarray  # Hz, the single-FEM modes of the matrix
 
 
-def _pair(sol: ModalSolution, meas: Measured, dofs: np.ndarray, min_mac: float):
+def pair_with_measured(sol: ModalSolution, meas: Measured, dofs: np.ndarray, min_mac: float = MIN_MAC):
+    """``(mac_matrix, rows, cols)``: measured mode ``rows[k]`` pairs with model mode ``cols[k]``."""
     m = mac(meas.shape, sol.right[:, dofs])
     rows, cols = assign_modes(m, meas.frequency, sol.poles.imag / (2 * np.pi), min_mac, MAX_FREQUENCY_RATIO)
     return m, rows, cols
@@ -156,22 +158,22 @@ def model_modes(
     A model with a per-mode effect (per-mode FSI) gives measured mode ``k``
     (label ``k``) from the FEM altered by that mode's values.
     """
-    dofs = _channel_dofs(model, meas.channels)
+    dofs = channel_dofs(model, meas.channels)
     sol = solve_modes(model, values)
-    m, rows, cols = _pair(sol, meas, dofs, min_mac)
+    m, rows, cols = pair_with_measured(sol, meas, dofs, min_mac)
     per_mode = _per_mode_effect(model)
     if per_mode is None:
         return ModelModes(rows, sol.poles[cols], sol.right[cols], m[rows, cols], m, sol.poles.imag / (2 * np.pi))
     fsi_values = {**model.values, **dict(values or {})}
     poles, shapes, macs, keep = [], [], [], []
-    base = model_with_shared_fsi(model)
+    base = with_shared_fsi(model)
     for r in range(len(meas.mode)):  # each measured mode against its own altered FEM
         label = int(meas.mode[r])
         if not 1 <= label <= per_mode.n_modes:
             continue
         altered = per_mode_values(model, base, label, fsi_values)
         s = solve_modes(base, altered)
-        mm, rr, cc = _pair(s, meas.subset(np.array([r])), dofs, min_mac)
+        mm, rr, cc = pair_with_measured(s, meas.subset(np.array([r])), dofs, min_mac)
         if len(rr):
             keep.append(r)
             poles.append(s.poles[cc[0]])
@@ -179,15 +181,6 @@ def model_modes(
             macs.append(mm[0, cc[0]])
     return ModelModes(np.array(keep, dtype=int), np.array(poles, dtype=complex),
                       np.array(shapes).reshape(len(keep), -1), np.array(macs), m, sol.poles.imag / (2 * np.pi))  # fmt: skip
-
-
-def model_with_shared_fsi(model: RotorModel) -> RotorModel:
-    """The model with a mode-independent FSI effect (to carry one mode's per-mode values)."""
-    import dataclasses
-
-    if any(isinstance(e, FluidAddedMass) for e in model.effects):
-        return model
-    return dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
 
 
 def per_mode_values(model: RotorModel, base: RotorModel, label: int, values: Mapping[str, float]) -> dict[str, float]:
@@ -248,8 +241,8 @@ def compare(
     -------
     xarray.Dataset
         Dimensions ``mode`` (paired measured modes) and ``channel``;
-        ``model_mode``-free per-mode variables (frequencies, damping ratios,
-        their errors and z-scores, ``pole_error``, ``mac``), ``shape_error``
+        per-mode variables (measured and model poles, frequencies, damping
+        ratios, their errors and z-scores, ``pole_error``, ``mac``), ``shape_error``
         (mode x channel), ``channel_shape_error``, ``mac_matrix``; attrs
         ``error`` (E, a fraction), ``chi2``, ``n_data``, ``unpaired``.
 
@@ -268,7 +261,7 @@ def compare(
         raise CompareError(f"no model mode of '{model.name}' pairs with any measured mode of {meas.source} "
                            f"(MAC >= {min_mac})")  # fmt: skip
     m = meas.subset(mm.measured)
-    dofs = _channel_dofs(model, meas.channels)
+    dofs = channel_dofs(model, meas.channels)
     f_meas, f_mod = m.pole.imag / (2 * np.pi), mm.poles.imag / (2 * np.pi)
     z_meas, z_mod = damping_ratio(m.pole), damping_ratio(mm.poles)
     resid = mm.poles - m.pole
@@ -290,6 +283,8 @@ def compare(
             "z_frequency": ("mode", z_im, {**pct, "long_name": "imaginary-part error in measurement sigmas"}),
             "z_damping": ("mode", z_re, {**pct, "long_name": "real-part error in measurement sigmas"}),
             "mac": ("mode", mm.mac, pct),
+            "measured_pole": ("mode", m.pole, {"units": "1/s", "long_name": "measured mean pole"}),
+            "model_pole": ("mode", mm.poles, {"units": "1/s", "long_name": "model pole"}),
             "measured_shape": (("mode", "channel"), m.shape, {**pct, "long_name": "measured mean shape"}),
             "model_shape": (("mode", "channel"), normalise_shapes(mm.shapes[:, dofs]), {**pct, "long_name": "model shape"}),
             "shape_error": (("mode", "channel"), shape_err, {**pct, "long_name": "|aligned model shape - measured shape| (unit norm)"}),

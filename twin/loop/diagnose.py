@@ -39,7 +39,7 @@ import xarray as xr
 from twin.fem.model import RotorModel
 from twin.loop.candidates import Candidate, select
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
-from twin.loop.fit import Fit, _residual, _Tracker, fit_candidate
+from twin.loop.fit import Fit, _residual, _Tracker, fit_candidate, scaled_rows
 from twin.loop.sensitivity import footprint_jacobian, solve_modes
 
 log = logging.getLogger(__name__)
@@ -87,17 +87,13 @@ def locate(model: RotorModel, meas: Measured, top: int = 3) -> list[Location]:
     ``½ s² (Jᵀr)² / (1 + s² JᵀJ) − ½ ln(1 + s² JᵀJ)``.
     """
     sol = solve_modes(model)
-    from twin.loop.compare import _channel_dofs
-
-    tracker = _Tracker(sol, meas, _channel_dofs(model, meas.channels))
+    tracker = _Tracker(model, sol, meas)
     r = -_residual(tracker.poles, meas, tracker.rows)
     chi2 = float(r @ r)
     if chi2 == 0 or not len(tracker.rows):
         return []
     terms = [[t for t in el.terms() if t.kind == "K"] for el in model.shaft]
-    jac = footprint_jacobian(sol, terms, tracker.cols)
-    rows = tracker.rows
-    J = np.vstack([jac.real / meas.sigma[rows, 0, None], jac.imag / meas.sigma[rows, 1, None]])
+    J = scaled_rows(footprint_jacobian(sol, terms, tracker.cols), meas, tracker.rows)
     norm = np.sum(J**2, axis=0)
     delta = np.where(norm > 0, J.T @ r / np.where(norm > 0, norm, 1.0), 0.0)
     gain = np.where(norm > 0, (J.T @ r) ** 2 / np.where(norm > 0, norm, 1.0), 0.0)
@@ -143,7 +139,7 @@ class Diagnosis:
                 "error_before": f.error_before(meas),
                 "error_after": f.error_after(meas),
                 "chi2_after": f.chi2_after,
-                "explains": consistent(f.chi2_after, 2 * len(f.measured) - len(f.names)),
+                "explains": consistent(f.chi2_after, f.residual_dof),
                 "parameters": {n: {"value": float(v), "std": float(s), "unit": u}
                                for n, v, s, u in zip(f.names, f.values, f.std, f.units)},
                 "at_bound": f.at_bound,
@@ -239,7 +235,7 @@ def diagnose(
     explanations = {f.label: _explain(f, by_label[f.label], meas, best) for f in ranked}
     top = ranked[0] if ranked else None
     strong = top is not None and top.log_bayes_factor > STRONG_EVIDENCE
-    explains = top is not None and consistent(top.chi2_after, 2 * len(top.measured) - len(top.names))
+    explains = top is not None and consistent(top.chi2_after, top.residual_dof)
     where = _where(failing, sensors)
     locations = locate(model, meas) if fails or strong else []
     outside = max((loc.log_bayes_factor for loc in locations), default=-np.inf)

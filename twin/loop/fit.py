@@ -24,24 +24,18 @@ touch one mode each), and their log evidences add.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from twin.fem.effects import FluidAddedMass, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.loop.candidates import Candidate, with_effect
-from twin.loop.compare import (
-    MAX_FREQUENCY_RATIO,
-    MIN_MAC,
-    Measured,
-    _channel_dofs,
-    model_with_shared_fsi,
-    overall_error,
-)
+from twin.loop.compare import Measured, channel_dofs, overall_error, pair_with_measured
 from twin.loop.sensitivity import ModalSolution, pole_jacobian, solve_modes
-from twin.modes.pairing import assign_modes
 from twin.modes.shapes import mac
 
 log = logging.getLogger(__name__)
@@ -101,55 +95,63 @@ class Fit:
         """The overall error ``E`` with the fitted effect, on the modes used."""
         return overall_error(self.poles_after, meas.pole[self.measured])
 
+    @property
+    def residual_dof(self) -> int:
+        """Degrees of freedom left to the residuals: two data per mode used, less the parameters."""
+        return 2 * len(self.measured) - len(self.names)
+
 
 class _Tracker:
     """Follows the model modes paired with measured modes from one parameter point to the next."""
 
-    def __init__(self, sol: ModalSolution, meas: Measured, dofs: np.ndarray, keep: np.ndarray | None = None):
-        m = mac(meas.shape, sol.right[:, dofs])
-        rows, cols = assign_modes(m, meas.frequency, sol.poles.imag / (2 * np.pi), MIN_MAC, MAX_FREQUENCY_RATIO)
+    def __init__(self, model: RotorModel, sol: ModalSolution, meas: Measured, keep: np.ndarray | None = None):
+        _, rows, cols = pair_with_measured(sol, meas, channel_dofs(model, meas.channels))
         if keep is not None:
             sel = np.isin(rows, keep)
             rows, cols = rows[sel], cols[sel]
-        self.rows, self.cols = rows, cols
-        self.shapes = sol.right[cols]
-        self.poles = sol.poles[cols]
+        self.rows = rows
+        self.update(sol, cols)
 
     def follow(self, sol: ModalSolution) -> np.ndarray:
         """Indices into ``sol`` of the tracked modes (MAC on all DOFs, nearest pole breaks ties)."""
         m = mac(self.shapes, sol.right)
         dist = np.abs(sol.poles[None, :] - self.poles[:, None]) / np.abs(self.poles[:, None])
-        cols = np.argmax(m - 1e-3 * dist, axis=1)
-        return cols
+        return np.argmax(m - 1e-3 * dist, axis=1)
 
     def update(self, sol: ModalSolution, cols: np.ndarray) -> None:
         self.cols, self.shapes, self.poles = cols, sol.right[cols], sol.poles[cols]
 
 
+def scaled_rows(values: np.ndarray, meas: Measured, rows: np.ndarray) -> np.ndarray:
+    """Complex per-mode rows (residuals or Jacobian rows) as real parts over σ_re, then imaginary over σ_im."""
+    values = np.asarray(values)
+    shape = (-1,) + (1,) * (values.ndim - 1)
+    sig_re, sig_im = meas.sigma[rows, 0].reshape(shape), meas.sigma[rows, 1].reshape(shape)
+    return np.concatenate([values.real / sig_re, values.imag / sig_im])
+
+
 def _residual(poles: np.ndarray, meas: Measured, rows: np.ndarray) -> np.ndarray:
-    d = poles - meas.pole[rows]
-    return np.concatenate([d.real / meas.sigma[rows, 0], d.imag / meas.sigma[rows, 1]])
+    return scaled_rows(poles - meas.pole[rows], meas, rows)
 
 
 def _jacobian(model, sol, names, cols, meas, rows, scale) -> np.ndarray:
-    jac = pole_jacobian(model, sol, names, cols) * scale[None, :]
-    return np.vstack([jac.real / meas.sigma[rows, 0, None], jac.imag / meas.sigma[rows, 1, None]])
+    return scaled_rows(pole_jacobian(model, sol, names, cols) * scale[None, :], meas, rows)
 
 
 def fit_parameters(
     model: RotorModel,
     meas: Measured,
+    label: str,
     names: Sequence[str],
     scale: np.ndarray,
     signs: Sequence[int],
     keep: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, _Tracker, np.ndarray, np.ndarray, float, bool]:
-    """MAP fit of parameters ``names`` (zero at the start) to the measured poles.
+) -> Fit:
+    """MAP fit of parameters ``names`` (zero at the start) to the measured poles, with its evidence.
 
-    Returns ``(u, H, tracker, poles_before, poles_after, ln_det_H, converged)``
-    in scaled units (``θ = scale * u``).
+    The parameters are ``θ = scale * u`` with the prior of the module
+    docstring; ``keep`` restricts the data to some measured modes (indices).
     """
-    dofs = _channel_dofs(model, meas.channels)
     names, scale, signs = list(names), np.asarray(scale, float), np.asarray(signs)
     base = {n: model.parameter(n).nominal for n in names}
 
@@ -157,15 +159,14 @@ def fit_parameters(
         return {n: base[n] + s * x for n, s, x in zip(names, scale, u)}
 
     sol = solve_modes(model, values(np.zeros(len(names))))
-    tracker = _Tracker(sol, meas, dofs, keep)
+    tracker = _Tracker(model, sol, meas, keep)
     rows = tracker.rows
     poles_before = tracker.poles.copy()
     u = np.zeros(len(names))
-    r = _residual(tracker.poles, meas, rows)
+    r0 = r = _residual(tracker.poles, meas, rows)
     J = _jacobian(model, sol, names, tracker.cols, meas, rows, scale)
     cost = 0.5 * (r @ r + u @ u)
     mu, converged = 1e-3, False
-    free = np.ones(len(u), dtype=bool)
     for _ in range(MAX_ITERATIONS):
         H = J.T @ J + np.eye(len(u))
         g = J.T @ r + u
@@ -195,7 +196,13 @@ def fit_parameters(
                 break
     H = J.T @ J + np.eye(len(u))
     ln_det = float(np.linalg.slogdet(H)[1])
-    return u, H, tracker, poles_before, tracker.poles.copy(), ln_det, converged
+    n_signed = int(np.count_nonzero(signs))
+    ln_b = 0.5 * (r0 @ r0 - r @ r - u @ u) - 0.5 * ln_det + n_signed * np.log(2.0)
+    std = scale * np.sqrt(np.diag(np.linalg.inv(H)))
+    at_bound = [n for n, sg, x in zip(names, signs, u) if sg and x == 0.0]
+    units = [model.parameter(n).unit for n in names]
+    return Fit(label, names, units, scale * u, std, scale, rows, poles_before, tracker.poles.copy(),
+               float(r0 @ r0), float(r @ r), float(ln_b), converged, at_bound)  # fmt: skip
 
 
 def fit_candidate(model: RotorModel, meas: Measured, candidate: Candidate) -> Fit:
@@ -220,54 +227,31 @@ def fit_candidate(model: RotorModel, meas: Measured, candidate: Candidate) -> Fi
     if candidate.per_mode:
         return _fit_per_mode(model, meas, candidate)
     altered = with_effect(model, candidate.effect)
-    params = candidate.effect.parameters(altered)
-    names = [p.name for p in params]
+    names = [p.name for p in candidate.effect.parameters(altered)]
     scales = candidate.effect.plausible_scale(altered)
-    scale = np.array([scales[n] for n in names])
-    signs = candidate.effect.signs
-    u, H, tracker, before, after, ln_det, converged = fit_parameters(altered, meas, names, scale, signs)
-    rows = tracker.rows
-    r0, r1 = _residual(before, meas, rows), _residual(after, meas, rows)
-    n_signed = sum(1 for s in signs if s)
-    ln_b = 0.5 * (r0 @ r0 - r1 @ r1 - u @ u) - 0.5 * ln_det + n_signed * np.log(2.0)
-    std = scale * np.sqrt(np.diag(np.linalg.inv(H)))
-    at_bound = [n for n, s, x in zip(names, signs, u) if s and x == 0.0]
-    return Fit(candidate.label, names, [p.unit for p in params], scale * u, std, scale, rows, before, after,
-               float(r0 @ r0), float(r1 @ r1), float(ln_b), converged, at_bound)  # fmt: skip
+    return fit_parameters(altered, meas, candidate.label, names, np.array([scales[n] for n in names]),
+                          candidate.effect.signs)  # fmt: skip
 
 
 def _fit_per_mode(model: RotorModel, meas: Measured, candidate: Candidate) -> Fit:
-    """Per-mode FSI: each paired mode fitted alone with its own added mass and damping."""
-    base = model_with_shared_fsi(model)
+    """Per-mode FSI: each paired mode fitted alone with its own added mass and damping; evidences add."""
+    base = with_shared_fsi(model)
     shared = ["FSI.added_mass", "FSI.added_damping"]
-    from twin.fem.effects import FluidAddedMass
-
     scales = FluidAddedMass().plausible_scale(base)
     scale = np.array([scales[n] for n in shared])
-    dofs = _channel_dofs(base, meas.channels)
-    tracker = _Tracker(solve_modes(base), meas, dofs)
-    names, units, values, std, scl, rows, before, after = [], [], [], [], [], [], [], []
-    ln_b, chi0, chi1, converged, at_bound = 0.0, 0.0, 0.0, True, []
-    for row in tracker.rows:
-        u, H, tr, b, a, ln_det, ok = fit_parameters(base, meas, shared, scale, FluidAddedMass.signs, keep=np.array([row]))
-        if len(tr.rows) != 1:
-            continue
-        label = int(meas.mode[row])
-        r0, r1 = _residual(b, meas, tr.rows), _residual(a, meas, tr.rows)
-        ln_b += 0.5 * (r0 @ r0 - r1 @ r1 - u @ u) - 0.5 * ln_det + 2 * np.log(2.0)
-        chi0, chi1 = chi0 + r0 @ r0, chi1 + r1 @ r1
-        converged &= ok
-        sd = scale * np.sqrt(np.diag(np.linalg.inv(H)))
-        for k, what in enumerate(("added_mass", "added_damping")):
-            names.append(f"FSI.{what}_{label}")
-            units.append("kg" if k == 0 else "N s/m")
-            values.append(scale[k] * u[k])
-            std.append(sd[k])
-            scl.append(scale[k])
-            if u[k] == 0.0:
-                at_bound.append(names[-1])
-        rows.append(row)
-        before.append(b[0])
-        after.append(a[0])
-    return Fit(candidate.label, names, units, np.array(values), np.array(std), np.array(scl), np.array(rows, dtype=int),
-               np.array(before), np.array(after), float(chi0), float(chi1), float(ln_b), bool(converged), at_bound)  # fmt: skip
+    fits = []
+    for row in _Tracker(base, solve_modes(base), meas).rows:
+        fit = fit_parameters(base, meas, candidate.label, shared, scale, FluidAddedMass.signs, keep=np.array([row]))
+        if len(fit.measured) == 1:
+            label = int(meas.mode[row])
+            fits.append(dataclasses.replace(fit, names=[f"{n}_{label}" for n in fit.names],
+                                            at_bound=[f"{n}_{label}" for n in fit.at_bound]))  # fmt: skip
+
+    def joined(attr):
+        return np.concatenate([getattr(f, attr) for f in fits]) if fits else np.array([])
+
+    return Fit(candidate.label, [n for f in fits for n in f.names], [u for f in fits for u in f.units],
+               joined("values"), joined("std"), joined("scale"), joined("measured").astype(int),
+               joined("poles_before"), joined("poles_after"), float(sum(f.chi2_before for f in fits)),
+               float(sum(f.chi2_after for f in fits)), float(sum(f.log_bayes_factor for f in fits)),
+               all(f.converged for f in fits), [n for f in fits for n in f.at_bound])  # fmt: skip

@@ -62,12 +62,8 @@ def comparison_figures(table: xr.Dataset, directory: str | Path, prefix: str = "
     paths.append(_save(fig, out_dir / f"{prefix}mac.png"))
     f_max = 1.1 * float(max(table["measured_frequency"].max(), table["model_frequency"].max()))
     freq = np.linspace(0.05, f_max, 4000)
-    meas_pole = -table["measured_damping_ratio"] * 2 * np.pi * table["measured_frequency"] / np.sqrt(
-        1 - table["measured_damping_ratio"] ** 2) + 2j * np.pi * table["measured_frequency"]  # fmt: skip
-    mod_pole = -table["model_damping_ratio"] * 2 * np.pi * table["model_frequency"] / np.sqrt(
-        1 - table["model_damping_ratio"] ** 2) + 2j * np.pi * table["model_frequency"]  # fmt: skip
-    s_meas = modal_spectrum(meas_pole.values, table["measured_shape"].values, freq)
-    s_mod = modal_spectrum(mod_pole.values, table["model_shape"].values, freq)
+    s_meas = modal_spectrum(table["measured_pole"].values, table["measured_shape"].values, freq)
+    s_mod = modal_spectrum(table["model_pole"].values, table["model_shape"].values, freq)
     channels = table["channel"].values
     ncol = 2
     nrow = int(np.ceil(len(channels) / ncol))
