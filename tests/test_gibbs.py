@@ -103,16 +103,19 @@ def test_shape_conditional_matches_the_brute_force_quadratic_form(toy):
         np.testing.assert_allclose(grad, b[i], rtol=1e-5, atol=1e-6)
 
 
-def test_noise_conditional_matches_numerical_integration(toy):
+@pytest.mark.parametrize("a0", [0.0, 5.0])
+def test_noise_conditional_matches_numerical_integration(toy, a0):
     problem, state, H = toy
-    a, rate = conditional_noise(problem, state)
+    prior = Prior.flat(problem, noise_shape=a0)
+    a, rate = conditional_noise(problem, state, prior=prior)
     c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
     ss = np.sum(_residual(H, c, state.z) ** 2, axis=1)  # (I, n_r)
+    b0 = np.broadcast_to(prior.noise_rate, ss.shape)
     for i, r in [(0, 0), (1, 2)]:
-        # Jeffreys prior 1/Δ times the Gaussian likelihood of the J residuals of that row
+        # prior IG(a0, b0) on Δ (a0 = 0: Jeffreys 1/Δ) times the Gaussian likelihood of the J residuals of that row
         def logp(log_d, i=i, r=r):
-            d = np.exp(log_d)
-            return -0.5 * J * log_d - 0.5 * ss[i, r] / d  # density of log Δ (the Jacobian cancels 1/Δ)
+            d = np.exp(log_d)  # density of log Δ: the Jacobian Δ turns Δ^(-a0-1) into Δ^(-a0)
+            return -(0.5 * J + a0) * log_d - (0.5 * ss[i, r] + b0[i, r]) / d
 
         # E[1/Δ] by integration over log Δ against the Gamma(a, rate) mean a / rate
         x = np.linspace(-12, 8, 40001)
@@ -120,6 +123,29 @@ def test_noise_conditional_matches_numerical_integration(toy):
         p = np.exp(lp - lp.max())
         mean_w = trapezoid(np.exp(-x) * p, x) / trapezoid(p, x)
         np.testing.assert_allclose(a / rate[i, r], mean_w, rtol=1e-6)
+
+
+def test_noise_prior_is_the_residual_scatter_over_the_pole_samples(toy):
+    problem, _, H = toy
+    prior = Prior.flat(problem)
+    z = np.zeros((I, N_Z))
+    z[:, :N_PSI] = problem.psi_hat.mean(axis=1)
+    r = np.einsum("ijrz,iz->ijr", H[:, 0], z)  # zero parameters, mean shape, no perturbation
+    np.testing.assert_allclose(prior.noise_rate, prior.noise_shape * r.var(axis=1, ddof=1), rtol=1e-12)
+    assert prior.noise_shape > 0
+
+
+def test_noise_prior_keeps_a_weakly_anchored_mode_off_zero(toy):
+    # shape samples so scattered that psi hardly anchors z: under Jeffreys the density is unbounded at z = 0
+    # and the chain falls in (Δ shrinks without end); the inverse-gamma prior keeps Δ at the residual scale
+    problem, _, _ = toy
+    loose = Problem(**{**problem.__dict__, "psi_var": np.full((I, N_PSI), 1e4)})
+    kept = run_chain(loose, 200, rng=np.random.default_rng(4), prior=Prior.flat(loose))
+    scatter = Prior.flat(loose).noise_rate.mean(axis=1) / Prior.flat(loose).noise_shape
+    assert np.all(kept.noise[-50:] > 1e-3 * scatter)
+    with np.errstate(all="ignore"):
+        fallen = run_chain(loose, 200, rng=np.random.default_rng(4), prior=Prior.flat(loose, noise_shape=0.0))
+    assert not np.all(fallen.noise[-1] > 1e-3 * scatter)
 
 
 def test_gaussian_draw_has_the_right_mean_and_covariance():
@@ -148,8 +174,9 @@ def test_chain_runs_from_zero_and_reports_the_log_density(toy):
     assert np.all(np.isfinite(chain.lp)) and np.all(chain.noise > 0)
     state = initial_state(problem)
     assert np.all(state.t == 0) and np.all(state.eta == 0)
-    lp = sweep(problem, state, Prior.flat(problem), np.random.default_rng(3))
-    assert lp == pytest.approx(log_density(problem, state))
+    prior = Prior.flat(problem)
+    lp = sweep(problem, state, prior, np.random.default_rng(3))
+    assert lp == pytest.approx(log_density(problem, state, prior=prior))
 
 
 def test_a_parameter_with_no_effect_is_named(toy):

@@ -223,7 +223,8 @@ def extract(
         "command": command,
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
-        "samples_method": "delete-one-block jackknife pseudo-values: sample std / sqrt(J) is the standard error",
+        "samples_method": ("delete-one-block jackknife pseudo-values centred on the full-record estimate: "
+                           "sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):

@@ -9,9 +9,17 @@ record; a mode is the average over its orders), giving ``theta_(-j)``. The sampl
 
 (Quenouille 1956, Tukey 1958; Künsch 1989 for blocks of dependent data).
 They behave like J independent estimates from records of length T/J: their
-mean is the bias-corrected estimate and their standard deviation divided by
-``sqrt(J)`` is the standard error of the full-record estimate. That is the
-spread the APerCEM likelihood expects from J samples treated as independent.
+standard deviation divided by ``sqrt(J)`` is the standard error of the
+full-record estimate. That is the spread the APerCEM likelihood expects from J
+samples treated as independent.
+
+The samples are centred on the full-record estimate: the pseudo-values'
+deviations from their own mean are added to it. Their mean would be the
+jackknife's bias-corrected estimate, but here it multiplies by ``J - 1`` the
+small jitter of matching a mode's model orders in each leave-one-out record
+(on the hydro unit with J = 50, a 17.14 Hz mode whose full-record estimate is
+within 0.04% of the truth had a pseudo-value mean 1.8% off). The spread is
+kept as it is.
 Poles and complex shapes are resampled alike; every shape is brought to the
 phase of the full-record shape before, and normalised the same way after
 (unit norm, the mode's reference channel real and positive).
@@ -99,7 +107,7 @@ def jackknife(
     (poles, shapes, sample_poles, sample_shapes, missing)
         Full-record ``(n_modes,)`` poles and ``(n_modes, channels)`` shapes;
         ``(n_modes, J)`` pole samples, ``(n_modes, J, channels)`` shape samples
-        (phase-aligned, not yet normalised); ``(n_modes, J)`` how many of the
+        (pseudo-values centred on the full-record estimate; phase-aligned, not yet normalised); ``(n_modes, J)`` how many of the
         mode's orders had no leave-one-out pole within ``MATCH_DISTANCE`` (those
         orders keep their full-record value in that sample).
     """
@@ -130,6 +138,6 @@ def jackknife(
                 else:
                     p_k.append(lam[best]), s_k.append(phi[best])
             loo_p[k, j], loo_s[k, j] = order_average(np.array(p_k), np.array(s_k), shapes[k])
-    sample_p = J * poles[:, None] - (J - 1) * loo_p
-    sample_s = J * shapes[:, None, :] - (J - 1) * loo_s
+    sample_p = poles[:, None] - (J - 1) * (loo_p - loo_p.mean(axis=1, keepdims=True))
+    sample_s = shapes[:, None, :] - (J - 1) * (loo_s - loo_s.mean(axis=1, keepdims=True))
     return poles, shapes, sample_p, sample_s, missing

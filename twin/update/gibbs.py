@@ -6,7 +6,7 @@ For mode ``i`` and pole sample ``j`` the real-augmented PerCEM residual is
 
 linear in the parameters ``c`` for fixed ``z`` and in ``z`` for fixed ``c``.
 The statistical model: ``r_ij ~ N(0, Δ_i)`` with diagonal unknown ``Δ_i``
-(Jeffreys prior), shape samples ``ψ̂_ij* ~ N(ψ_i*, Σ_i)`` (Σ_i from the data),
+(a weak inverse-gamma prior, see below), shape samples ``ψ̂_ij* ~ N(ψ_i*, Σ_i)`` (Σ_i from the data),
 ``e_i* ~ N(0, σ² I)``, flat or Gaussian priors on the scaled parameters.
 
 One sweep draws, each from its closed-form conditional:
@@ -20,6 +20,18 @@ One sweep draws, each from its closed-form conditional:
 
 All modes are handled at once with batched dense algebra; the basis matrices
 were built once (:func:`twin.update.problem.build_problem`).
+
+**The prior on Δ.** The residual is homogeneous in ``z``: ``z = 0`` makes it
+vanish for every sample. Under the scale-free Jeffreys prior ``p(Δ) ∝ 1/Δ``
+the joint density is then unbounded as ``z, Δ → 0``, and a mode whose shape
+samples anchor ``ψ`` weakly (a heavily damped mode identified from signals,
+shape CoV of tens of percent) falls into that hole: its ``Δ`` shrinks by
+orders of magnitude per sweep until the draws are NaN. Each row of ``Δ_i``
+therefore has a conjugate prior ``IG(a0, a0 s_ir)``, where ``s_ir`` is the
+variance over the pole samples of the residual at the data's mean shape (the
+scatter the pole samples alone put into the residual), and
+``a0 = NOISE_PRIOR_SHAPE`` weighs it as ``2 a0`` samples against the J of
+the data. The density is then bounded and the chains stay off ``z = 0``.
 """
 
 from __future__ import annotations
@@ -37,6 +49,8 @@ log = logging.getLogger(__name__)
 
 #: Eigenvalue ratio of the (unit-diagonal) parameter precision below which parameters are not identifiable.
 SINGULAR_RATIO = 1e-13
+#: Shape ``a0`` of the inverse-gamma prior on each row of Δ (worth ``2 a0`` pole samples).
+NOISE_PRIOR_SHAPE = 5.0
 
 
 @dataclass
@@ -51,21 +65,42 @@ class State:
 
 @dataclass(frozen=True)
 class Prior:
-    """Independent Gaussian priors on the scaled parameters (precision 0: flat).
+    """Independent Gaussian priors on the scaled parameters (precision 0: flat), and the prior on Δ.
 
     ``global_mean``/``global_precision`` are ``(Kg,)``, ``mode_mean``/``mode_precision`` ``(I, Km)``.
+    Each row of ``Δ_i`` is ``IG(noise_shape, noise_rate[i, r])`` (both zero: Jeffreys).
     """
 
     global_mean: np.ndarray
     global_precision: np.ndarray
     mode_mean: np.ndarray
     mode_precision: np.ndarray
+    noise_shape: float = 0.0
+    noise_rate: np.ndarray | float = 0.0
 
     @classmethod
-    def flat(cls, problem: Problem) -> Prior:
-        """Flat priors on every parameter (the paper's choice)."""
+    def flat(cls, problem: Problem, noise_shape: float = NOISE_PRIOR_SHAPE) -> Prior:
+        """Flat priors on every parameter (the paper's choice); the weak data-scaled prior on Δ."""
         I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
-        return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)))
+        rate = noise_shape * residual_scatter(problem) if noise_shape > 0 else 0.0
+        return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)), noise_shape, rate)
+
+
+def residual_scatter(problem: Problem) -> np.ndarray:
+    """Variance over the pole samples of each residual row at zero parameters and the data's mean shape: (I, n_r).
+
+    ``ε = 0``; latent shape entries (if any) by least squares.
+    """
+    I, J, n_r, n_z = problem.H0.shape
+    Hc = problem.H0.reshape(I, J * n_r, n_z)
+    z = np.zeros((I, n_z))
+    z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
+    latent = np.setdiff1d(np.arange(n_z), np.concatenate([problem.data_index, problem.eps_index]))
+    for i in range(I if latent.size else 0):
+        z[i, latent] = -np.linalg.lstsq(Hc[i][:, latent], Hc[i] @ z[i], rcond=None)[0]
+    r = (Hc @ z[:, :, None]).reshape(I, J, n_r)
+    var = r.var(axis=1, ddof=1)
+    return np.maximum(var, np.finfo(float).tiny * np.maximum(var.max(axis=1, keepdims=True), 1.0))
 
 
 @dataclass(frozen=True)
@@ -164,7 +199,12 @@ def not_identifiable(problem: Problem, state: State) -> list[str]:
 
 
 def initial_state(problem: Problem) -> State:
-    """Parameters at zero; ``z`` its conditional mean there (ψ near the data mean); ``Δ`` from the residual."""
+    """Parameters at zero; ``z`` its conditional mean there (ψ near the data mean); ``Δ`` from the residual.
+
+    Starting ``Δ`` at :func:`residual_scatter` instead (leaving out the model error) was tried and
+    rejected: the chains then settle in local modes of lower density (paper Case B: log density
+    lower by about 5600, UGB.kxx 4.5% off).
+    """
     I, J, n_r, n_z = problem.H0.shape
     state = State(np.zeros(problem.n_global), np.zeros((I, problem.n_per_mode)), np.zeros((I, n_z)), np.ones((I, n_r)))
     Hc = _combined(problem, _coefficients(problem, state))
@@ -237,23 +277,30 @@ def conditional_shape(problem: Problem, state: State, Hc: np.ndarray | None = No
     return _shape_system(problem, Hc, np.tile(state.w, problem.n_samples))
 
 
-def conditional_noise(problem: Problem, state: State, Hc: np.ndarray | None = None) -> tuple[float, np.ndarray]:
-    """Shape ``a`` and rates ``(I, n_r)`` of ``1/Δ_ir | rest ~ Gamma(a, rate)`` (Jeffreys prior on Δ)."""
+def conditional_noise(
+    problem: Problem, state: State, Hc: np.ndarray | None = None, prior: Prior | None = None
+) -> tuple[float, np.ndarray]:
+    """Shape ``a`` and rates ``(I, n_r)`` of ``1/Δ_ir | rest ~ Gamma(a, rate)``.
+
+    ``prior`` sets the inverse-gamma prior on Δ (default: Jeffreys, ``p(Δ) ∝ 1/Δ``).
+    """
     I, J, n_r, n_z = problem.H0.shape
     Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
     r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
-    return J / 2.0, np.maximum(0.5 * np.sum(r**2, axis=1), np.finfo(float).tiny)
+    a0, b0 = (0.0, 0.0) if prior is None else (prior.noise_shape, prior.noise_rate)
+    return J / 2.0 + a0, np.maximum(0.5 * np.sum(r**2, axis=1) + b0, np.finfo(float).tiny)
 
 
-def log_density(problem: Problem, state: State, rate: np.ndarray | None = None) -> float:
+def log_density(problem: Problem, state: State, rate: np.ndarray | None = None, prior: Prior | None = None) -> float:
     """Log joint density of ``state`` and the data, up to a constant (flat parameter priors).
 
-    ``rate`` is :func:`conditional_noise`'s at the state when already computed.
+    ``rate`` is :func:`conditional_noise`'s at the state (same ``prior``) when already computed.
     """
     J = problem.n_samples
-    rate = conditional_noise(problem, state)[1] if rate is None else rate
+    a0 = 0.0 if prior is None else prior.noise_shape
+    rate = conditional_noise(problem, state, prior=prior)[1] if rate is None else rate
     psi = state.z[:, problem.data_index]
-    return float(0.5 * J * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w))
+    return float((0.5 * J + a0) * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w))
                  - 0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
                  - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2)  # fmt: skip
 
@@ -276,9 +323,9 @@ def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator
         state.z = gaussian_draw(*conditional_shape(problem, state, Hc), rng)
     except np.linalg.LinAlgError:
         raise UpdateError("the shape conditional is singular: too few rows for the latent shape entries") from None
-    a, rate = conditional_noise(problem, state, Hc)
+    a, rate = conditional_noise(problem, state, Hc, prior)
     state.w = rng.gamma(a, 1.0 / rate)
-    return log_density(problem, state, rate)
+    return log_density(problem, state, rate, prior)
 
 
 def run_chain(
