@@ -19,27 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from twin import load_model
-from twin.fem.effects import BearingChange, FluidAddedMass, MagneticPull, SealCrossCoupling, ThrustTilt
+from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
 from twin.loop.compare import measured_modes
+from twin.loop.demo import HIDDEN_EFFECTS, truth_values
 from twin.loop.diagnose import diagnose
 from twin.update import synthesize_modes
 
 ROOT = Path(__file__).resolve().parent.parent
 
-HIDDEN = {
-    "magnetic_pull": MagneticPull(-1e8),
-    "seal_cross_coupling": SealCrossCoupling(5e7),
-    "fsi": FluidAddedMass(6e4, 2e6),
-    "thrust_tilt:thrust": ThrustTilt("thrust", -2e8),
-    "bearing_change:LGB": BearingChange("LGB", -3e7, -3e8),
-    "bearing_change:UGB": BearingChange("UGB", -3e8, -5e7),
-}
-
-
-def _truth_values(model, effect) -> dict[str, float]:
-    params = effect.parameters(dataclasses.replace(model, effects=(effect,)))
-    return {p.name: p.nominal for p in params}
+HIDDEN = HIDDEN_EFFECTS
 
 
 def main() -> None:
@@ -68,7 +57,7 @@ def main() -> None:
             e0, e1 = top.error_before(meas), top.error_after(meas)
             errs = ""
             if effect is not None and label in HIDDEN and top.label == label:
-                truth = _truth_values(model, effect)
+                truth = truth_values(model, effect)
                 fitted = dict(zip(top.names, top.values))
                 errs = ", ".join(f"{n} {100 * (fitted[n] / v - 1):+.1f}%" for n, v in truth.items() if v)
             if d.locations and d.verdict != "missing effect":

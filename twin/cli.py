@@ -10,6 +10,7 @@
                 [--effect LABEL]
     twin compare MODEL.toml modes.nc [--posterior posterior.nc] [--effect LABEL] [--json] [--plot DIR]
     twin diagnose MODEL.toml modes.nc [--candidates LABEL,...] [--json]
+    twin demo [--out DIR] [--hidden LABEL] [--duration S] [--seed N] [--model MODEL.toml]
 
 Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback.
@@ -237,6 +238,29 @@ def _diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+def _demo(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.loop.demo import run_demo
+
+    model = load_model(args.model) if args.model else None
+    r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
+                 samples=args.samples)  # fmt: skip
+    d = r.diagnosis
+    print(f"hidden in the truth: {', '.join(f'{n} = {v:.4g}' for n, v in r.truth.items())}")
+    print(f"diagnosis: {d.verdict}" + (f" ({d.missing})" if d.missing else ""))
+    if r.posterior is not None:
+        for k, name in enumerate(r.posterior["parameter"].values):
+            t = r.truth.get(str(name))
+            err = f" ({100 * (float(r.posterior['map'][k]) / t - 1):+.1f}% from the truth)" if t else ""
+            print(f"updated {name} = {float(r.posterior['map'][k]):.4g} ± {float(r.posterior['std'][k]):.2g} "
+                  f"{r.posterior['unit'].values[k]}{err}")  # fmt: skip
+    print(f"{'step':>4}  {'action':<40} {'error E':>9}")
+    for k, step in enumerate(r.twin.history):
+        print(f"{k:>4}  {step.action:<40} {100 * step.error:>8.3f}%")
+    print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -345,6 +369,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=_diagnose)
+
+    from twin.loop.demo import HIDDEN_EFFECTS
+
+    p = sub.add_parser("demo", help="the whole loop on a truth with a hidden effect, with a report folder")
+    p.add_argument("--out", default="twin-demo", help="report folder (default: twin-demo)")
+    p.add_argument("--hidden", choices=tuple(HIDDEN_EFFECTS), default="magnetic_pull",
+                   help="effect hidden in the truth (default: magnetic_pull)")
+    p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
+    p.add_argument("--samples", type=int, default=20, help="jackknife samples per mode (default: 20)")
+    p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise (default: 1)")
+    p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+    p.set_defaults(func=_demo)
     return parser
 
 

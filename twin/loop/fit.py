@@ -30,8 +30,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import xarray as xr
 
 from twin.fem.effects import FluidAddedMass, with_shared_fsi
+from twin.errors import ModelError
 from twin.fem.model import RotorModel
 from twin.loop.candidates import Candidate, with_effect
 from twin.loop.compare import Measured, channel_dofs, overall_error, pair_with_measured
@@ -255,3 +257,87 @@ def _fit_per_mode(model: RotorModel, meas: Measured, candidate: Candidate) -> Fi
                joined("poles_before"), joined("poles_after"), float(sum(f.chi2_before for f in fits)),
                float(sum(f.chi2_after for f in fits)), float(sum(f.log_bayes_factor for f in fits)),
                all(f.converged for f in fits), [n for f in fits for n in f.at_bound])  # fmt: skip
+
+
+#: Prior scale of a parameter no effect owns (a bearing coefficient, a stiffness): this fraction of its nominal.
+CHANGE_SCALE = 0.5
+
+
+def prior_scales(model: RotorModel, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Prior scale [SI] and allowed sign of each parameter, for :func:`fit_parameters`.
+
+    An effect's parameter takes the effect's plausible scale and sign; any other
+    parameter ``CHANGE_SCALE`` of its nominal value, either sign.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.loop.candidates import add_effects
+    >>> model = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull"])
+    >>> scale, signs = prior_scales(model, ["MAG.stiffness", "UGB.kxx"])
+    >>> signs.tolist(), bool(scale[1] == 0.5 * model.parameter("UGB.kxx").nominal)
+    ([-1, 0], True)
+    """
+    owned: dict[str, tuple[float, int]] = {}
+    for effect in model.effects:
+        scales = effect.plausible_scale(model)
+        signs = tuple(effect.signs) * (len(scales) // max(len(effect.signs), 1))  # per-mode effects repeat theirs
+        owned.update({n: (scales[n], g) for n, g in zip(scales, signs)})
+    scale, sign = [], []
+    for n in names:
+        nominal = model.parameter(n).nominal  # names an unknown parameter clearly
+        s, g = owned.get(n, (CHANGE_SCALE * abs(nominal), 0))
+        if not s > 0:
+            raise ModelError(f"parameter '{n}' has no prior scale (nominal {nominal:g}): give it through an effect")
+        scale.append(float(s)), sign.append(int(g))
+    return np.array(scale), np.array(sign)
+
+
+def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> tuple[RotorModel, xr.Dataset]:
+    """Gaussian (Laplace) posterior of parameters ``names`` from the measured poles, and the model at its MAP.
+
+    The fit of :func:`fit_parameters` from the model's current values, with the
+    priors of :func:`prior_scales`. Poles only: fast, and blind to shape errors.
+
+    Returns
+    -------
+    (model, posterior) : the model with the MAP values; a Dataset over
+        ``parameter`` with ``map``, ``std`` and ``prior_scale`` [SI], attrs
+        ``chi2_before``, ``chi2_after``, ``log_bayes_factor``, ``converged``.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.fem.effects import MagneticPull
+    >>> from twin.fem.truthfile import Truth
+    >>> from twin.loop.candidates import add_effects
+    >>> from twin.loop.compare import measured_modes
+    >>> from twin.update import synthesize_modes
+    >>> base = load_model("models/hydro_unit.toml")
+    >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
+    ...                         pole_variance=(0.01, 0.01))
+    >>> model = add_effects(base, ["magnetic_pull"])
+    >>> updated, post = laplace_update(model, measured_modes(data), ["MAG.stiffness"])
+    >>> round(float(post["map"][0]) / -1e8, 2), round(updated.parameter("MAG.stiffness").nominal / -1e8, 2)
+    (1.0, 1.0)
+    """
+    names = list(names)
+    scale, signs = prior_scales(model, names)
+    fit = fit_parameters(model, meas, "update", names, scale, signs)
+    values = {n: model.parameter(n).nominal + v for n, v in zip(names, fit.values)}
+    post = xr.Dataset(
+        {
+            "map": ("parameter", [values[n] for n in names], {"long_name": "posterior mode (Laplace)"}),
+            "std": ("parameter", fit.std, {"long_name": "posterior std (Laplace)"}),
+            "prior_scale": ("parameter", scale, {"long_name": "prior std (plausible scale)"}),
+            "unit": ("parameter", fit.units),
+        },
+        coords={"parameter": names},
+        attrs={"method": "Laplace approximation of the pole-fit posterior (twin.loop.fit.laplace_update)",
+               "chi2_before": fit.chi2_before, "chi2_after": fit.chi2_after,
+               "log_bayes_factor": fit.log_bayes_factor, "converged": int(fit.converged),
+               "at_bound": ", ".join(fit.at_bound)},
+    )  # fmt: skip
+    if not fit.converged:
+        log.warning("Laplace update of %s did not converge in %d iterations", names, MAX_ITERATIONS)
+    return model.with_values(values), post

@@ -19,6 +19,7 @@ from twin.fem.model import RotorModel
 from twin.loop.candidates import add_effects
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
 from twin.loop.diagnose import Diagnosis, diagnose
+from twin.loop.fit import laplace_update
 
 log = logging.getLogger(__name__)
 
@@ -96,13 +97,40 @@ class Twin:
         """Add a library effect, zero-valued (the error is unchanged until an update)."""
         return self._record(f"add {label}", add_effects(self.model, [label]))
 
-    def update(self, params: str | Sequence[str], *, estimate: str = "map", **kwargs) -> xr.DataTree:
-        """Bayesian update of ``params`` (:func:`twin.update.update`), then apply the posterior's estimate."""
+    def update(
+        self, params: str | Sequence[str], *, method: str = "gibbs", estimate: str = "map", **kwargs
+    ) -> xr.DataTree | xr.Dataset:
+        """Bayesian update of ``params``, then the model at the posterior estimate.
+
+        Parameters
+        ----------
+        params : str or sequence of str
+            Parameter names, or a group such as ``"bearings"``.
+        method : {"gibbs", "laplace"}
+            ``"gibbs"``: the APerCEM sampler on pole and shape samples
+            (:func:`twin.update.update`; ``kwargs`` go to it), returns its
+            posterior DataTree. ``"laplace"``: the Gaussian posterior of the
+            pole fit (:func:`twin.loop.fit.laplace_update`), returns a Dataset
+            of MAP and std.
+        estimate : {"map", "mean"}
+            Which estimate of a Gibbs posterior the model takes.
+        """
+        from twin.update.problem import select_parameters
+
+        names = select_parameters(self.model, params)
+        label = params if isinstance(params, str) else ", ".join(params)
+        if method == "laplace":
+            if kwargs:
+                raise TypeError(f"method 'laplace' takes no sampler settings, got {sorted(kwargs)}")
+            model, post = laplace_update(self.model, self.measured, names)
+            self._record(f"update {label} (Laplace)", model)
+            return post
+        if method != "gibbs":
+            raise ValueError(f"method must be 'gibbs' or 'laplace', got {method!r}")
         from twin.update import apply_posterior, update
 
-        tree = update(self.model, self.modes, params, **kwargs)
-        names = params if isinstance(params, str) else ", ".join(params)
-        self._record(f"update {names}", apply_posterior(self.model, tree, estimate))
+        tree = update(self.model, self.modes, names, **kwargs)
+        self._record(f"update {label}", apply_posterior(self.model, tree, estimate))
         return tree
 
     def history_table(self) -> xr.Dataset:
