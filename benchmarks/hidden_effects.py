@@ -14,6 +14,8 @@ import argparse
 import time
 from pathlib import Path
 
+import numpy as np
+
 from twin import load_model
 from twin.loop.demo import HIDDEN_EFFECTS, default_model_path, run_demo
 
@@ -39,10 +41,12 @@ def main() -> None:
         e0, e1 = r.twin.history[0].error, r.twin.history[-1].error
         errs = ""
         if r.posterior is not None:
+            ident = r.identified()
             errs = ", ".join(
-                f"{n} {100 * (float(v) / r.truth[str(n)] - 1):+.1f}% (std {100 * float(s) / abs(r.truth[str(n)]):.1f}%)"
-                for n, v, s in zip(r.posterior["parameter"].values, r.posterior["map"].values, r.posterior["std"].values)
-                if r.truth.get(str(n))
+                f"{n} {100 * e:+.1f}% (std {100 * s / abs(t):.1f}%)"
+                for n, e, s, t in zip(ident["parameter"].values, ident["relative_error"].values, ident["std"].values,
+                                      ident["truth"].values)
+                if np.isfinite(e)
             )  # fmt: skip
         print(f"{label:<22} {d.verdict:<16} {top.label:<22} {top.log_bayes_factor - second.log_bayes_factor:>9.1f} "
               f"{100 * e0:>8.3f}% {100 * e1:>7.3f}% {100 * (1 - e1 / e0):>5.1f}% {elapsed:>5.0f}s  {errs}")  # fmt: skip

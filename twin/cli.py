@@ -249,11 +249,11 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"hidden in the truth: {', '.join(f'{n} = {v:.4g}' for n, v in r.truth.items())}")
     print(f"diagnosis: {d.verdict}" + (f" ({d.missing})" if d.missing else ""))
     if r.posterior is not None:
-        for k, name in enumerate(r.posterior["parameter"].values):
-            t = r.truth.get(str(name))
-            err = f" ({100 * (float(r.posterior['map'][k]) / t - 1):+.1f}% from the truth)" if t else ""
-            print(f"updated {name} = {float(r.posterior['map'][k]):.4g} ± {float(r.posterior['std'][k]):.2g} "
-                  f"{r.posterior['unit'].values[k]}{err}")  # fmt: skip
+        ident = r.identified()
+        for k, name in enumerate(ident["parameter"].values):
+            err = float(ident["relative_error"][k])
+            print(f"updated {name} = {float(ident['map'][k]):.4g} ± {float(ident['std'][k]):.2g} {ident['unit'].values[k]}"
+                  + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
     print(f"{'step':>4}  {'action':<40} {'error E':>9}")
     for k, step in enumerate(r.twin.history):
         print(f"{k:>4}  {step.action:<40} {100 * step.error:>8.3f}%")

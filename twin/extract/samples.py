@@ -107,9 +107,10 @@ def jackknife(
     (poles, shapes, sample_poles, sample_shapes, missing)
         Full-record ``(n_modes,)`` poles and ``(n_modes, channels)`` shapes;
         ``(n_modes, J)`` pole samples, ``(n_modes, J, channels)`` shape samples
-        (pseudo-values centred on the full-record estimate; phase-aligned, not yet normalised); ``(n_modes, J)`` how many of the
-        mode's orders had no leave-one-out pole within ``MATCH_DISTANCE`` (those
-        orders keep their full-record value in that sample).
+        (pseudo-values centred on the full-record estimate; phase-aligned, not
+        yet normalised); ``(n_modes, J)`` how many of the mode's orders had no
+        leave-one-out pole within ``MATCH_DISTANCE`` (those orders keep their
+        full-record value in that sample).
     """
     n_modes, n_ch, J = len(members), members[0][2].shape[1], blocks.n_blocks
     full = [order_average(p, s, s[0]) for _, p, s in members]

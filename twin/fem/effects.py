@@ -43,7 +43,7 @@ from twin.fem.parameters import Parameter, Term
 FSI_DAMPING_PER_MASS = 1000.0
 #: Plausible magnetic or seal stiffness, as a fraction of the guide bearings' direct stiffness.
 FLUID_MAGNETIC_FRACTION = 0.3
-#: Plausible change of a bearing or thrust coefficient, as a fraction of its value.
+#: Plausible change of a bearing or thrust coefficient (or of any parameter no effect owns), as a fraction of its value.
 CHANGE_FRACTION = 0.5
 
 

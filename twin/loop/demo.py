@@ -19,6 +19,7 @@ import logging
 import time
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from twin.errors import TwinError
@@ -75,6 +76,15 @@ class DemoResult:
     @property
     def report(self) -> Path:
         return self.out / "report.md"
+
+    def identified(self) -> xr.Dataset:
+        """The update's ``map``, ``std``, ``unit`` with the ``truth`` and the ``relative_error`` (NaN without a truth)."""
+        post = self.posterior
+        truth = np.array([self.truth.get(str(n), np.nan) for n in post["parameter"].values])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = np.where(truth != 0, post["map"].values / truth - 1.0, np.nan)
+        return post.assign(truth=("parameter", truth, {"units": "SI"}),
+                           relative_error=("parameter", rel, {"units": "1", "long_name": "MAP / truth - 1"}))  # fmt: skip
 
 
 def run_demo(
@@ -210,15 +220,11 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     lines += _md_table(["rank", "effect", "ln B", "E after fit [%]"], rows)
     lines += ["", "Why:", ""] + [f"- {d.explanations[f.label]}" for f in d.ranking] + [""]
     if result.posterior is not None:
-        post = result.posterior
-        lines += ["## Update", "", f"{post.attrs['method']}.", ""]
-        rows = []
-        for k, name in enumerate(post["parameter"].values):
-            v, s = float(post["map"][k]), float(post["std"][k])
-            t = result.truth.get(str(name))
-            err = f"{100 * (v / t - 1):+.1f}" if t else "-"
-            rows.append([str(name), f"{t:.4g}" if t is not None else "-", f"{v:.4g}", f"{s:.2g}", err,
-                         str(post["unit"].values[k])])  # fmt: skip
+        ident = result.identified()
+        lines += ["## Update", "", f"{ident.attrs['method']}.", ""]
+        rows = [[str(r["parameter"].values), f"{float(r.truth):.4g}", f"{float(r['map']):.4g}", f"{float(r['std']):.2g}",
+                 f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
+                for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip
         lines += _md_table(["parameter", "truth", "MAP", "std", "error [%]", "unit"], rows)
         lines += ["", "![errors after](after_errors.png)", "", "![spectra after](after_spectra.png)", ""]
     lines += ["## History", ""]

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from twin.fem.effects import FluidAddedMass, with_shared_fsi
 from twin.errors import ModelError
+from twin.fem.effects import CHANGE_FRACTION, FluidAddedMass, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.loop.candidates import Candidate, with_effect
 from twin.loop.compare import Measured, channel_dofs, overall_error, pair_with_measured
@@ -229,10 +229,9 @@ def fit_candidate(model: RotorModel, meas: Measured, candidate: Candidate) -> Fi
     if candidate.per_mode:
         return _fit_per_mode(model, meas, candidate)
     altered = with_effect(model, candidate.effect)
-    names = [p.name for p in candidate.effect.parameters(altered)]
-    scales = candidate.effect.plausible_scale(altered)
-    return fit_parameters(altered, meas, candidate.label, names, np.array([scales[n] for n in names]),
-                          candidate.effect.signs)  # fmt: skip
+    priors = effect_priors(altered, candidate.effect)
+    return fit_parameters(altered, meas, candidate.label, list(priors), np.array([s for s, _ in priors.values()]),
+                          [g for _, g in priors.values()])  # fmt: skip
 
 
 def _fit_per_mode(model: RotorModel, meas: Measured, candidate: Candidate) -> Fit:
@@ -259,15 +258,19 @@ def _fit_per_mode(model: RotorModel, meas: Measured, candidate: Candidate) -> Fi
                all(f.converged for f in fits), [n for f in fits for n in f.at_bound])  # fmt: skip
 
 
-#: Prior scale of a parameter no effect owns (a bearing coefficient, a stiffness): this fraction of its nominal.
-CHANGE_SCALE = 0.5
+def effect_priors(model: RotorModel, effect) -> dict[str, tuple[float, int]]:
+    """``{parameter: (plausible scale [SI], allowed sign)}`` of an effect of ``model``, in parameter order."""
+    names = [p.name for p in effect.parameters(model)]
+    scales = effect.plausible_scale(model)
+    signs = tuple(effect.signs) * (len(names) // max(len(effect.signs), 1))  # per-mode effects repeat theirs
+    return {n: (scales[n], g) for n, g in zip(names, signs)}
 
 
 def prior_scales(model: RotorModel, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Prior scale [SI] and allowed sign of each parameter, for :func:`fit_parameters`.
 
     An effect's parameter takes the effect's plausible scale and sign; any other
-    parameter ``CHANGE_SCALE`` of its nominal value, either sign.
+    parameter :data:`twin.fem.effects.CHANGE_FRACTION` of its nominal value, either sign.
 
     Examples
     --------
@@ -278,15 +281,11 @@ def prior_scales(model: RotorModel, names: Sequence[str]) -> tuple[np.ndarray, n
     >>> signs.tolist(), bool(scale[1] == 0.5 * model.parameter("UGB.kxx").nominal)
     ([-1, 0], True)
     """
-    owned: dict[str, tuple[float, int]] = {}
-    for effect in model.effects:
-        scales = effect.plausible_scale(model)
-        signs = tuple(effect.signs) * (len(scales) // max(len(effect.signs), 1))  # per-mode effects repeat theirs
-        owned.update({n: (scales[n], g) for n, g in zip(scales, signs)})
+    owned = {n: prior for effect in model.effects for n, prior in effect_priors(model, effect).items()}
     scale, sign = [], []
     for n in names:
         nominal = model.parameter(n).nominal  # names an unknown parameter clearly
-        s, g = owned.get(n, (CHANGE_SCALE * abs(nominal), 0))
+        s, g = owned.get(n, (CHANGE_FRACTION * abs(nominal), 0))
         if not s > 0:
             raise ModelError(f"parameter '{n}' has no prior scale (nominal {nominal:g}): give it through an effect")
         scale.append(float(s)), sign.append(int(g))

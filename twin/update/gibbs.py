@@ -96,8 +96,9 @@ def residual_scatter(problem: Problem) -> np.ndarray:
     z = np.zeros((I, n_z))
     z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
     latent = np.setdiff1d(np.arange(n_z), np.concatenate([problem.data_index, problem.eps_index]))
-    for i in range(I if latent.size else 0):
-        z[i, latent] = -np.linalg.lstsq(Hc[i][:, latent], Hc[i] @ z[i], rcond=None)[0]
+    if latent.size:
+        for i in range(I):
+            z[i, latent] = -np.linalg.lstsq(Hc[i][:, latent], Hc[i] @ z[i], rcond=None)[0]
     r = (Hc @ z[:, :, None]).reshape(I, J, n_r)
     var = r.var(axis=1, ddof=1)
     return np.maximum(var, np.finfo(float).tiny * np.maximum(var.max(axis=1, keepdims=True), 1.0))
