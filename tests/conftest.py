@@ -99,3 +99,12 @@ def paper_modes(hydro_unit):
     from twin.update import synthesize_modes
 
     return synthesize_modes(hydro_unit, samples=100, seed=1)
+
+
+@pytest.fixture(scope="session")
+def dask_local():
+    """A client of a local Dask cluster: two worker processes, one thread each (as ``--scheduler local``)."""
+    from twin.tasks import dask_client
+
+    with dask_client("local", n_workers=2) as client:
+        yield client

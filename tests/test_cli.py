@@ -1,6 +1,9 @@
 """The twin command: modal table and JSON, Campbell figure, clean errors."""
 
 import json
+from pathlib import Path
+
+import pytest
 
 from twin.cli import main
 
@@ -80,7 +83,7 @@ def test_compare_and_diagnose_commands(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "error E = 3.4" in out and "GEN_y" in out
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["errors.png", "mac.png", "spectra.png"]
-    assert main(["diagnose", "models/hydro_unit.toml", modes, "--json",
+    assert main(["diagnose", "models/hydro_unit.toml", modes, "--json", "--workers", "2",  # a local Dask cluster
                  "--candidates", "magnetic_pull,seal_cross_coupling,bearing_change:UGB"]) == 0  # fmt: skip
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"] == "missing effect" and report["ranking"][0]["effect"] == "magnetic_pull"
@@ -92,14 +95,25 @@ def test_compare_and_diagnose_commands(tmp_path, capsys):
 
 
 def test_update_with_an_added_effect_then_compare(tmp_path, capsys):
-    import json
+    from twin.loop.history import read_history
 
     modes = _hidden_pull_modes(tmp_path)
     post = str(tmp_path / "posterior.nc")
-    assert main(["update", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--params",
-                 "MAG.stiffness", "--draws", "200", "--chains", "2", "--seed", "1", "-o", post]) == 0  # fmt: skip
+    history = tmp_path / "history.csv"
+    assert main(["compare", "models/hydro_unit.toml", modes, "--history", str(history)]) == 0
+    assert main(["update", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--params", "MAG.stiffness",
+                 "--draws", "200", "--chains", "2", "--seed", "1", "-o", post, "--scheduler", "sync"]) == 0  # fmt: skip
     capsys.readouterr()
     assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--posterior", post,
-                 "--json"]) == 0  # fmt: skip
+                 "--json", "--history", str(history)]) == 0  # fmt: skip
     after = json.loads(capsys.readouterr().out)["error"]
     assert after < 0.2 * 0.0338
+    steps = read_history(history)
+    assert steps["action"].values.tolist() == ["start", "add magnetic_pull; posterior posterior.nc (map)"]
+    assert steps["error"].values[1] == pytest.approx(after) and steps["error"].values[0] > 0.03
+    assert history.with_suffix(".png").stat().st_size > 1000
+    other = tmp_path / "other.nc"
+    other.write_bytes(Path(modes).read_bytes())
+    assert main(["compare", "models/hydro_unit.toml", str(other), "--history", str(history)]) == 2
+    assert "compares against 'modes.nc', not 'other.nc'" in capsys.readouterr().err
+    assert read_history(history).sizes["step"] == 2

@@ -85,3 +85,16 @@ def test_json_layout(hydro_unit):
 
 def test_consistency_quantile():
     assert consistent(10.0, 10) and not consistent(60.0, 10) and consistent(0.0, 0)
+
+
+def test_candidate_fits_on_a_dask_cluster_give_the_same_diagnosis(hydro_unit, dask_local):
+    effect, _ = HIDDEN["magnetic_pull"]
+    meas = measured_modes(_modes(hydro_unit, [effect]))
+    labels = ["magnetic_pull", "seal_cross_coupling", "thrust_tilt:thrust"]
+    here = diagnose(hydro_unit, meas, candidates=labels)
+    there = diagnose(hydro_unit, meas, candidates=labels, tasks=dask_local)
+    assert there.missing == here.missing == "magnetic_pull"
+    assert [f.label for f in there.fits] == labels  # results come back in the candidates' order
+    # the workers run one BLAS thread each, so sums run in another order: equal to the optimiser's tolerance
+    np.testing.assert_allclose([f.log_bayes_factor for f in there.fits], [f.log_bayes_factor for f in here.fits],
+                               rtol=1e-6)  # fmt: skip

@@ -186,3 +186,17 @@ def test_a_parameter_with_no_effect_is_named(toy):
     dead = Problem(**{**problem.__dict__, "blocks": sparse_blocks(H[:, 1:])})
     with pytest.raises(UpdateError, match="cannot determine.*: a"):
         sweep(dead, state, Prior.flat(dead), np.random.default_rng(0))
+
+
+def test_chains_on_a_dask_cluster_are_the_chains_run_here(toy, dask_local):
+    from twin.update.gibbs import run_chains
+
+    problem, _, _ = toy
+    here = run_chains(problem, 20, 3, burn_in=2, seed=11)
+    there = run_chains(problem, 20, 3, burn_in=2, seed=11, tasks=dask_local)
+    assert len(there) == 3
+    for a, b in zip(here, there):
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.psi, b.psi)
+        np.testing.assert_array_equal(a.lp, b.lp)
+    assert not np.array_equal(here[0].t, here[1].t)  # the chains have their own streams

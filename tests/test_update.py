@@ -101,8 +101,12 @@ def test_apply_posterior_updates_the_twin(hydro_unit):
     fsi = [e for e in m.effects if isinstance(e, FluidAddedMassPerMode)]
     assert fsi and fsi[0].added_mass == (5.0e4, 5.0e4)
     assert m.parameter("FSI.added_damping_2").nominal == 1.0e6
-    with pytest.raises(Exception, match="modes 1..n"):
-        apply_posterior(hydro_unit, post.assign_coords(mode=[3, 4]))
+    sub = post.assign(added_mass=post["added_mass"] * [1.0, 2.0]).assign_coords(mode=[4, 3])
+    sub = apply_posterior(m, sub, "mean")
+    fsi = [e for e in sub.effects if isinstance(e, FluidAddedMassPerMode)]
+    assert fsi[0].added_mass == (5.0e4, 5.0e4, 1.0e5, 5.0e4)  # modes 1, 2 kept, 3 and 4 replaced
+    with pytest.raises(Exception, match="distinct target modes numbered from 1"):
+        apply_posterior(hydro_unit, post.assign_coords(mode=[0, 1]))
 
 
 def test_bad_requests_are_named(hydro_unit, paper_modes):
@@ -152,7 +156,7 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
     code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1"])  # fmt: skip
+                 "--chains", "2", "--seed", "1", "--workers", "2"])  # fmt: skip  (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2

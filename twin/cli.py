@@ -19,6 +19,7 @@ status 2, never as a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import sys
@@ -168,9 +169,14 @@ def _update(args: argparse.Namespace) -> int:
 
     if args.params is None and not args.fsi:
         raise TwinError("nothing to update: give --params and/or --fsi")
+    from twin.extract import read_modes
+
     model = _model_with_effects(args.model, args.effect)
-    tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
-                  burn_in=args.burn_in, seed=args.seed, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+    read_modes(args.modes)  # a bad modes file fails before a cluster starts
+    with _tasks(args) as client:
+        tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
+                      burn_in=args.burn_in, seed=args.seed, output=args.output, command=" ".join(sys.argv),
+                      tasks=client)  # fmt: skip
     table = summary(tree["posterior"].to_dataset())
     print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
           f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
@@ -205,6 +211,14 @@ def _compare(args: argparse.Namespace) -> int:
 
         model = apply_posterior(model, read_posterior(args.posterior), args.estimate)
     table = compare(model, read_modes(args.modes), tolerance=args.tolerance)
+    if args.history:
+        from twin.loop.history import append_step, plot_history
+
+        done = [f"add {', '.join(args.effect)}"] if args.effect else []
+        done += [f"posterior {Path(args.posterior).name} ({args.estimate})"] if args.posterior else []
+        history = append_step(args.history, args.step or "; ".join(done) or "start", table, Path(args.modes).name)
+        plot_history(history, Path(args.history).with_suffix(".png"))
+        log.info("history: %d steps in %s", history.sizes["step"], args.history)
     if args.plot:
         from twin.loop.plots import comparison_figures
 
@@ -227,13 +241,16 @@ def _compare(args: argparse.Namespace) -> int:
 def _diagnose(args: argparse.Namespace) -> int:
     from twin.extract import read_modes
     from twin.loop.compare import measured_modes
+    from twin.loop.candidates import select
     from twin.loop.diagnose import diagnose
     from twin.loop.report import diagnosis_text
 
     model = _model_with_effects(args.model, args.effect)
     meas = measured_modes(read_modes(args.modes), args.tolerance)
     labels = args.candidates.split(",") if args.candidates else None
-    d = diagnose(model, meas, candidates=labels, tolerance=args.tolerance)
+    select(model, labels)  # unknown candidates fail before a cluster starts
+    with _tasks(args) as client:
+        d = diagnose(model, meas, candidates=labels, tolerance=args.tolerance, tasks=client)
     print(d.to_json(meas) if args.json else diagnosis_text(d, meas))
     return 0
 
@@ -243,10 +260,11 @@ def _demo(args: argparse.Namespace) -> int:
     from twin.loop.demo import run_demo
 
     model = load_model(args.model) if args.model else None
-    r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
-                 samples=args.samples)  # fmt: skip
+    with _tasks(args) as client:
+        r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
+                     samples=args.samples, tasks=client)  # fmt: skip
     d = r.diagnosis
-    print(f"hidden in the truth: {', '.join(f'{n} = {v:.4g}' for n, v in r.truth.items())}")
+    print(f"hidden in the truth: {', '.join(f'{n} = {v:.4g}' for n, v in r.truth.items()) or 'nothing'}")
     print(f"diagnosis: {d.verdict}" + (f" ({d.missing})" if d.missing else ""))
     if r.posterior is not None:
         ident = r.identified()
@@ -259,6 +277,45 @@ def _demo(args: argparse.Namespace) -> int:
         print(f"{k:>4}  {step.action:<40} {100 * step.error:>8.3f}%")
     print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
     return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.loop.report import sweep_text
+    from twin.loop.sweep import Settings, scenario_grid, sweep
+
+    model = load_model(args.model) if args.model else None
+    scenarios = scenario_grid(args.hidden.split(",") if args.hidden != "all" else None, _int_list(args.seeds, "--seeds"))
+    settings = Settings(duration_s=args.duration, samples=args.samples)
+    with _tasks(args) as client:
+        table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
+    print(sweep_text(table))
+    print(f"wrote {Path(args.out) / 'sweep.nc'} and one report folder per scenario")
+    return 0 if bool(table["passed"].all()) else 1
+
+
+def _int_list(text: str, flag: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",")]
+    except ValueError:
+        raise TwinError(f"{flag} takes comma-separated integers, got '{text}'") from None
+
+
+@contextlib.contextmanager
+def _tasks(args: argparse.Namespace):
+    """The Dask client of ``--scheduler``/``--workers`` (None for ``sync``), closed afterwards."""
+    from twin.tasks import dask_client
+
+    with dask_client(args.scheduler, n_workers=args.workers) as client:
+        yield client
+
+
+def _add_scheduler(p: argparse.ArgumentParser, what: str, default: str = "local") -> None:
+    p.add_argument("--scheduler", default=default, metavar="ADDRESS",
+                   help=f"where the {what} run as Dask tasks: 'local' (a local cluster of worker processes), "
+                        f"a scheduler address such as tcp://host:8786, or 'sync' (in this process; "
+                        f"default: {default})")  # fmt: skip
+    p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -344,6 +401,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
+    _add_scheduler(p, "chains")
     p.set_defaults(func=_update)
 
     p = sub.add_parser("compare", help="compare a model with measured modes: per-mode errors and the overall error")
@@ -356,6 +414,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=float, default=1e-3,
                    help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
     p.add_argument("--plot", default=None, metavar="DIR", help="write the figures (errors, MAC, spectra) into DIR")
+    p.add_argument("--history", default=None, metavar="FILE",
+                   help="add this comparison's error to the history FILE (CSV, created if missing) and plot it "
+                        "beside it (FILE with .png)")  # fmt: skip
+    p.add_argument("--step", default=None, help="name of the step in the history (default: from --effect/--posterior)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=_compare)
 
@@ -368,19 +430,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=float, default=1e-3,
                    help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    _add_scheduler(p, "candidate fits")
     p.set_defaults(func=_diagnose)
 
-    from twin.loop.demo import HIDDEN_EFFECTS
+    from twin.loop.demo import DEMO_SAMPLES, HIDDEN_EFFECTS, NOTHING
 
     p = sub.add_parser("demo", help="the whole loop on a truth with a hidden effect, with a report folder")
     p.add_argument("--out", default="twin-demo", help="report folder (default: twin-demo)")
-    p.add_argument("--hidden", choices=tuple(HIDDEN_EFFECTS), default="magnetic_pull",
-                   help="effect hidden in the truth (default: magnetic_pull)")
+    p.add_argument("--hidden", choices=(*HIDDEN_EFFECTS, NOTHING), default="magnetic_pull",
+                   help="effect hidden in the truth, or none (default: magnetic_pull)")
     p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
-    p.add_argument("--samples", type=int, default=20, help="jackknife samples per mode (default: 20)")
+    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help=f"jackknife samples per mode (default: {DEMO_SAMPLES})")
     p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise (default: 1)")
     p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+    # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
+    _add_scheduler(p, "candidate fits", default="sync")
     p.set_defaults(func=_demo)
+
+    p = sub.add_parser("sweep", help="the demo's loop over hidden effects and seeds, one Dask task per scenario")
+    p.add_argument("--hidden", default="all",
+                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, {NOTHING} (default: all "
+                        f"the effects)")  # fmt: skip
+    p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated (default: 1)")
+    p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders (default: twin-sweep)")
+    p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
+    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help=f"jackknife samples per mode (default: {DEMO_SAMPLES})")
+    p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+    _add_scheduler(p, "scenarios")
+    p.set_defaults(func=_sweep)
     return parser
 
 
@@ -395,7 +472,13 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``twin`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    level = logging.INFO if args.verbose else logging.WARNING
+    if not logging.getLogger().handlers:  # (a host such as pytest may have its own)
+        logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+        handler = logging.getLogger().handlers[0]
+        # Dask's scheduler runs here and logs its own life at INFO: only its warnings are shown
+        handler.setLevel(level)
+        handler.addFilter(lambda r: r.levelno >= logging.WARNING or not r.name.startswith("distributed"))
     warnings.showwarning = _show_warning
     try:
         return args.func(args)

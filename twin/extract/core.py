@@ -208,7 +208,7 @@ def extract(
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs)
+    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, missing.shape[1])
 
     out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, [len(c.members) for c in modes],
                    ref_channel, diag)  # fmt: skip
@@ -245,15 +245,18 @@ def _orders_used(diag, cluster, popularity: dict[int, int]) -> np.ndarray:
     return m[rank][:ORDERS_PER_MODE]
 
 
-def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float) -> None:
+def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float, n_blocks: int) -> None:
     f = poles.imag / (2 * np.pi)
     tau = 1.0 / np.abs(poles.real)
     slow = np.flatnonzero(block_s < MIN_BLOCK_TIME_CONSTANTS * tau)
     if slow.size:
         k = slow[np.argmax(tau[slow])]
+        need = MIN_BLOCK_TIME_CONSTANTS * tau[k]
+        most = max(int(block_s * n_blocks // need), 1)
         warnings.warn(f"{source}: the samples come from {block_s:.3g} s blocks, shorter than "
-                      f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode ({tau[k]:.3g} s): "
-                      "its sample spread underestimates the uncertainty; ask for fewer samples", TwinWarning,
+                      f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode "
+                      f"({MIN_BLOCK_TIME_CONSTANTS:g} x {tau[k]:.3g} s = {need:.3g} s): its sample spread "
+                      f"underestimates the uncertainty; ask for at most {most} samples", TwinWarning,
                       stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "

@@ -167,7 +167,26 @@ def per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tupl
 
     The added mass and damping are shared over the immersed DOFs like the
     mode-independent FSI effect (on top of it if the model has one).
+
+    Each mode is followed from the dry FEM in :data:`CONTINUATION_STEPS`
+    full eigen-solves, about 6 s for the paper's 15 modes; the last
+    :data:`CACHE_SIZE` results are kept (keyed by the model's full ``repr``
+    and the values), with read-only arrays.
     """
+    key = (repr(model), tuple(map(float, added_mass)), tuple(map(float, added_damping)))
+    if key not in _CACHE:
+        _CACHE[key] = _per_mode_fsi_modes(model, added_mass, added_damping)
+        while len(_CACHE) > CACHE_SIZE:
+            _CACHE.pop(next(iter(_CACHE)))
+    return _CACHE[key]
+
+
+#: Per-mode truths kept by :func:`per_mode_fsi_modes`.
+CACHE_SIZE = 4
+_CACHE: dict[tuple, TruthModes] = {}
+
+
+def _per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tuple) -> TruthModes:
     fsi_model = with_shared_fsi(model)
     m0, c0 = fsi_model.parameter("FSI.added_mass").nominal, fsi_model.parameter("FSI.added_damping").nominal
     n_dof = model.n_dof
@@ -200,7 +219,10 @@ def per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tupl
         rights.append(right[j])
         lefts.append(left[j])
         wb.append(left[j] @ ss.B)
-    return TruthModes(np.array(poles), np.array(rights), np.array(lefts), np.array(wb), targets, dry)
+    arrays = [np.array(a) for a in (poles, rights, lefts, wb, targets)]
+    for a in arrays:
+        a.setflags(write=False)
+    return TruthModes(*arrays, dry)
 
 
 def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping: tuple) -> StateSpace:

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.stats
@@ -41,6 +42,7 @@ from twin.loop.candidates import Candidate, select
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
 from twin.loop.fit import Fit, _residual, _Tracker, fit_candidate, scaled_rows
 from twin.loop.sensitivity import footprint_jacobian, solve_modes
+from twin.tasks import mapper
 
 log = logging.getLogger(__name__)
 
@@ -184,7 +186,7 @@ def diagnose(
     *,
     candidates: Sequence[str] | None = None,
     tolerance: float = TOLERANCE,
-    map_fn: Callable | None = None,
+    tasks: Any = None,
 ) -> Diagnosis:
     """Where the model fails against the measured modes, and which library effect is missing.
 
@@ -197,9 +199,9 @@ def diagnose(
         Candidate labels (default: the whole library, see :func:`twin.loop.candidates.library`).
     tolerance : float
         Relative pole uncertainty accepted as model-form error.
-    map_fn : callable, optional
-        ``map_fn(function, items) -> list``, to run the candidate fits elsewhere
-        (e.g. on Dask, :func:`twin.loop.tasks.task_map`); in-process by default.
+    tasks : distributed.Client or mapper, optional
+        Where the candidate fits run, one task each (:func:`twin.tasks.mapper`):
+        in this process by default.
 
     Returns
     -------
@@ -220,8 +222,7 @@ def diagnose(
     meas = modes if isinstance(modes, Measured) else measured_modes(modes, tolerance)
     table = compare(model, meas)
     chosen = select(model, candidates)
-    fn = map_fn or (lambda f, items: [f(x) for x in items])
-    fits = fn(lambda c: fit_candidate(model, meas, c), chosen)
+    fits = mapper(tasks, desc="candidate fits")(_fit, chosen, model=model, meas=meas)
     by_label = {c.label: c for c in chosen}
     chi2, n_data = float(table.attrs["chi2"]), int(table.attrs["n_data"])
     fails = not consistent(chi2, n_data)
@@ -271,6 +272,10 @@ def diagnose(
                        f"explains it (best: {top.label if top else 'none'}, ln B = {best:.1f}). {where}{hint}")  # fmt: skip
     log.info("diagnosis: %s", summary)
     return Diagnosis(verdict, missing, fits, explanations, table, chi2, n_data, failing, sensors, locations, summary)
+
+
+def _fit(candidate: Candidate, model: RotorModel, meas: Measured) -> Fit:
+    return fit_candidate(model, meas, candidate)
 
 
 def _where(failing: dict[str, list[int]], sensors: list[str]) -> str:

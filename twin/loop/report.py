@@ -1,4 +1,4 @@
-"""Plain-text tables of a comparison and a diagnosis (what the ``twin`` command prints)."""
+"""Plain-text tables of a comparison, a diagnosis and a sweep (what the ``twin`` command prints)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import xarray as xr
 
 from twin.loop.compare import Measured
 from twin.loop.diagnose import Diagnosis
+from twin.loop.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
 
 
 def comparison_text(table: xr.Dataset) -> str:
@@ -55,4 +56,29 @@ def diagnosis_text(d: Diagnosis, meas: Measured) -> str:
         lines.append(f"{k:>4} {f.label:<22} {f.log_bayes_factor:>10.1f} {100 * f.error_before(meas):>12.3f} "
                      f"{100 * f.error_after(meas):>11.3f}  {params}")  # fmt: skip
     lines += ["", "why:"] + [f"  {d.explanations[f.label]}" for f in d.ranking]
+    return "\n".join(lines)
+
+
+def sweep_text(table: xr.Dataset) -> str:
+    """One line per scenario of :func:`twin.loop.sweep.sweep`: verdict, error fall, parameter errors.
+
+    Parameters whose truth is known show ``MAP / truth - 1`` and, in brackets,
+    the posterior std relative to the truth.
+    """
+    lines = [f"{'hidden':<22} {'seed':>4} {'verdict':<17} {'named':<22} {'lnB lead':>8} {'E before':>9} "
+             f"{'E after':>8} {'fall':>6} {'time':>6} {'passed':<6} parameter errors (std)"]  # fmt: skip
+    names = table["parameter"].values
+    for k in range(table.sizes["scenario"]):
+        r = table.isel(scenario=k)
+        errs = ", ".join(f"{n} {100 * float(e):+.1f}% ({100 * float(s) / abs(float(t)):.1f}%)"
+                         for n, e, s, t in zip(names, r.relative_error.values, r["std"].values, r.truth.values)
+                         if np.isfinite(e))  # fmt: skip
+        lines.append(f"{str(r.hidden.values):<22} {int(r.seed):>4} {str(r.verdict.values):<17} "
+                     f"{str(r.missing.values) or '-':<22} {float(r.lead):>8.1f} {100 * float(r.error_before):>8.3f}% "
+                     f"{100 * float(r.error_after):>7.3f}% {100 * float(r.fall):>5.1f}% {float(r.elapsed_s):>5.0f}s "
+                     f"{'yes' if bool(r.passed) else 'NO':<6} {errs}")  # fmt: skip
+    n = table.sizes["scenario"]
+    lines.append(f"{int(table['passed'].sum())} of {n} scenarios passed (named the hidden effect, error fall >= "
+                 f"{MIN_FALL:.0%}, parameters within {MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of the truth) in "
+                 f"{table.attrs.get('elapsed_s', np.nan):.0f} s")  # fmt: skip
     return "\n".join(lines)

@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from twin.fem.model import RotorModel
@@ -20,6 +19,7 @@ from twin.loop.candidates import add_effects
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.fit import laplace_update
+from twin.loop.history import history_dataset, plot_history
 
 log = logging.getLogger(__name__)
 
@@ -134,28 +134,13 @@ class Twin:
         return tree
 
     def history_table(self) -> xr.Dataset:
-        """The error after each step: ``error`` and ``chi2`` over dimension ``step``."""
-        return xr.Dataset(
-            {
-                "error": ("step", [s.error for s in self.history], {"units": "1", "long_name": "overall error E"}),
-                "chi2": ("step", [float(s.table.attrs["chi2"]) for s in self.history]),
-                "action": ("step", [s.action for s in self.history]),
-            },
-            coords={"step": np.arange(len(self.history))},
-            attrs={"error_definition": self.history[0].table.attrs["error_definition"]},
-        )
+        """The error after each step: ``action``, ``error`` and ``chi2`` over dimension ``step``."""
+        table = history_dataset([s.action for s in self.history], [s.error for s in self.history],
+                                [float(s.table.attrs["chi2"]) for s in self.history],
+                                str(self.modes.attrs.get("title", "measured modes")))  # fmt: skip
+        table.attrs["error_definition"] = self.history[0].table.attrs["error_definition"]
+        return table
 
     def plot_history(self, path: str | Path) -> Path:
         """Bar chart of the error after each step."""
-        from twin.loop.plots import _pyplot, _save
-
-        plt = _pyplot()
-        fig, ax = plt.subplots(figsize=(6, 3.2))
-        errors = [100 * s.error for s in self.history]
-        ax.bar(range(len(errors)), errors, color="tab:blue")
-        ax.set_xticks(range(len(errors)), [s.action for s in self.history], rotation=15, fontsize=8)
-        ax.set_ylabel("error E [%]")
-        ax.set_yscale("log")
-        for k, e in enumerate(errors):
-            ax.annotate(f"{e:.3g}%", (k, e), ha="center", va="bottom", fontsize=8)
-        return _save(fig, Path(path))
+        return plot_history(self.history_table(), path)

@@ -8,6 +8,7 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -133,6 +134,7 @@ def update(
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
+    tasks: Any = None,
 ) -> xr.DataTree:
     """Bayesian updating of a model from modal samples by the APerCEM Gibbs sampler.
 
@@ -159,7 +161,10 @@ def update(
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
-        Progress bars over the sweeps.
+        Progress bars over the sweeps (over the chains when they run on Dask).
+    tasks : distributed.Client or mapper, optional
+        Where the chains run, one task each (:func:`twin.tasks.mapper`): in
+        this process by default. The draws do not depend on it.
 
     Returns
     -------
@@ -196,7 +201,8 @@ def update(
     bad = not_identifiable(problem, initial_state(problem))
     if bad:
         raise UpdateError(f"the data cannot determine these parameters (singular conditional): {', '.join(bad)}")
-    result = stack(run_chains(problem, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress))
+    result = stack(run_chains(problem, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress,
+                                  tasks=tasks))  # fmt: skip
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip

@@ -39,10 +39,12 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
 
+from twin.tasks import mapper
 from twin.update.problem import Problem, UpdateError
 
 log = logging.getLogger(__name__)
@@ -372,14 +374,26 @@ def run_chains(
     prior: Prior | None = None,
     seed: int | None = None,
     progress: bool = False,
+    tasks: Any = None,
 ) -> list[Chain]:
-    """Run independent chains (seeds spawned from ``seed``), each from zero."""
+    """Run independent chains (seeds spawned from ``seed``), each from zero.
+
+    ``tasks`` says where the chains run, one task each (:func:`twin.tasks.mapper`):
+    in this process by default. The chains are the same wherever they run.
+    """
     seeds = np.random.SeedSequence(seed).spawn(chains)
-    return [
-        run_chain(problem, draws, burn_in=burn_in, prior=prior, rng=np.random.default_rng(s), progress=progress,
-                  label=f"chain {c + 1}/{chains}")  # fmt: skip
-        for c, s in enumerate(seeds)
-    ]
+    jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
+    local = tasks is None
+    return mapper(tasks, progress=progress, desc="chains")(
+        _chain_task, jobs, problem=problem, draws=draws, burn_in=burn_in, prior=prior, progress=progress and local
+    )
+
+
+def _chain_task(job: tuple[np.random.SeedSequence, str], problem: Problem, draws: int, burn_in: int,
+                prior: Prior | None, progress: bool) -> Chain:  # fmt: skip
+    seed, label = job
+    return run_chain(problem, draws, burn_in=burn_in, prior=prior, rng=np.random.default_rng(seed),
+                     progress=progress, label=label)  # fmt: skip
 
 
 def stack(chains: Sequence[Chain]) -> Chain:

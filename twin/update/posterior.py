@@ -153,7 +153,9 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     """The model with the posterior's point estimates applied (the twin after an update).
 
     Shared parameters replace the model's values; per-mode FSI becomes (or
-    replaces) the model's ``fsi_per_mode`` effect, value ``i`` for target mode ``i``.
+    replaces) the model's ``fsi_per_mode`` effect, value ``i`` for target mode
+    ``i``. Target modes the posterior does not cover keep the model's
+    per-mode values (zero when it has none).
 
     Examples
     --------
@@ -173,10 +175,16 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     if "added_mass" not in posterior:
         return updated
     modes = posterior["mode"].values.astype(int)
-    if not np.array_equal(modes, np.arange(1, len(modes) + 1)):
-        raise TwinError(f"per-mode FSI can be applied only for modes 1..n in order; the posterior has modes {list(modes)}")
-    effect = FluidAddedMassPerMode(tuple(values[f"FSI.added_mass_{m}"] for m in modes),
-                                   tuple(values[f"FSI.added_damping_{m}"] for m in modes))  # fmt: skip
+    if len(modes) == 0 or modes.min() < 1 or len(set(modes)) != len(modes):
+        raise TwinError(f"per-mode FSI needs distinct target modes numbered from 1; the posterior has {list(modes)}")
+    old = [e for e in updated.effects if isinstance(e, FluidAddedMassPerMode)]
+    n = max(int(modes.max()), len(old[0].added_mass) if old else 0)
+    mass, damping = np.zeros(n), np.zeros(n)
+    if old:
+        mass[: len(old[0].added_mass)], damping[: len(old[0].added_damping)] = old[0].added_mass, old[0].added_damping
+    for m in modes:
+        mass[m - 1], damping[m - 1] = values[f"FSI.added_mass_{m}"], values[f"FSI.added_damping_{m}"]
+    effect = FluidAddedMassPerMode(tuple(map(float, mass)), tuple(map(float, damping)))
     others = tuple(e for e in updated.effects if not isinstance(e, FluidAddedMassPerMode))
     return dataclasses.replace(updated, effects=(*others, effect))
 

@@ -1,0 +1,43 @@
+"""The error history file: round trip, appending, refusals, the chart."""
+
+import pytest
+import xarray as xr
+
+from twin.errors import TwinError
+from twin.loop.history import append_step, history_dataset, plot_history, read_history, write_history
+
+
+def test_round_trip_keeps_actions_errors_and_the_modes(tmp_path):
+    h = history_dataset(["start", "add a, b", 'update "x"'], [0.0851, 0.0851, 0.00226], [912.5, 912.5, 14.0], "m.nc")
+    back = read_history(write_history(h, tmp_path / "h.csv"))
+    xr.testing.assert_identical(back, h)
+
+
+def test_append_refuses_other_modes_and_leaves_the_file(tmp_path):
+    path = tmp_path / "h.csv"
+    table = xr.Dataset(attrs={"error": 0.05, "chi2": 400.0})
+    append_step(path, "start", table, "a.nc")
+    before = path.read_text()
+    with pytest.raises(TwinError, match="compares against 'a.nc', not 'b.nc'"):
+        append_step(path, "again", table, "b.nc")
+    assert path.read_text() == before
+    assert append_step(path, "again", table, "a.nc").sizes["step"] == 2
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [("a,b\n1,2\n", "not a twin history"), ("step,action,error,chi2\n0,start,lots,1\n", "row 2 is not"),
+     ("step,action,error,chi2\n0,start\n", "row 2 is not")],
+)  # fmt: skip
+def test_malformed_history_is_named(tmp_path, text, message):
+    path = tmp_path / "h.csv"
+    path.write_text(text)
+    with pytest.raises(TwinError, match=f"h.csv: {message}"):
+        read_history(path)
+    with pytest.raises(TwinError, match="cannot read the history"):
+        read_history(tmp_path / "missing.csv")
+
+
+def test_chart_is_written(tmp_path):
+    h = history_dataset(["start", "update"], [0.08, 0.002], [900.0, 12.0])
+    assert plot_history(h, tmp_path / "h.png").stat().st_size > 1000

@@ -1,0 +1,232 @@
+"""Scenario sweeps: the demo's loop over hidden effects and seeds, one task per scenario.
+
+A scenario is a hidden effect (a key of :data:`twin.loop.demo.HIDDEN_EFFECTS`,
+or ``"none"``) and a seed of the turbulence and the sensor noise. Each runs
+:func:`twin.loop.demo.run_demo` into its own report folder
+``OUT/<hidden>_seed<N>`` and returns a small summary; the scenarios are
+independent, so they run as tasks on Dask (:mod:`twin.tasks`) as well as one
+after the other here. The summaries make one Dataset over ``scenario``
+(and ``parameter`` for the identified values), written to ``OUT/sweep.nc``.
+
+A scenario is *passed* when the diagnosis names the hidden effect (or, with
+nothing hidden, says nothing is missing), the error falls by at least
+:data:`MIN_FALL` and every identified parameter is within
+:data:`MAX_PARAMETER_ERROR` of its truth or within :data:`MAX_Z` posterior
+standard deviations of it (a parameter the record cannot pin down).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import logging
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from twin import __version__
+from twin.errors import TwinError
+from twin.fem.model import RotorModel
+from twin.loop.demo import DEMO_SAMPLES, HIDDEN_EFFECTS, NOTHING, run_demo
+from twin.netcdf import check_writable, write_netcdf
+from twin.tasks import mapper
+
+log = logging.getLogger(__name__)
+
+#: Least fall of the error E (a fraction of E before) for a passed scenario.
+MIN_FALL = 0.8
+#: Largest relative error of an identified parameter for a passed scenario ...
+MAX_PARAMETER_ERROR = 0.10
+#: ... unless it is within this many of its own posterior standard deviations.
+MAX_Z = 3.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """What every scenario of a sweep shares (see :func:`twin.loop.demo.run_demo`)."""
+
+    duration_s: float = 1200.0
+    fs_hz: float = 256.0
+    samples: int = DEMO_SAMPLES
+    fmax_hz: float = 60.0
+
+
+def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:
+    """Every hidden effect with every seed (default: the whole table of hidden effects).
+
+    Examples
+    --------
+    >>> scenario_grid(["magnetic_pull", "none"], seeds=[1, 2])
+    [('magnetic_pull', 1), ('magnetic_pull', 2), ('none', 1), ('none', 2)]
+    """
+    hidden = list(HIDDEN_EFFECTS) if hidden is None else list(hidden)
+    _check_hidden(hidden)
+    return [(h, int(s)) for h, s in itertools.product(hidden, seeds)]
+
+
+def _check_hidden(hidden: Sequence[str]) -> None:
+    unknown = [h for h in hidden if h not in HIDDEN_EFFECTS and h != NOTHING]
+    if unknown:
+        raise TwinError(f"unknown hidden effect(s) {', '.join(unknown)}; choose from {', '.join(HIDDEN_EFFECTS)} "
+                        f"or {NOTHING}")  # fmt: skip
+
+
+def folder_name(hidden: str, seed: int) -> str:
+    """The report folder of a scenario inside the sweep's folder.
+
+    Examples
+    --------
+    >>> folder_name("bearing_change:LGB", 2)
+    'bearing_change_LGB_seed2'
+    """
+    return f"{hidden.replace(':', '_')}_seed{seed}"
+
+
+def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, settings: Settings) -> dict:
+    """Run one scenario's demo into ``out/<folder>`` and return its summary (plain Python values)."""
+    hidden, seed = scenario
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:  # sent back with the summary: a worker's stderr is not ours
+        warnings.simplefilter("always")
+        r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
+                     **dataclasses.asdict(settings))  # fmt: skip
+    d = r.diagnosis
+    ranking = d.ranking
+    params: dict[str, tuple[float, float, float]] = {}
+    if r.posterior is not None:
+        post = r.posterior
+        for k, name in enumerate(post["parameter"].values):
+            params[str(name)] = (float(post["map"][k]), float(post["std"][k]), r.truth.get(str(name), np.nan))
+    return {
+        "verdict": d.verdict,
+        "missing": d.missing or "",
+        "top_score": ranking[0].log_bayes_factor if ranking else np.nan,
+        "lead": ranking[0].log_bayes_factor - ranking[1].log_bayes_factor if len(ranking) > 1 else np.nan,
+        "error_before": r.twin.history[0].error,
+        "error_after": r.twin.history[-1].error,
+        "parameters": params,
+        "elapsed_s": time.perf_counter() - t0,
+        "warnings": [(w.category, str(w.message)) for w in caught],
+    }
+
+
+def sweep(
+    scenarios: Sequence[tuple[str, int]],
+    out: str | Path = "twin-sweep",
+    *,
+    model: RotorModel | None = None,
+    settings: Settings = Settings(),
+    tasks: Any = None,
+    progress: bool = True,
+) -> xr.Dataset:
+    """Run the demo's loop for every scenario, one task each, and tabulate the results.
+
+    Parameters
+    ----------
+    scenarios : sequence of (hidden, seed)
+        E.g. from :func:`scenario_grid`.
+    out : path
+        Folder of the scenarios' report folders and of ``sweep.nc``. On a
+        remote cluster it must be a path the workers can write.
+    model : RotorModel, optional
+        The twin's model (default: the demo's hydro unit).
+    settings : Settings
+        Record length, sampling rate, jackknife samples, highest frequency.
+    tasks : distributed.Client or mapper, optional
+        Where the scenarios run (:func:`twin.tasks.mapper`): here by default.
+    progress : bool
+        A progress bar over the scenarios.
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``scenario`` (coordinates ``hidden``, ``seed``): ``verdict``,
+        ``missing``, ``top_score``, ``lead``, ``error_before``, ``error_after``,
+        ``fall``, ``passed``, ``elapsed_s``; over ``scenario`` x ``parameter``:
+        ``map``, ``std``, ``truth``, ``relative_error``, ``z``.
+
+    Examples
+    --------
+    A short record, run here (``tasks=client`` for Dask):
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as out:  # doctest: +SKIP
+    ...     table = sweep([("magnetic_pull", 1)], out, settings=Settings(duration_s=600, samples=10))
+    ...     table["passed"].values
+    array([ True])
+    """
+    from twin.fem import load_model
+    from twin.loop.demo import default_model_path
+
+    scenarios = [(str(h), int(s)) for h, s in scenarios]
+    _check_hidden([h for h, _ in scenarios])
+    if not scenarios:
+        raise TwinError("a sweep needs at least one scenario")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    check_writable(out / "sweep.nc")
+    model = model if model is not None else load_model(default_model_path())
+    t0 = time.perf_counter()
+    rows = mapper(tasks, progress=progress, desc="scenarios")(
+        run_scenario, scenarios, model=model, out=str(out), settings=settings
+    )
+    for (hidden, seed), row in zip(scenarios, rows):
+        for category, message in row["warnings"]:
+            warnings.warn(f"scenario {hidden}, seed {seed}: {message}", category, stacklevel=2)
+    table = tabulate(scenarios, rows, settings)
+    table.attrs["elapsed_s"] = time.perf_counter() - t0
+    write_netcdf(table, out / "sweep.nc")
+    log.info("sweep of %d scenarios in %.0f s: %d passed", len(scenarios), table.attrs["elapsed_s"],
+             int(table["passed"].sum()))  # fmt: skip
+    return table
+
+
+def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], settings: Settings) -> xr.Dataset:
+    """The Dataset of a sweep from the scenarios and their summaries (see :func:`sweep`)."""
+    names = sorted({n for r in rows for n in r["parameters"]})
+    par = {k: np.full((len(rows), len(names)), np.nan) for k in ("map", "std", "truth")}
+    for i, r in enumerate(rows):
+        for j, n in enumerate(names):
+            if n in r["parameters"]:
+                par["map"][i, j], par["std"][i, j], par["truth"][i, j] = r["parameters"][n]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = par["map"] / par["truth"] - 1.0
+        z = (par["map"] - par["truth"]) / par["std"]
+    before = np.array([r["error_before"] for r in rows])
+    after = np.array([r["error_after"] for r in rows])
+    fall = 1.0 - after / before
+    hidden = [h for h, _ in scenarios]
+    found = np.array([(r["verdict"] == "nothing missing") if h == NOTHING else
+                      (r["verdict"] == "missing effect" and r["missing"] == h) for h, r in zip(hidden, rows)])  # fmt: skip
+    close = np.where(np.isnan(par["truth"]), True, (np.abs(rel) <= MAX_PARAMETER_ERROR) | (np.abs(z) <= MAX_Z))
+    passed = found & (np.array([h == NOTHING for h in hidden]) | ((fall >= MIN_FALL) & close.all(axis=1)))
+    dims, pdims = ("scenario",), ("scenario", "parameter")
+    return xr.Dataset(
+        {
+            "verdict": (dims, [r["verdict"] for r in rows]),
+            "missing": (dims, [r["missing"] for r in rows], {"long_name": "effect the diagnosis named ('' for none)"}),
+            "top_score": (dims, [r["top_score"] for r in rows], {"long_name": "log Bayes factor of the top candidate"}),
+            "lead": (dims, [r["lead"] for r in rows], {"long_name": "log Bayes factor of the top over the runner-up"}),
+            "error_before": (dims, before, {"units": "1", "long_name": "overall error E before the update"}),
+            "error_after": (dims, after, {"units": "1", "long_name": "overall error E after the update"}),
+            "fall": (dims, fall, {"units": "1", "long_name": "1 - E after / E before"}),
+            "found": (dims, found, {"long_name": "diagnosis named the hidden effect (or nothing, with none hidden)"}),
+            "passed": (dims, passed, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
+                                                   f"{MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of its truth"}),
+            "elapsed_s": (dims, [r["elapsed_s"] for r in rows], {"units": "s"}),
+            "map": (pdims, par["map"], {"units": "SI", "long_name": "identified value (Laplace MAP)"}),
+            "std": (pdims, par["std"], {"units": "SI", "long_name": "posterior standard deviation"}),
+            "truth": (pdims, par["truth"], {"units": "SI"}),
+            "relative_error": (pdims, rel, {"units": "1", "long_name": "MAP / truth - 1"}),
+            "z": (pdims, z, {"units": "1", "long_name": "(MAP - truth) / std"}),
+        },
+        coords={"hidden": (dims, hidden), "seed": (dims, [s for _, s in scenarios]), "parameter": names},
+        attrs={"title": "twin scenario sweep", "producer": f"twin {__version__}",
+               "settings": json.dumps(dataclasses.asdict(settings))},  # fmt: skip
+    )
