@@ -157,6 +157,20 @@ def test_gaussian_draw_has_the_right_mean_and_covariance():
     np.testing.assert_allclose(np.cov(x.T), np.linalg.inv(P), atol=5e-3)
 
 
+@pytest.mark.parametrize("alpha", [-0.7, -0.95])
+def test_overrelaxed_draw_leaves_the_gaussian_invariant_and_anticorrelates(alpha):
+    rng = np.random.default_rng(5)
+    P = np.array([[4.0, 1.0], [1.0, 2.0]])
+    b = np.array([1.0, -1.0])
+    mean, cov, n = np.linalg.solve(P, b), np.linalg.inv(P), 200_000
+    x = rng.multivariate_normal(mean, cov, n)  # a draw from the conditional ...
+    y = gaussian_draw(np.broadcast_to(P, (n, 2, 2)), np.broadcast_to(b, (n, 2)), rng, x, alpha)
+    np.testing.assert_allclose(y.mean(axis=0), mean, atol=5e-3)  # ... is taken to another one
+    np.testing.assert_allclose(np.cov(y.T), cov, atol=5e-3)
+    lag = np.cov(x[:, 0], y[:, 0])[0, 1] / cov[0, 0]
+    assert lag == pytest.approx(alpha, abs=0.01)  # the pair is correlated by alpha (plain Gibbs: 0)
+
+
 def test_sweeps_sample_the_shared_conditional(toy):
     # with z and Δ fixed, the t-step alone draws from N(P^-1 b, P^-1)
     problem, state, _ = toy

@@ -18,6 +18,15 @@ One sweep draws, each from its closed-form conditional:
    least as well);
 4. ``Δ_i | rest``: inverse-gamma per row.
 
+**Overrelaxation.** The parameters and the shapes are strongly correlated
+in the posterior: a parameter off its value is partly absorbed by the shapes,
+so plain Gibbs draws creep along that ridge (from zero, one magnetic-pull
+stiffness took about 100 sweeps to reach its posterior). Steps 1 and 2 are
+therefore Adler's overrelaxed draws with ``α =`` :data:`OVERRELAXATION`,
+which go past the conditional mean instead of towards it; each leaves its
+conditional invariant, so the sweep still samples the posterior, and the
+same chain reaches it within about 5 sweeps.
+
 All modes are handled at once with batched dense algebra; the basis matrices
 were built once (:func:`twin.update.problem.build_problem`).
 
@@ -46,6 +55,11 @@ from tqdm.auto import tqdm
 
 from twin.tasks import mapper
 from twin.update.problem import Problem, UpdateError
+
+#: Adler's overrelaxation of the parameter draws (0: plain Gibbs). Closer to -1 crosses the ridge faster
+#: but leaves a sharply determined parameter oscillating about its mean, the swing shrinking by |alpha| per
+#: sweep: -0.7 brings it within 3% in 10 sweeps (and 1e-3 in 20, the default burn-in).
+OVERRELAXATION = -0.7
 
 log = logging.getLogger(__name__)
 
@@ -117,8 +131,15 @@ class Chain:
     lp: np.ndarray  # (draws,): log joint density, up to a constant
 
 
-def gaussian_draw(P: np.ndarray, b: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def gaussian_draw(
+    P: np.ndarray, b: np.ndarray, rng: np.random.Generator, current: np.ndarray | None = None, alpha: float = 0.0
+) -> np.ndarray:
     """Draw from ``N(P⁻¹ b, P⁻¹)`` for a batch of precisions ``P`` (..., n, n) and ``b`` (..., n).
+
+    With ``current`` and ``alpha`` in (-1, 0], Adler's overrelaxed draw
+    ``μ + α (current − μ) + √(1 − α²) L⁻ᵀ ξ``: it leaves ``N(μ, P⁻¹)``
+    invariant (and is reversible for it), so it can replace the plain draw
+    in a Gibbs sweep; ``alpha = 0`` is the plain draw.
 
     Raises ``numpy.linalg.LinAlgError`` when a ``P`` is not positive definite.
 
@@ -132,7 +153,10 @@ def gaussian_draw(P: np.ndarray, b: np.ndarray, rng: np.random.Generator) -> np.
     L = np.linalg.cholesky(P)
     mean = np.linalg.solve(P, b[..., None])[..., 0]
     xi = rng.standard_normal(b.shape)
-    return mean + np.linalg.solve(np.swapaxes(L, -1, -2), xi[..., None])[..., 0]
+    noise = np.linalg.solve(np.swapaxes(L, -1, -2), xi[..., None])[..., 0]
+    if current is None or alpha == 0.0:
+        return mean + noise
+    return mean + alpha * (current - mean) + np.sqrt(1.0 - alpha**2) * noise
 
 
 def _design(problem: Problem, z: np.ndarray) -> np.ndarray:
@@ -316,9 +340,9 @@ def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator
     D = _design(problem, state.z)  # depends on z only: shared by the t and η steps
     try:
         if problem.n_global:
-            state.t = gaussian_draw(*conditional_shared(problem, state, prior, D), rng)
+            state.t = gaussian_draw(*conditional_shared(problem, state, prior, D), rng, state.t, OVERRELAXATION)
         if problem.n_per_mode:
-            state.eta = gaussian_draw(*conditional_own(problem, state, prior, D), rng)
+            state.eta = gaussian_draw(*conditional_own(problem, state, prior, D), rng, state.eta, OVERRELAXATION)
     except np.linalg.LinAlgError:
         raise _not_identifiable(problem, state) from None
     Hc = _combined(problem, _coefficients(problem, state))
