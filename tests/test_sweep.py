@@ -49,6 +49,7 @@ def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path):
         sweep([("gravity", 1)], tmp_path / "s")
     assert not (tmp_path / "s").exists()
     assert main(["sweep", "--seeds", "1,x", "--out", str(tmp_path / "s")]) == 2
+    assert main(["sweep", "--hidden", "all,gravity", "--out", str(tmp_path / "s")]) == 2
     assert len(scenario_grid(seeds=[1, 2])) == 12
 
 

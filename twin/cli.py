@@ -285,7 +285,10 @@ def _sweep(args: argparse.Namespace) -> int:
     from twin.loop.sweep import Settings, scenario_grid, sweep
 
     model = load_model(args.model) if args.model else None
-    scenarios = scenario_grid(args.hidden.split(",") if args.hidden != "all" else None, _int_list(args.seeds, "--seeds"))
+    from twin.loop.demo import HIDDEN_EFFECTS
+
+    hidden = [h for token in args.hidden.split(",") for h in (HIDDEN_EFFECTS if token == "all" else [token])]
+    scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
     settings = Settings(duration_s=args.duration, samples=args.samples)
     with _tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
@@ -449,8 +452,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", help="the demo's loop over hidden effects and seeds, one Dask task per scenario")
     p.add_argument("--hidden", default="all",
-                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, {NOTHING} (default: all "
-                        f"the effects)")  # fmt: skip
+                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, {NOTHING}; 'all' for "
+                        f"every effect (default: all; 'all,none' adds the false-alarm check)")  # fmt: skip
     p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated (default: 1)")
     p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders (default: twin-sweep)")
     p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
