@@ -34,7 +34,12 @@ def _reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None):
 
 
 def test_fmu_is_valid_and_self_contained(unit_fmu):
+    import os
+
     assert validate_fmu(str(unit_fmu)) == []
+    umask = os.umask(0)
+    os.umask(umask)
+    assert unit_fmu.stat().st_mode & 0o777 == 0o666 & ~umask  # usual permissions, not the temp file's 0600
     names = zipfile.ZipFile(unit_fmu).namelist()
     assert {"modelDescription.xml", "resources/twin_lti.bin", "sources/twin_lti.c", "sources/fmi2Functions.h"} <= set(names)
     assert any(n.startswith("binaries/") for n in names)

@@ -1,10 +1,18 @@
-"""Writing the loop's NetCDF files: atomically, so a failure never leaves a half-written file."""
+"""Writing the loop's files atomically, so a failure never leaves a half-written file.
+
+:func:`atomic_output` is the one way the package writes an output file
+(NetCDF files, FMUs, histories, reports): into a temporary file in the same
+folder, renamed over the target only when complete, with the usual
+permissions (``0666`` less the umask).
+"""
 
 from __future__ import annotations
 
 import logging
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import xarray as xr
@@ -51,17 +59,36 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     ...     float(xr.load_dataset(p).a.sum())
     3.0
     """
+    with atomic_output(path, ".nc.part") as tmp:
+        ds.to_netcdf(tmp, engine="netcdf4")
+    log.info("wrote %s", path)
+    return path
+
+
+@contextmanager
+def atomic_output(path: str | Path, suffix: str = ".part") -> Iterator[Path]:
+    """A temporary path to write ``path``'s content to; renamed to ``path`` when the block succeeds.
+
+    On any error the temporary file is removed and ``path`` is left as it was.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     with atomic_output(Path(tmp) / "a.txt") as part:
+    ...         _ = part.write_text("done")
+    ...     sorted(p.name for p in Path(tmp).iterdir())
+    ['a.txt']
+    """
     path = check_writable(path)
-    fd, tmp = tempfile.mkstemp(suffix=".nc.part", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
-        ds.to_netcdf(tmp, engine="netcdf4")
+        yield Path(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    log.info("wrote %s", path)
-    return path

@@ -21,9 +21,7 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import logging
-import os
 import struct
-import tempfile
 import uuid
 import zipfile
 from collections.abc import Sequence
@@ -38,6 +36,7 @@ from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
 from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
+from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
 
@@ -187,20 +186,13 @@ def export_fmu(
     library = build.compiled_runtime()
     plat = build.platform_folder()
     headers = build.fmi_headers_dir()
-    fd, tmp = tempfile.mkstemp(suffix=".fmu.part", dir=path.parent)
-    os.close(fd)
-    try:
-        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", xml)
-            z.writestr("resources/twin_lti.bin", resource)
-            z.write(library, f"binaries/{plat}/{build.MODEL_IDENTIFIER}{build.shared_library_suffix()}")
-            z.write(build.runtime_source(), f"sources/{build.MODEL_IDENTIFIER}.c")
-            for h in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
-                z.write(headers / h, f"sources/{h}")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path, ".fmu.part") as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", xml)
+        z.writestr("resources/twin_lti.bin", resource)
+        z.write(library, f"binaries/{plat}/{build.MODEL_IDENTIFIER}{build.shared_library_suffix()}")
+        z.write(build.runtime_source(), f"sources/{build.MODEL_IDENTIFIER}.c")
+        for h in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
+            z.write(headers / h, f"sources/{h}")
     log.info("wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s)
     return path
 

@@ -29,6 +29,7 @@ from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
+from twin.netcdf import atomic_output
 from twin.loop.twin import Twin
 
 log = logging.getLogger(__name__)
@@ -249,7 +250,6 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     lines += ["", f"The error fell from {100 * first:.2f}% to {100 * last:.3f}% ({100 * (1 - last / first):.1f}% less).",
               "", "![history](history.png)", ""]  # fmt: skip
     path = result.out / "report.md"
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text("\n".join(lines))
-    tmp.replace(path)
+    with atomic_output(path, ".md.part") as tmp:
+        tmp.write_text("\n".join(lines))
     return path

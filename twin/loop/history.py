@@ -12,15 +12,13 @@ a comparison against other modes is refused.
 from __future__ import annotations
 
 import csv
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from twin.errors import TwinError
-from twin.netcdf import check_writable
+from twin.netcdf import atomic_output
 
 COLUMNS = ("step", "action", "error", "chi2")
 
@@ -47,21 +45,13 @@ def history_dataset(actions: list[str], errors: list[float], chi2: list[float], 
 
 def write_history(history: xr.Dataset, path: str | Path) -> Path:
     """Write the history as CSV, atomically (a failure leaves the old file as it was)."""
-    path = check_writable(path)
-    fd, tmp = tempfile.mkstemp(suffix=".csv.part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(f"# modes: {history.attrs.get('modes', '')}\n")
-            w = csv.writer(f)
-            w.writerow(COLUMNS)
-            for k in range(history.sizes["step"]):
-                w.writerow([k, str(history["action"].values[k]), repr(float(history["error"][k])),
-                            repr(float(history["chi2"][k]))])  # fmt: skip
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path, ".csv.part") as tmp, open(tmp, "w", newline="") as f:
+        f.write(f"# modes: {history.attrs.get('modes', '')}\n")
+        w = csv.writer(f)
+        w.writerow(COLUMNS)
+        for k in range(history.sizes["step"]):
+            w.writerow([k, str(history["action"].values[k]), repr(float(history["error"][k])),
+                        repr(float(history["chi2"][k]))])  # fmt: skip
     return path
 
 
