@@ -281,12 +281,11 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from twin.fem import load_model
+    from twin.loop.demo import HIDDEN_EFFECTS
     from twin.loop.report import sweep_text
     from twin.loop.sweep import Settings, scenario_grid, sweep
 
     model = load_model(args.model) if args.model else None
-    from twin.loop.demo import HIDDEN_EFFECTS
-
     hidden = [h for token in args.hidden.split(",") for h in (HIDDEN_EFFECTS if token == "all" else [token])]
     scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
     settings = Settings(duration_s=args.duration, samples=args.samples)

@@ -100,9 +100,9 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
     ranking = d.ranking
     params: dict[str, tuple[float, float, float]] = {}
     if r.posterior is not None:
-        post = r.posterior
-        for k, name in enumerate(post["parameter"].values):
-            params[str(name)] = (float(post["map"][k]), float(post["std"][k]), r.truth.get(str(name), np.nan))
+        ident = r.identified()
+        for k, name in enumerate(ident["parameter"].values):
+            params[str(name)] = (float(ident["map"][k]), float(ident["std"][k]), float(ident["truth"][k]))
     return {
         "verdict": d.verdict,
         "missing": d.missing or "",
