@@ -8,7 +8,8 @@ Prints, for the first seed, per parameter: truth, MAP, relative error,
 posterior std, z-score, with the paper's figures beside them; then the
 coverage of the 90% credible intervals over all seeds.
 
-    python benchmarks/update_cases.py --case B [--seeds 20] [--draws 500] [--chains 1]
+    python benchmarks/update_cases.py --case B [--seeds 20] [--draws 500] [--chains 1] [--burn-in 20]
+                                      [--noise-model diagonal|full]
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 import twin
 from twin.errors import TwinWarning
 from twin.update import summary, synthesize_modes, update
-from twin.update.core import MIN_MARGIN
+from twin.update.core import BURN_IN, MIN_MARGIN
+from twin.update.gibbs import NOISE_MODELS
 
 #: The paper's reported MAP accuracy (relative error), for the table.
 PAPER = {"added_mass": "~1% (modes 1, 2 worse)", "added_damping": "~3% (modes 1, 2 worse)",
@@ -45,13 +47,14 @@ def paper_figure(name: str) -> str:
     return PAPER.get(name, PAPER["bearing"])
 
 
-def run(case: str, seed: int, draws: int, chains: int, model):
+def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN):
     ds = synthesize_modes(model, samples=100, seed=seed)
     params = "bearings" if case == "B" else None
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
-        tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False)
+        tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False,
+                      noise_model=noise_model, burn_in=burn_in)
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -64,11 +67,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--chains", type=int, default=1)
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
+    ap.add_argument("--burn-in", type=int, default=BURN_IN)
     args = ap.parse_args()
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax = [], [], []
     for seed in range(1, args.seeds + 1):
-        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model)
+        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in)
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])

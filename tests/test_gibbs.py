@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 from scipy.integrate import trapezoid
+from scipy.stats import invwishart
 
 from twin.update.gibbs import (Prior, State, conditional_noise, conditional_own, conditional_shape, conditional_shared,
-                               gaussian_draw, initial_state, log_density, run_chain, sweep)  # fmt: skip
+                               gaussian_draw, initial_state, log_density, run_chain, sweep, wishart_draw)  # fmt: skip
 from twin.update.problem import Problem, UpdateError, sparse_blocks
 
 I, J, N_R, N_PSI, N_E = 2, 6, 3, 2, 2
@@ -36,7 +37,17 @@ def _residual(H, c, z):
 
 
 def _log_lik(H, c, z, w):
-    return -0.5 * np.sum(w[:, None, :] * _residual(H, c, z) ** 2)
+    """Gaussian log likelihood of the residuals: ``w`` the row precisions (I, n_r) or full (I, n_r, n_r)."""
+    r = _residual(H, c, z)
+    if w.ndim == 2:
+        return -0.5 * np.sum(w[:, None, :] * r**2)
+    return -0.5 * np.einsum("ijr,irs,ijs->", r, w, r)
+
+
+def _full(state, seed=7):
+    """The state with full noise precisions: random symmetric positive definite (I, n_r, n_r)."""
+    A = np.random.default_rng(seed).standard_normal((I, N_R, N_R))
+    return State(state.t, state.eta, state.z, A @ np.swapaxes(A, 1, 2) + 0.5 * np.eye(N_R))
 
 
 def _grid_moments(logp, lo, hi, n=20001):
@@ -48,8 +59,10 @@ def _grid_moments(logp, lo, hi, n=20001):
     return mean, trapezoid((x - mean) ** 2 * p, x)
 
 
-def test_shared_parameter_conditional_matches_numerical_integration(toy):
+@pytest.mark.parametrize("full", [False, True], ids=["diagonal", "full"])
+def test_shared_parameter_conditional_matches_numerical_integration(toy, full):
     problem, state, H = toy
+    state = _full(state) if full else state
     P, b = conditional_shared(problem, state, Prior.flat(problem))
 
     def logp(t):
@@ -61,8 +74,10 @@ def test_shared_parameter_conditional_matches_numerical_integration(toy):
     np.testing.assert_allclose([b[0] / P[0, 0], 1 / P[0, 0]], [mean, var], rtol=1e-6, atol=1e-9)
 
 
-def test_own_parameter_conditional_matches_numerical_integration(toy):
+@pytest.mark.parametrize("full", [False, True], ids=["diagonal", "full"])
+def test_own_parameter_conditional_matches_numerical_integration(toy, full):
     problem, state, H = toy
+    state = _full(state) if full else state
     P, b = conditional_own(problem, state, Prior.flat(problem))
     for i in range(I):
         def logp(e, i=i):
@@ -83,8 +98,10 @@ def test_gaussian_prior_adds_its_precision(toy):
     np.testing.assert_allclose([P[0, 0], b[0]], [flat[0][0, 0] + 5.0, flat[1][0] + 10.0])
 
 
-def test_shape_conditional_matches_the_brute_force_quadratic_form(toy):
+@pytest.mark.parametrize("full", [False, True], ids=["diagonal", "full"])
+def test_shape_conditional_matches_the_brute_force_quadratic_form(toy, full):
     problem, state, H = toy
+    state = _full(state) if full else state
     P, b = conditional_shape(problem, state)
     c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
     for i in range(I):
@@ -123,6 +140,48 @@ def test_noise_conditional_matches_numerical_integration(toy, a0):
         p = np.exp(lp - lp.max())
         mean_w = trapezoid(np.exp(-x) * p, x) / trapezoid(p, x)
         np.testing.assert_allclose(a / rate[i, r], mean_w, rtol=1e-6)
+
+
+def test_full_noise_conditional_is_the_wishart_of_the_log_density(toy):
+    # log_density as a function of Δ = W⁻¹ (everything else fixed; the diagonal model's density is in Δ
+    # too) must be the inverse-Wishart(ν, S) log pdf of conditional_noise (W ~ Wishart(ν, S⁻¹)), up to a
+    # constant: compare differences between states against scipy's inverse Wishart
+    problem, state, H = toy
+    prior = Prior.flat(problem, noise_model="full")
+    state = _full(state)
+    df, S = conditional_noise(problem, state, prior=prior)
+    c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
+    r = _residual(H, c, state.z)
+    np.testing.assert_allclose(S, np.swapaxes(r, 1, 2) @ r + 2 * prior.noise_rate[:, :, None] * np.eye(N_R))
+    assert df == J + 2 * prior.noise_shape + N_R - 1  # the inverse-Wishart prior with the diagonal's marginals
+    others = [_full(state, seed) for seed in (8, 9)]
+    lp = [log_density(problem, s, prior=prior) for s in (state, *others)]
+    ref = [sum(invwishart.logpdf(np.linalg.inv(s.w[i]), df, S[i]) for i in range(I)) for s in (state, *others)]
+    np.testing.assert_allclose(np.diff(lp), np.diff(ref), rtol=1e-9)
+
+
+def test_wishart_draw_has_the_wishart_mean_and_variance():
+    rng = np.random.default_rng(0)
+    S = np.array([[2.0, 0.5, 0.0], [0.5, 1.0, -0.3], [0.0, -0.3, 3.0]])
+    V, df, n = np.linalg.inv(S), 7.5, 100_000
+    W = wishart_draw(df, np.broadcast_to(S, (n, 3, 3)), rng)
+    np.testing.assert_allclose(W.mean(axis=0), df * V, atol=0.02 * np.abs(df * V).max())
+    var = df * (V**2 + np.outer(np.diag(V), np.diag(V)))  # Var(W_ij) of Wishart(df, V)
+    np.testing.assert_allclose(W.var(axis=0), var, rtol=0.05)
+    np.testing.assert_array_equal(W, np.swapaxes(W, 1, 2))
+
+
+def test_full_noise_chain_runs_from_zero_through_a_diagonal_warm_up(toy):
+    problem, _, _ = toy
+    prior = Prior.flat(problem, noise_model="full")
+    chain = run_chain(problem, 40, burn_in=6, prior=prior, rng=np.random.default_rng(2))
+    assert np.all(np.isfinite(chain.lp)) and np.all(chain.noise > 0)
+    state = initial_state(problem, "full")
+    assert state.w.shape == (I, N_R, N_R)
+    lp = sweep(problem, state, prior, np.random.default_rng(3))
+    assert lp == pytest.approx(log_density(problem, state, prior=prior))
+    with pytest.raises(UpdateError, match="unknown noise model 'banded'"):
+        Prior.flat(problem, noise_model="banded")
 
 
 def test_noise_prior_is_the_residual_scatter_over_the_pole_samples(toy):

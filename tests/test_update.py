@@ -70,6 +70,25 @@ def test_case_a_regression_and_burn_in_from_zero(hydro_unit, paper_modes):
     assert post["added_damping"].attrs["units"] == "N s/m"
 
 
+def test_full_noise_model_gives_calibrated_case_a_intervals(hydro_unit, paper_modes):
+    # the pole noise moves every residual row together: with a full Δ_i (inverse-Wishart) the 90% intervals
+    # cover the truth; with the paper's diagonal Δ_i they are too narrow (|z| up to 9 on these data, coverage
+    # about 50%; benchmarks/update_cases.py --noise-model diagonal|full measures both over 20 seeds)
+    from twin.update.core import MIN_MARGIN
+
+    tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full")
+    assert json.loads(tree.attrs["settings"])["noise_model"] == "full"
+    table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
+    ok = tree["constant_data"]["condensation_margin"].values >= MIN_MARGIN  # modes not flagged near a resonance
+    names = [f"FSI.added_{k}_{m}" for m in np.flatnonzero(ok) + 1 for k in ("mass", "damping")]
+    row = table.sel(parameter=names)
+    assert np.all(np.abs(row["z_score"]) < 3.5), row["z_score"].to_series().abs().nlargest(3)
+    inside = (row["q05"] <= row["truth"]) & (row["truth"] <= row["q95"])
+    assert float(inside.mean()) >= 0.8
+    with pytest.raises(UpdateError, match="unknown noise model 'banded'; choose one of diagonal, full"):
+        update(hydro_unit, paper_modes, None, fsi=True, noise_model="banded", progress=False)
+
+
 def test_posterior_file_round_trip_through_arviz_and_datatree(hydro_unit, paper_modes, tmp_path):
     az = pytest.importorskip("arviz")
     sub = paper_modes.isel(mode=[2, 3, 9])
@@ -156,9 +175,10 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
     code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1", "--workers", "2"])  # fmt: skip  (chains on a local Dask cluster)
+                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full"])  # fmt: skip  (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
+    assert json.loads(read_posterior(post).attrs["settings"])["noise_model"] == "full"
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
     assert "nothing to update" in capsys.readouterr().err
     assert main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"),

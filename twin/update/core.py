@@ -19,7 +19,7 @@ from twin.extract.modesfile import read_modes, split_complex
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
-from twin.update.gibbs import Chain, Prior, initial_state, not_identifiable, run_chains, stack
+from twin.update.gibbs import NOISE_MODELS, Chain, Prior, initial_state, not_identifiable, run_chains, stack
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
@@ -34,13 +34,13 @@ POORLY_DETERMINED = 0.5
 BURN_IN = 20
 
 
-def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None) -> Prior:
+def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, noise_model: str = "diagonal") -> Prior:
     """Gaussian priors ``{name: (mean, std)}`` in SI -> scaled precisions; flat elsewhere.
 
     Names: shared parameter names, ``FSI.added_mass`` / ``FSI.added_damping``
     (every mode) or ``FSI.added_mass_<mode>`` (one mode).
     """
-    prior = Prior.flat(problem)
+    prior = Prior.flat(problem, noise_model=noise_model)
     for name, (mean, std) in (priors or {}).items():
         if not std > 0:
             raise UpdateError(f"prior of '{name}': the std must be positive, got {std}")
@@ -131,6 +131,7 @@ def update(
     seed: int | None = None,
     priors: Mapping[str, tuple[float, float]] | None = None,
     eps_std: float = 1e-6,
+    noise_model: str = "diagonal",
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -158,6 +159,11 @@ def update(
     eps_std : float
         σ of the perturbation ε of the condensed eigen-equation, relative to
         the dynamic stiffness.
+    noise_model : {"diagonal", "full"}
+        Covariance of the residual realisations ``Δ_i``: diagonal (the paper's
+        model) or a full matrix (inverse-Wishart), which accounts for rows
+        correlated by the pole noise and gives better calibrated intervals on
+        the paper's synthetic data (``benchmarks/update_cases.py``).
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -187,6 +193,8 @@ def update(
     for name, value, least in (("draws", draws, 1), ("chains", chains, 1), ("burn_in", burn_in, 0)):
         if int(value) != value or value < least:
             raise UpdateError(f"{name} must be an integer >= {least}, got {value}")
+    if noise_model not in NOISE_MODELS:
+        raise UpdateError(f"unknown noise model '{noise_model}'; choose one of {', '.join(NOISE_MODELS)}")
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -195,7 +203,7 @@ def update(
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, source=source)
-    prior = _prior(problem, priors)
+    prior = _prior(problem, priors, noise_model)
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency)
     bad = not_identifiable(problem, initial_state(problem))
@@ -205,7 +213,8 @@ def update(
                                   tasks=tasks))  # fmt: skip
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
-                "eps_std": eps_std, "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
+                "eps_std": eps_std, "noise_model": noise_model,
+                "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",
         "producer": f"twin {__version__}",

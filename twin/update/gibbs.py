@@ -18,6 +18,17 @@ One sweep draws, each from its closed-form conditional:
    least as well);
 4. ``Δ_i | rest``: inverse-gamma per row.
 
+**Correlated rows (``noise_model="full"``).** In the paper's model the rows
+of ``r_ij`` are independent. The pole noise makes them anything but: a pole
+sample off its mean moves the whole residual along one direction
+(``∂D/∂λ ψ``), so independent rows count that one scatter once per row and
+the intervals come out too narrow (90% intervals covering about half the
+truths on the paper's data). With a full ``Δ_i`` step 4 draws the precision
+from its Wishart conditional instead (the inverse-Wishart prior with the
+same marginals as the diagonal one), and steps 1-3 weigh the rows with it.
+A chain from zero spends the first half of its burn-in with diagonal ``Δ_i``:
+started full, the sharper posterior traps it far from the truth.
+
 **Overrelaxation.** The parameters and the shapes are strongly correlated
 in the posterior: a parameter off its value is partly absorbed by the shapes,
 so plain Gibbs draws creep along that ridge (from zero, one magnetic-pull
@@ -45,6 +56,7 @@ the data. The density is then bounded and the chains stay off ``z = 0``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
@@ -67,6 +79,9 @@ log = logging.getLogger(__name__)
 SINGULAR_RATIO = 1e-13
 #: Shape ``a0`` of the inverse-gamma prior on each row of Δ (worth ``2 a0`` pole samples).
 NOISE_PRIOR_SHAPE = 5.0
+#: Covariance models of the residual realisations ``r_ij ~ N(0, Δ_i)``: ``diagonal`` (the paper's:
+#: independent rows) or ``full`` (correlated rows; inverse-Wishart prior and conditional).
+NOISE_MODELS = ("diagonal", "full")
 
 
 @dataclass
@@ -76,7 +91,7 @@ class State:
     t: np.ndarray  # (Kg,)
     eta: np.ndarray  # (I, Km)
     z: np.ndarray  # (I, n_z)
-    w: np.ndarray  # (I, n_r) = 1 / Δ
+    w: np.ndarray  # 1 / Δ: (I, n_r) diagonal, or the precision matrices (I, n_r, n_r) full
 
 
 @dataclass(frozen=True)
@@ -84,7 +99,9 @@ class Prior:
     """Independent Gaussian priors on the scaled parameters (precision 0: flat), and the prior on Δ.
 
     ``global_mean``/``global_precision`` are ``(Kg,)``, ``mode_mean``/``mode_precision`` ``(I, Km)``.
-    Each row of ``Δ_i`` is ``IG(noise_shape, noise_rate[i, r])`` (both zero: Jeffreys).
+    Each row of ``Δ_i`` is ``IG(noise_shape, noise_rate[i, r])`` (both zero: Jeffreys). With
+    ``noise_model="full"``, ``Δ_i`` is a full covariance with the inverse-Wishart prior of the same
+    marginals, ``IW(2 a0 + n_r − 1, 2 diag(noise_rate_i))`` (see :data:`NOISE_MODELS`).
     """
 
     global_mean: np.ndarray
@@ -93,13 +110,23 @@ class Prior:
     mode_precision: np.ndarray
     noise_shape: float = 0.0
     noise_rate: np.ndarray | float = 0.0
+    noise_model: str = "diagonal"
+
+    def __post_init__(self) -> None:
+        if self.noise_model not in NOISE_MODELS:
+            raise UpdateError(f"unknown noise model '{self.noise_model}'; choose one of {', '.join(NOISE_MODELS)}")
 
     @classmethod
-    def flat(cls, problem: Problem, noise_shape: float = NOISE_PRIOR_SHAPE) -> Prior:
+    def flat(cls, problem: Problem, noise_shape: float = NOISE_PRIOR_SHAPE, noise_model: str = "diagonal") -> Prior:
         """Flat priors on every parameter (the paper's choice); the weak data-scaled prior on Δ."""
         I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
         rate = noise_shape * residual_scatter(problem) if noise_shape > 0 else 0.0
-        return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)), noise_shape, rate)
+        return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)), noise_shape, rate, noise_model)
+
+    @property
+    def full(self) -> bool:
+        """Whether ``Δ_i`` is a full covariance matrix."""
+        return self.noise_model == "full"
 
 
 def residual_scatter(problem: Problem) -> np.ndarray:
@@ -159,6 +186,22 @@ def gaussian_draw(
     return mean + alpha * (current - mean) + np.sqrt(1.0 - alpha**2) * noise
 
 
+def _weigh(w: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """``X W_i`` for residual-row vectors ``X`` (I, K, J n_r), rows fastest: diagonal ``w`` (I, n_r) or full (I, n_r, n_r)."""
+    I, n_r = w.shape[:2]
+    if w.ndim == 2:
+        return X * np.tile(w, X.shape[-1] // n_r)[:, None, :]
+    return (X.reshape(I, X.shape[1], -1, n_r) @ w[:, None]).reshape(X.shape)
+
+
+def _weigh_rows(w: np.ndarray, Hc: np.ndarray) -> np.ndarray:
+    """``W_i Hc_ij`` for the stacked matrices ``Hc`` (I, J n_r, n_z) of :func:`_combined`."""
+    I, n_r = w.shape[:2]
+    if w.ndim == 2:
+        return Hc * np.tile(w, Hc.shape[1] // n_r)[:, :, None]
+    return (w[:, None] @ Hc.reshape(I, -1, n_r, Hc.shape[-1])).reshape(Hc.shape)
+
+
 def _design(problem: Problem, z: np.ndarray) -> np.ndarray:
     """``D[i, k, (j, r)] = (H_ijk z_i)_r``: the residual's column per basis (k = 0 the fixed part)."""
     I, J, n_r, n_z = problem.H0.shape
@@ -191,8 +234,7 @@ def parameter_precision(problem: Problem, state: State) -> np.ndarray:
     """Joint conditional precision of all scaled parameters ``[t, η_1, ..., η_I]`` at ``state``."""
     I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
     D = _design(problem, state.z)[:, 1:]
-    wJ = np.tile(state.w, problem.n_samples)
-    blocks = (D * wJ[:, None, :]) @ np.swapaxes(D, 1, 2)  # (I, K, K)
+    blocks = _weigh(state.w, D) @ np.swapaxes(D, 1, 2)  # (I, K, K)
     n = Kg + I * Km
     P = np.zeros((n, n))
     P[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
@@ -225,8 +267,10 @@ def not_identifiable(problem: Problem, state: State) -> list[str]:
     return [names[k] for k in involved]
 
 
-def initial_state(problem: Problem) -> State:
+def initial_state(problem: Problem, noise_model: str = "diagonal") -> State:
     """Parameters at zero; ``z`` its conditional mean there (ψ near the data mean); ``Δ`` from the residual.
+
+    ``Δ_i`` starts diagonal in either noise model (:data:`NOISE_MODELS`).
 
     Starting ``Δ`` at :func:`residual_scatter` instead (leaving out the model error) was tried and
     rejected: the chains then settle in local modes of lower density (paper Case B: log density
@@ -235,23 +279,35 @@ def initial_state(problem: Problem) -> State:
     I, J, n_r, n_z = problem.H0.shape
     state = State(np.zeros(problem.n_global), np.zeros((I, problem.n_per_mode)), np.zeros((I, n_z)), np.ones((I, n_r)))
     Hc = _combined(problem, _coefficients(problem, state))
-    P, b = _shape_system(problem, Hc, np.tile(state.w, J))
+    P, b = _shape_system(problem, Hc, state.w)
     state.z = np.linalg.solve(P, b[..., None])[..., 0]
     r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
     ms = np.mean(r**2, axis=1)
     state.w = 1.0 / np.where(ms > 0, ms, 1.0)
+    if noise_model == "full":
+        state.w = state.w[:, :, None] * np.eye(n_r)
     return state
 
 
-def _shape_system(problem: Problem, Hc: np.ndarray, wJ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Precision and right-hand side of the ``z = (ψ, ε)`` conditional."""
+def shape_prior(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonal precision ``(I, n_z)`` and linear term ``b`` of ``z = (ψ, ε)`` from the shape data and ε's prior.
+
+    Up to a constant, the log density of the shape samples and of ``ε`` is ``−½ Σ prec z² + b·z``.
+    """
     I, J, n_r, n_z = problem.H0.shape
     prec = np.zeros((I, n_z))
     prec[:, problem.data_index] = J / problem.psi_var
     prec[:, problem.eps_index] = 1.0 / problem.eps_std**2
     b = np.zeros((I, n_z))
     b[:, problem.data_index] = problem.psi_hat.sum(axis=1) / problem.psi_var
-    P = np.swapaxes(Hc * wJ[:, :, None], 1, 2) @ Hc
+    return prec, b
+
+
+def _shape_system(problem: Problem, Hc: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Precision and right-hand side of the ``z = (ψ, ε)`` conditional."""
+    n_z = problem.H0.shape[-1]
+    prec, b = shape_prior(problem)
+    P = np.swapaxes(Hc, 1, 2) @ _weigh_rows(w, Hc)
     P[:, np.arange(n_z), np.arange(n_z)] += prec
     return P, b
 
@@ -270,10 +326,9 @@ def conditional_shared(
     ``D`` is the design at ``state.z`` when already computed.
     """
     Kg = problem.n_global
-    wJ = np.tile(state.w, problem.n_samples)  # (I, J n_r), row index fastest
     D = _design(problem, state.z) if D is None else D
     D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
-    DgW = Dg * wJ[:, None, :]
+    DgW = _weigh(state.w, Dg)
     off = D0 + np.einsum("ik,ikn->in", state.eta, Dm)
     P = (DgW @ np.swapaxes(Dg, 1, 2)).sum(axis=0) + np.diag(prior.global_precision)
     b = -np.einsum("ikn,in->k", DgW, off) + prior.global_precision * prior.global_mean
@@ -285,10 +340,9 @@ def conditional_own(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Precisions ``(I, Km, Km)`` and ``b`` ``(I, Km)`` of each mode's own parameters ``η_i | rest``."""
     Kg = problem.n_global
-    wJ = np.tile(state.w, problem.n_samples)
     D = _design(problem, state.z) if D is None else D
     D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
-    DmW = Dm * wJ[:, None, :]
+    DmW = _weigh(state.w, Dm)
     off = D0 + np.einsum("k,ikn->in", state.t, Dg)
     P = DmW @ np.swapaxes(Dm, 1, 2) + prior.mode_precision[:, :, None] * np.eye(problem.n_per_mode)
     b = -np.einsum("ikn,in->ik", DmW, off) + prior.mode_precision * prior.mode_mean
@@ -301,35 +355,76 @@ def conditional_shape(problem: Problem, state: State, Hc: np.ndarray | None = No
     ``Hc`` is ``Σ_k c_k H_k`` at the state's parameters when already computed.
     """
     Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
-    return _shape_system(problem, Hc, np.tile(state.w, problem.n_samples))
+    return _shape_system(problem, Hc, state.w)
 
 
 def conditional_noise(
     problem: Problem, state: State, Hc: np.ndarray | None = None, prior: Prior | None = None
 ) -> tuple[float, np.ndarray]:
-    """Shape ``a`` and rates ``(I, n_r)`` of ``1/Δ_ir | rest ~ Gamma(a, rate)``.
+    """The conditional of the noise precision ``W_i = Δ_i⁻¹ | rest``.
 
-    ``prior`` sets the inverse-gamma prior on Δ (default: Jeffreys, ``p(Δ) ∝ 1/Δ``).
+    Diagonal noise model: shape ``a`` and rates ``(I, n_r)`` of ``1/Δ_ir ~ Gamma(a, rate)``.
+    Full noise model (``prior.full``): degrees of freedom ``ν`` and scale matrices ``S`` ``(I, n_r, n_r)``
+    of ``W_i ~ Wishart(ν, S_i⁻¹)``.
+
+    ``prior`` sets the prior on Δ (default: Jeffreys, ``p(Δ) ∝ 1/Δ`` per row, diagonal model).
     """
     I, J, n_r, n_z = problem.H0.shape
     Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
     r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
     a0, b0 = (0.0, 0.0) if prior is None else (prior.noise_shape, prior.noise_rate)
+    if prior is not None and prior.full:
+        nu0 = _prior_df(a0, n_r)
+        scale = np.swapaxes(r, 1, 2) @ r + 2.0 * np.asarray(b0)[..., None] * np.eye(n_r)
+        return J + nu0, scale
     return J / 2.0 + a0, np.maximum(0.5 * np.sum(r**2, axis=1) + b0, np.finfo(float).tiny)
+
+
+def _prior_df(a0: float, n_r: int) -> float:
+    """Degrees of freedom of the inverse-Wishart prior whose diagonal marginals are ``IG(a0, ·)`` (0: Jeffreys)."""
+    return 2.0 * a0 + n_r - 1.0 if a0 > 0 else 0.0
+
+
+def wishart_draw(df: float, scale: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw ``W ~ Wishart(df, S⁻¹)`` for a batch of scale matrices ``S`` (..., n, n) (Bartlett).
+
+    Its mean is ``df S⁻¹``; ``df`` must exceed ``n − 1``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> W = wishart_draw(4000.0, np.array([[[2000.0, 0.0], [0.0, 4000.0]]]), rng)
+    >>> np.round(np.diag(W[0]), 1)  # close to the mean 4000 S⁻¹
+    array([2., 1.])
+    """
+    n = scale.shape[-1]
+    C = np.linalg.cholesky(scale)
+    A = np.tril(rng.standard_normal(scale.shape), -1)
+    idx = np.arange(n)
+    A[..., idx, idx] = np.sqrt(rng.chisquare(df - idx, size=scale.shape[:-2] + (n,)))
+    B = np.linalg.solve(np.swapaxes(C, -1, -2), A)  # C⁻ᵀ A: (C⁻ᵀ)(C⁻ᵀ)ᵀ = S⁻¹
+    return B @ np.swapaxes(B, -1, -2)
 
 
 def log_density(problem: Problem, state: State, rate: np.ndarray | None = None, prior: Prior | None = None) -> float:
     """Log joint density of ``state`` and the data, up to a constant (flat parameter priors).
 
-    ``rate`` is :func:`conditional_noise`'s at the state (same ``prior``) when already computed.
+    ``rate`` is :func:`conditional_noise`'s rate (diagonal model) or scale (full model) at the state
+    (same ``prior``) when already computed.
     """
     J = problem.n_samples
     a0 = 0.0 if prior is None else prior.noise_shape
     rate = conditional_noise(problem, state, prior=prior)[1] if rate is None else rate
     psi = state.z[:, problem.data_index]
+    data = (-0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
+            - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2)  # fmt: skip
+    if prior is not None and prior.full:
+        n_r = state.w.shape[1]
+        nu0 = _prior_df(a0, n_r)
+        logdet = np.linalg.slogdet(state.w)[1]
+        return float(0.5 * (J + nu0 + n_r + 1) * np.sum(logdet) - 0.5 * np.sum(state.w * rate) + data)
     return float((0.5 * J + a0) * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w))
-                 - 0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
-                 - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2)  # fmt: skip
+                 + data)  # fmt: skip
 
 
 def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator) -> float:
@@ -351,8 +446,15 @@ def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator
     except np.linalg.LinAlgError:
         raise UpdateError("the shape conditional is singular: too few rows for the latent shape entries") from None
     a, rate = conditional_noise(problem, state, Hc, prior)
-    state.w = rng.gamma(a, 1.0 / rate)
+    state.w = wishart_draw(a, rate, rng) if prior.full else rng.gamma(a, 1.0 / rate)
     return log_density(problem, state, rate, prior)
+
+
+def _mean_variance(w: np.ndarray) -> np.ndarray:
+    """Mean over rows of the diagonal of ``Δ_i = W_i⁻¹``: (I,)."""
+    if w.ndim == 2:
+        return np.mean(1.0 / w, axis=1)
+    return np.mean(np.diagonal(np.linalg.inv(w), axis1=1, axis2=2), axis=1)
 
 
 def run_chain(
@@ -368,23 +470,29 @@ def run_chain(
 ) -> Chain:
     """Run one chain: ``burn_in`` sweeps discarded, then ``draws`` kept.
 
-    Starts from :func:`initial_state` (parameters at zero) unless ``state`` is given.
+    Starts from :func:`initial_state` (parameters at zero) unless ``state`` is given. With the full
+    noise model and a start from zero, the first half of the burn-in sweeps with diagonal ``Δ``
+    (see :data:`NOISE_MODELS`).
     """
     prior = prior or Prior.flat(problem)
     rng = rng or np.random.default_rng()
-    state = state or initial_state(problem)
+    warm = burn_in // 2 if prior.full and state is None else 0
+    warm_prior = dataclasses.replace(prior, noise_model="diagonal") if warm else prior
+    state = state or initial_state(problem, warm_prior.noise_model)
     I = problem.n_modes
     out_t = np.empty((draws, problem.n_global))
     out_eta = np.empty((draws, I, problem.n_per_mode))
     out_psi = np.empty((draws, I, len(problem.data_index)))
     noise, lps = np.empty((draws, I)), np.empty(draws)
     for n in tqdm(range(burn_in + draws), desc=label, disable=not progress, leave=False):
-        lp = sweep(problem, state, prior, rng)
+        if warm and n == warm:
+            state.w = state.w[:, :, None] * np.eye(state.w.shape[1])
+        lp = sweep(problem, state, warm_prior if n < warm else prior, rng)
         k = n - burn_in
         if k >= 0:
             out_t[k], out_eta[k] = state.t, state.eta
             out_psi[k] = state.z[:, problem.data_index]
-            noise[k] = np.mean(1.0 / state.w, axis=1)
+            noise[k] = _mean_variance(state.w)
             lps[k] = lp
     return Chain(out_t, out_eta, out_psi, noise, lps)
 
