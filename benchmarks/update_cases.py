@@ -9,7 +9,7 @@ posterior std, z-score, with the paper's figures beside them; then the
 coverage of the 90% credible intervals over all seeds.
 
     python benchmarks/update_cases.py --case B [--seeds 20] [--draws 500] [--chains 1] [--burn-in 20]
-                                      [--noise-model diagonal|full]
+                                      [--noise-model diagonal|full] [--collapsed]
 """
 
 from __future__ import annotations
@@ -47,14 +47,15 @@ def paper_figure(name: str) -> str:
     return PAPER.get(name, PAPER["bearing"])
 
 
-def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN):
+def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN,
+        collapsed: bool = False):
     ds = synthesize_modes(model, samples=100, seed=seed)
     params = "bearings" if case == "B" else None
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
         tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False,
-                      noise_model=noise_model, burn_in=burn_in)
+                      noise_model=noise_model, burn_in=burn_in, collapsed=collapsed)
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -69,11 +70,13 @@ def main() -> None:
     ap.add_argument("--chains", type=int, default=1)
     ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
     ap.add_argument("--burn-in", type=int, default=BURN_IN)
+    ap.add_argument("--collapsed", action="store_true", help="add the collapsed Metropolis step to each sweep")
     args = ap.parse_args()
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax = [], [], []
     for seed in range(1, args.seeds + 1):
-        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in)
+        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in,
+                                           args.collapsed)
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])

@@ -175,10 +175,12 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
     code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full"])  # fmt: skip  (chains on a local Dask cluster)
+                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full", "--collapsed"])  # fmt: skip  (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
-    assert json.loads(read_posterior(post).attrs["settings"])["noise_model"] == "full"
+    back = read_posterior(post)
+    assert json.loads(back.attrs["settings"])["noise_model"] == "full" and json.loads(back.attrs["settings"])["collapsed"]
+    assert back["sample_stats"]["accepted"].dims == ("chain", "draw") and bool(back["sample_stats"]["accepted"].any())
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
     assert "nothing to update" in capsys.readouterr().err
     assert main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"),

@@ -66,6 +66,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from twin.tasks import mapper
+from twin.update.algebra import coefficients, combined, design, shape_system, weigh
+from twin.update.collapsed import marginal_move
 from twin.update.problem import Problem, UpdateError
 
 #: Adler's overrelaxation of the parameter draws (0: plain Gibbs). Closer to -1 crosses the ridge faster
@@ -92,6 +94,7 @@ class State:
     eta: np.ndarray  # (I, Km)
     z: np.ndarray  # (I, n_z)
     w: np.ndarray  # 1 / Δ: (I, n_r) diagonal, or the precision matrices (I, n_r, n_r) full
+    accepted: bool = False  # whether the last sweep's collapsed step moved the parameters
 
 
 @dataclass(frozen=True)
@@ -156,6 +159,7 @@ class Chain:
     psi: np.ndarray  # (draws, I, n_psi)
     noise: np.ndarray  # (draws, I): mean of Δ_i over rows
     lp: np.ndarray  # (draws,): log joint density, up to a constant
+    accepted: np.ndarray  # (draws,): whether the collapsed step moved the parameters (all False without it)
 
 
 def gaussian_draw(
@@ -186,55 +190,11 @@ def gaussian_draw(
     return mean + alpha * (current - mean) + np.sqrt(1.0 - alpha**2) * noise
 
 
-def _weigh(w: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """``X W_i`` for residual-row vectors ``X`` (I, K, J n_r), rows fastest: diagonal ``w`` (I, n_r) or full (I, n_r, n_r)."""
-    I, n_r = w.shape[:2]
-    if w.ndim == 2:
-        return X * np.tile(w, X.shape[-1] // n_r)[:, None, :]
-    return (X.reshape(I, X.shape[1], -1, n_r) @ w[:, None]).reshape(X.shape)
-
-
-def _weigh_rows(w: np.ndarray, Hc: np.ndarray) -> np.ndarray:
-    """``W_i Hc_ij`` for the stacked matrices ``Hc`` (I, J n_r, n_z) of :func:`_combined`."""
-    I, n_r = w.shape[:2]
-    if w.ndim == 2:
-        return Hc * np.tile(w, Hc.shape[1] // n_r)[:, :, None]
-    return (w[:, None] @ Hc.reshape(I, -1, n_r, Hc.shape[-1])).reshape(Hc.shape)
-
-
-def _design(problem: Problem, z: np.ndarray) -> np.ndarray:
-    """``D[i, k, (j, r)] = (H_ijk z_i)_r``: the residual's column per basis (k = 0 the fixed part)."""
-    I, J, n_r, n_z = problem.H0.shape
-    K = problem.n_global + problem.n_per_mode
-    D = np.zeros((I, 1 + K, J, n_r))
-    for i in range(I):
-        D[i, 0] = (problem.H0[i].reshape(-1, n_z) @ z[i]).reshape(J, n_r)
-        for b in problem.blocks:
-            D[i, 1 + b.columns[:, None], :, b.rows] = np.moveaxis((b.H[i].reshape(-1, n_z) @ z[i]).reshape(
-                len(b.columns), J, len(b.rows)), 2, 1)  # fmt: skip
-    return D.reshape(I, 1 + K, J * n_r)
-
-
-def _coefficients(problem: Problem, state: State) -> np.ndarray:
-    I = problem.n_modes
-    return np.concatenate([np.ones((I, 1)), np.broadcast_to(state.t, (I, problem.n_global)), state.eta], axis=1)
-
-
-def _combined(problem: Problem, c: np.ndarray) -> np.ndarray:
-    """``Σ_k c_ik H_ijk``: shape (I, J n_r, n_z)."""
-    I, J, n_r, n_z = problem.H0.shape
-    Hc = problem.H0.copy()
-    for i in range(I):
-        for b in problem.blocks:
-            Hc[i][:, b.rows] += np.tensordot(c[i, 1 + b.columns], b.H[i], axes=1)
-    return Hc.reshape(I, J * n_r, n_z)
-
-
 def parameter_precision(problem: Problem, state: State) -> np.ndarray:
     """Joint conditional precision of all scaled parameters ``[t, η_1, ..., η_I]`` at ``state``."""
     I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
-    D = _design(problem, state.z)[:, 1:]
-    blocks = _weigh(state.w, D) @ np.swapaxes(D, 1, 2)  # (I, K, K)
+    D = design(problem, state.z)[:, 1:]
+    blocks = weigh(state.w, D) @ np.swapaxes(D, 1, 2)  # (I, K, K)
     n = Kg + I * Km
     P = np.zeros((n, n))
     P[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
@@ -278,8 +238,8 @@ def initial_state(problem: Problem, noise_model: str = "diagonal") -> State:
     """
     I, J, n_r, n_z = problem.H0.shape
     state = State(np.zeros(problem.n_global), np.zeros((I, problem.n_per_mode)), np.zeros((I, n_z)), np.ones((I, n_r)))
-    Hc = _combined(problem, _coefficients(problem, state))
-    P, b = _shape_system(problem, Hc, state.w)
+    Hc = combined(problem, coefficients(problem, state))
+    P, b = shape_system(problem, Hc, state.w)
     state.z = np.linalg.solve(P, b[..., None])[..., 0]
     r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
     ms = np.mean(r**2, axis=1)
@@ -287,29 +247,6 @@ def initial_state(problem: Problem, noise_model: str = "diagonal") -> State:
     if noise_model == "full":
         state.w = state.w[:, :, None] * np.eye(n_r)
     return state
-
-
-def shape_prior(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """Diagonal precision ``(I, n_z)`` and linear term ``b`` of ``z = (ψ, ε)`` from the shape data and ε's prior.
-
-    Up to a constant, the log density of the shape samples and of ``ε`` is ``−½ Σ prec z² + b·z``.
-    """
-    I, J, n_r, n_z = problem.H0.shape
-    prec = np.zeros((I, n_z))
-    prec[:, problem.data_index] = J / problem.psi_var
-    prec[:, problem.eps_index] = 1.0 / problem.eps_std**2
-    b = np.zeros((I, n_z))
-    b[:, problem.data_index] = problem.psi_hat.sum(axis=1) / problem.psi_var
-    return prec, b
-
-
-def _shape_system(problem: Problem, Hc: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Precision and right-hand side of the ``z = (ψ, ε)`` conditional."""
-    n_z = problem.H0.shape[-1]
-    prec, b = shape_prior(problem)
-    P = np.swapaxes(Hc, 1, 2) @ _weigh_rows(w, Hc)
-    P[:, np.arange(n_z), np.arange(n_z)] += prec
-    return P, b
 
 
 def _not_identifiable(problem: Problem, state: State) -> UpdateError:
@@ -326,9 +263,9 @@ def conditional_shared(
     ``D`` is the design at ``state.z`` when already computed.
     """
     Kg = problem.n_global
-    D = _design(problem, state.z) if D is None else D
+    D = design(problem, state.z) if D is None else D
     D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
-    DgW = _weigh(state.w, Dg)
+    DgW = weigh(state.w, Dg)
     off = D0 + np.einsum("ik,ikn->in", state.eta, Dm)
     P = (DgW @ np.swapaxes(Dg, 1, 2)).sum(axis=0) + np.diag(prior.global_precision)
     b = -np.einsum("ikn,in->k", DgW, off) + prior.global_precision * prior.global_mean
@@ -340,9 +277,9 @@ def conditional_own(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Precisions ``(I, Km, Km)`` and ``b`` ``(I, Km)`` of each mode's own parameters ``η_i | rest``."""
     Kg = problem.n_global
-    D = _design(problem, state.z) if D is None else D
+    D = design(problem, state.z) if D is None else D
     D0, Dg, Dm = D[:, 0], D[:, 1 : 1 + Kg], D[:, 1 + Kg :]
-    DmW = _weigh(state.w, Dm)
+    DmW = weigh(state.w, Dm)
     off = D0 + np.einsum("k,ikn->in", state.t, Dg)
     P = DmW @ np.swapaxes(Dm, 1, 2) + prior.mode_precision[:, :, None] * np.eye(problem.n_per_mode)
     b = -np.einsum("ikn,in->ik", DmW, off) + prior.mode_precision * prior.mode_mean
@@ -354,8 +291,8 @@ def conditional_shape(problem: Problem, state: State, Hc: np.ndarray | None = No
 
     ``Hc`` is ``Σ_k c_k H_k`` at the state's parameters when already computed.
     """
-    Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
-    return _shape_system(problem, Hc, state.w)
+    Hc = combined(problem, coefficients(problem, state)) if Hc is None else Hc
+    return shape_system(problem, Hc, state.w)
 
 
 def conditional_noise(
@@ -370,7 +307,7 @@ def conditional_noise(
     ``prior`` sets the prior on Δ (default: Jeffreys, ``p(Δ) ∝ 1/Δ`` per row, diagonal model).
     """
     I, J, n_r, n_z = problem.H0.shape
-    Hc = _combined(problem, _coefficients(problem, state)) if Hc is None else Hc
+    Hc = combined(problem, coefficients(problem, state)) if Hc is None else Hc
     r = (Hc @ state.z[:, :, None]).reshape(I, J, n_r)
     a0, b0 = (0.0, 0.0) if prior is None else (prior.noise_shape, prior.noise_rate)
     if prior is not None and prior.full:
@@ -427,12 +364,16 @@ def log_density(problem: Problem, state: State, rate: np.ndarray | None = None, 
                  + data)  # fmt: skip
 
 
-def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator) -> float:
+def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator, collapsed: bool = False) -> float:
     """One Gibbs sweep (t, then η_i, then (ψ_i, ε_i), then Δ_i), updating ``state`` in place.
 
+    With ``collapsed``, a Metropolis step of ``(t, η)`` on their marginal
+    (``z`` integrated out, :func:`twin.update.collapsed.marginal_move`)
+    follows their Gibbs steps, before the ``z`` step; ``state.accepted`` says
+    whether it moved.
     Returns the log joint density at the new state (up to a constant).
     """
-    D = _design(problem, state.z)  # depends on z only: shared by the t and η steps
+    D = design(problem, state.z)  # depends on z only: shared by the t and η steps
     try:
         if problem.n_global:
             state.t = gaussian_draw(*conditional_shared(problem, state, prior, D), rng, state.t, OVERRELAXATION)
@@ -440,9 +381,13 @@ def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator
             state.eta = gaussian_draw(*conditional_own(problem, state, prior, D), rng, state.eta, OVERRELAXATION)
     except np.linalg.LinAlgError:
         raise _not_identifiable(problem, state) from None
-    Hc = _combined(problem, _coefficients(problem, state))
+    at = None
+    if collapsed:
+        state.accepted, at = marginal_move(problem, state, prior, rng)
+    Hc = combined(problem, coefficients(problem, state)) if at is None else at.Hc
     try:
-        state.z = gaussian_draw(*conditional_shape(problem, state, Hc), rng)
+        system = conditional_shape(problem, state, Hc) if at is None else (at.P, at.b)
+        state.z = gaussian_draw(*system, rng)
     except np.linalg.LinAlgError:
         raise UpdateError("the shape conditional is singular: too few rows for the latent shape entries") from None
     a, rate = conditional_noise(problem, state, Hc, prior)
@@ -467,12 +412,14 @@ def run_chain(
     state: State | None = None,
     progress: bool = False,
     label: str = "Gibbs",
+    collapsed: bool = False,
 ) -> Chain:
     """Run one chain: ``burn_in`` sweeps discarded, then ``draws`` kept.
 
     Starts from :func:`initial_state` (parameters at zero) unless ``state`` is given. With the full
     noise model and a start from zero, the first half of the burn-in sweeps with diagonal ``Δ``
-    (see :data:`NOISE_MODELS`).
+    (see :data:`NOISE_MODELS`). ``collapsed`` replaces the parameters' Gibbs steps by the collapsed
+    Metropolis step (:func:`sweep`); ``Chain.accepted`` is its acceptance per draw.
     """
     prior = prior or Prior.flat(problem)
     rng = rng or np.random.default_rng()
@@ -483,18 +430,19 @@ def run_chain(
     out_t = np.empty((draws, problem.n_global))
     out_eta = np.empty((draws, I, problem.n_per_mode))
     out_psi = np.empty((draws, I, len(problem.data_index)))
-    noise, lps = np.empty((draws, I)), np.empty(draws)
+    noise, lps, accepted = np.empty((draws, I)), np.empty(draws), np.zeros(draws, bool)
     for n in tqdm(range(burn_in + draws), desc=label, disable=not progress, leave=False):
         if warm and n == warm:
             state.w = state.w[:, :, None] * np.eye(state.w.shape[1])
-        lp = sweep(problem, state, warm_prior if n < warm else prior, rng)
+        lp = sweep(problem, state, warm_prior if n < warm else prior, rng, collapsed)
         k = n - burn_in
         if k >= 0:
             out_t[k], out_eta[k] = state.t, state.eta
             out_psi[k] = state.z[:, problem.data_index]
             noise[k] = _mean_variance(state.w)
             lps[k] = lp
-    return Chain(out_t, out_eta, out_psi, noise, lps)
+            accepted[k] = state.accepted
+    return Chain(out_t, out_eta, out_psi, noise, lps, accepted)
 
 
 def run_chains(
@@ -507,6 +455,7 @@ def run_chains(
     seed: int | None = None,
     progress: bool = False,
     tasks: Any = None,
+    collapsed: bool = False,
 ) -> list[Chain]:
     """Run independent chains (seeds spawned from ``seed``), each from zero.
 
@@ -517,15 +466,16 @@ def run_chains(
     jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
     local = tasks is None
     return mapper(tasks, progress=progress, desc="chains")(
-        _chain_task, jobs, problem=problem, draws=draws, burn_in=burn_in, prior=prior, progress=progress and local
+        _chain_task, jobs, problem=problem, draws=draws, burn_in=burn_in, prior=prior, progress=progress and local,
+        collapsed=collapsed,
     )
 
 
 def _chain_task(job: tuple[np.random.SeedSequence, str], problem: Problem, draws: int, burn_in: int,
-                prior: Prior | None, progress: bool) -> Chain:  # fmt: skip
+                prior: Prior | None, progress: bool, collapsed: bool) -> Chain:  # fmt: skip
     seed, label = job
     return run_chain(problem, draws, burn_in=burn_in, prior=prior, rng=np.random.default_rng(seed),
-                     progress=progress, label=label)  # fmt: skip
+                     progress=progress, label=label, collapsed=collapsed)  # fmt: skip
 
 
 def stack(chains: Sequence[Chain]) -> Chain:

@@ -1,0 +1,78 @@
+"""The dense algebra of the Gibbs sweep: residual designs, combined bases, weighting by ``Δ⁻¹``, the shape system.
+
+Shared by the Gibbs conditionals (:mod:`twin.update.gibbs`) and the
+collapsed parameter step (:mod:`twin.update.collapsed`). ``w`` is the noise
+precision: ``(I, n_r)`` for diagonal ``Δ_i``, ``(I, n_r, n_r)`` for full.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twin.update.problem import Problem
+
+
+def weigh(w: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """``X W_i`` for residual-row vectors ``X`` (I, K, J n_r), rows fastest: diagonal ``w`` (I, n_r) or full (I, n_r, n_r)."""
+    I, n_r = w.shape[:2]
+    if w.ndim == 2:
+        return X * np.tile(w, X.shape[-1] // n_r)[:, None, :]
+    return (X.reshape(I, X.shape[1], -1, n_r) @ w[:, None]).reshape(X.shape)
+
+
+def weigh_rows(w: np.ndarray, Hc: np.ndarray) -> np.ndarray:
+    """``W_i Hc_ij`` for the stacked matrices ``Hc`` (I, J n_r, n_z) of :func:`combined`."""
+    I, n_r = w.shape[:2]
+    if w.ndim == 2:
+        return Hc * np.tile(w, Hc.shape[1] // n_r)[:, :, None]
+    return (w[:, None] @ Hc.reshape(I, -1, n_r, Hc.shape[-1])).reshape(Hc.shape)
+
+
+def design(problem: Problem, z: np.ndarray) -> np.ndarray:
+    """``D[i, k, (j, r)] = (H_ijk z_i)_r``: the residual's column per basis (k = 0 the fixed part)."""
+    I, J, n_r, n_z = problem.H0.shape
+    K = problem.n_global + problem.n_per_mode
+    D = np.zeros((I, 1 + K, J, n_r))
+    D[:, 0] = (problem.H0.reshape(I, -1, n_z) @ z[:, :, None]).reshape(I, J, n_r)
+    for b in problem.blocks:
+        Hz = (b.H.reshape(I, -1, n_z) @ z[:, :, None]).reshape(I, len(b.columns), J, len(b.rows))
+        D[:, (1 + b.columns)[:, None], :, b.rows] = Hz.transpose(1, 3, 0, 2)  # advanced indices first
+    return D.reshape(I, 1 + K, J * n_r)
+
+
+def coefficients(problem: Problem, state) -> np.ndarray:
+    """``c_i = [1, t, η_i]`` of every mode at a state: (I, 1 + K)."""
+    I = problem.n_modes
+    return np.concatenate([np.ones((I, 1)), np.broadcast_to(state.t, (I, problem.n_global)), state.eta], axis=1)
+
+
+def combined(problem: Problem, c: np.ndarray) -> np.ndarray:
+    """``Σ_k c_ik H_ijk``: shape (I, J n_r, n_z)."""
+    I, J, n_r, n_z = problem.H0.shape
+    Hc = problem.H0.copy()
+    for b in problem.blocks:
+        Hc[:, :, b.rows] += np.einsum("ik,ikjrz->ijrz", c[:, 1 + b.columns], b.H, optimize=True)
+    return Hc.reshape(I, J * n_r, n_z)
+
+
+def shape_prior(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonal precision ``(I, n_z)`` and linear term ``b`` of ``z = (ψ, ε)`` from the shape data and ε's prior.
+
+    Up to a constant, the log density of the shape samples and of ``ε`` is ``−½ Σ prec z² + b·z``.
+    """
+    I, J, n_r, n_z = problem.H0.shape
+    prec = np.zeros((I, n_z))
+    prec[:, problem.data_index] = J / problem.psi_var
+    prec[:, problem.eps_index] = 1.0 / problem.eps_std**2
+    b = np.zeros((I, n_z))
+    b[:, problem.data_index] = problem.psi_hat.sum(axis=1) / problem.psi_var
+    return prec, b
+
+
+def shape_system(problem: Problem, Hc: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Precision ``P_i = Σ_j Hc_ijᵀ W_i Hc_ij + Λ_i`` and right-hand side ``b_i`` of the ``z = (ψ, ε)`` conditional."""
+    n_z = problem.H0.shape[-1]
+    prec, b = shape_prior(problem)
+    P = np.swapaxes(Hc, 1, 2) @ weigh_rows(w, Hc)
+    P[:, np.arange(n_z), np.arange(n_z)] += prec
+    return P, b
