@@ -108,3 +108,32 @@ def dask_local():
 
     with dask_client("local", n_workers=2) as client:
         yield client
+
+
+#: Sizes of the hand-built updating problem of the ``toy`` fixture: modes, pole samples, residual rows,
+#: shape entries, perturbations.
+TOY_SIZES = (2, 6, 3, 2, 2)
+
+
+@pytest.fixture
+def toy():
+    """Two modes, one shared and one own parameter, 3 residual rows, z = (2 shape entries, 2 perturbations)."""
+    import numpy as np
+
+    from twin.update.gibbs import State
+    from twin.update.problem import Problem, sparse_blocks
+
+    I, J, N_R, N_PSI, N_E = TOY_SIZES
+    rng = np.random.default_rng(3)
+    H = rng.standard_normal((I, 3, J, N_R, N_PSI + N_E))
+    H[:, 2, :, 0] = 0.0  # the own parameter does not touch row 0: blocks must handle it
+    problem = Problem(
+        H0=H[:, 0].copy(), blocks=sparse_blocks(H[:, 1:]), data_index=np.arange(N_PSI),
+        eps_index=N_PSI + np.arange(N_E), psi_hat=rng.standard_normal((I, J, N_PSI)),
+        psi_var=np.full((I, N_PSI), 0.3), global_names=["a"], global_scale=np.ones(1), global_nominal=np.ones(1),
+        mode_names=["b"], mode_scale=np.ones((I, 1)), mode_nominal=np.zeros((I, 1)), modes=np.array([1, 2]),
+        channels=["c"], method="stage 2", eps_std=0.2, margin=np.full(I, np.inf), resonance_hz=np.full(I, np.nan),
+    )  # fmt: skip
+    state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_PSI + N_E)),
+                  rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
+    return problem, state, H

@@ -6,33 +6,17 @@ import pytest
 from twin.update.algebra import coefficients, combined, shape_system
 from twin.update.collapsed import approximate, marginal_move
 from twin.update.gibbs import Prior, State, log_density, run_chain
-from twin.update.problem import Problem, sparse_blocks
 
-I, J, N_R, N_PSI, N_E = 2, 6, 3, 2, 2
+from conftest import TOY_SIZES
 
-
-@pytest.fixture
-def toy():
-    """Two modes, one shared and one own parameter, 3 residual rows, z = (2 shape entries, 2 perturbations)."""
-    rng = np.random.default_rng(3)
-    H = rng.standard_normal((I, 3, J, N_R, N_PSI + N_E))
-    problem = Problem(
-        H0=H[:, 0].copy(), blocks=sparse_blocks(H[:, 1:]), data_index=np.arange(N_PSI),
-        eps_index=N_PSI + np.arange(N_E), psi_hat=rng.standard_normal((I, J, N_PSI)),
-        psi_var=np.full((I, N_PSI), 0.3), global_names=["a"], global_scale=np.ones(1), global_nominal=np.ones(1),
-        mode_names=["b"], mode_scale=np.ones((I, 1)), mode_nominal=np.zeros((I, 1)), modes=np.array([1, 2]),
-        channels=["c"], method="stage 2", eps_std=0.2, margin=np.full(I, np.inf), resonance_hz=np.full(I, np.nan),
-    )  # fmt: skip
-    state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_PSI + N_E)),
-                  rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
-    return problem, state
+I, J, N_R, N_PSI, N_E = TOY_SIZES
 
 
 @pytest.mark.parametrize("full", [False, True], ids=["diagonal", "full"])
 def test_marginal_is_the_joint_density_with_the_shapes_integrated_out(toy, full):
     # z | θ is Gaussian, so log ∫ p(θ, z) dz = log p(θ, ẑ) − ½ log|P(θ)| + const exactly (Laplace identity);
     # log_density is the sampler's joint density, written independently of the marginal
-    problem, state = toy
+    problem, state, _ = toy
     if full:
         A = np.random.default_rng(9).standard_normal((I, N_R, N_R))
         state = State(state.t, state.eta, state.z, A @ np.swapaxes(A, 1, 2) + 0.5 * np.eye(N_R))
@@ -48,7 +32,7 @@ def test_marginal_is_the_joint_density_with_the_shapes_integrated_out(toy, full)
 
 
 def test_collapsed_chain_samples_the_same_posterior_as_plain_gibbs(toy):
-    problem, _ = toy
+    problem, _, _ = toy
     n = 6000
     plain = run_chain(problem, n, burn_in=50, rng=np.random.default_rng(1))
     coll = run_chain(problem, n, burn_in=50, rng=np.random.default_rng(2), collapsed=True)
@@ -61,7 +45,7 @@ def test_collapsed_chain_samples_the_same_posterior_as_plain_gibbs(toy):
 
 
 def test_a_move_is_reversible_bookkeeping(toy):
-    problem, state = toy
+    problem, state, _ = toy
     prior = Prior.flat(problem)
     rng = np.random.default_rng(0)
     moves = [marginal_move(problem, state, prior, rng) for _ in range(50)]

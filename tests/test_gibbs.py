@@ -9,26 +9,10 @@ from twin.update.gibbs import (Prior, State, conditional_noise, conditional_own,
                                gaussian_draw, initial_state, log_density, run_chain, sweep, wishart_draw)  # fmt: skip
 from twin.update.problem import Problem, UpdateError, sparse_blocks
 
-I, J, N_R, N_PSI, N_E = 2, 6, 3, 2, 2
+from conftest import TOY_SIZES
+
+I, J, N_R, N_PSI, N_E = TOY_SIZES
 N_Z = N_PSI + N_E
-
-
-@pytest.fixture
-def toy():
-    """Two modes, one shared and one own parameter, 3 residual rows, z = (2 shape entries, 2 perturbations)."""
-    rng = np.random.default_rng(3)
-    H = rng.standard_normal((I, 3, J, N_R, N_Z))
-    H[:, 2, :, 0] = 0.0  # the own parameter does not touch row 0: blocks must handle it
-    problem = Problem(
-        H0=H[:, 0].copy(), blocks=sparse_blocks(H[:, 1:]), data_index=np.arange(N_PSI),
-        eps_index=N_PSI + np.arange(N_E), psi_hat=rng.standard_normal((I, J, N_PSI)),
-        psi_var=np.full((I, N_PSI), 0.3), global_names=["a"], global_scale=np.ones(1), global_nominal=np.ones(1),
-        mode_names=["b"], mode_scale=np.ones((I, 1)), mode_nominal=np.zeros((I, 1)), modes=np.array([1, 2]),
-        channels=["c"], method="stage 2", eps_std=0.2, margin=np.full(I, np.inf), resonance_hz=np.full(I, np.nan),
-    )  # fmt: skip
-    state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_Z)),
-                  rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
-    return problem, state, H
 
 
 def _residual(H, c, z):
