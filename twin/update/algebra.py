@@ -76,3 +76,23 @@ def shape_system(problem: Problem, Hc: np.ndarray, w: np.ndarray) -> tuple[np.nd
     P = np.swapaxes(Hc, 1, 2) @ weigh_rows(w, Hc)
     P[:, np.arange(n_z), np.arange(n_z)] += prec
     return P, b
+
+
+def joint_parameters(problem: Problem, blocks: np.ndarray, vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-mode ``(K, K)`` matrices and ``(K,)`` vectors over ``[t, η_i]`` summed into ``[t, η_1, ..., η_I]``.
+
+    The shared parameters ``t`` collect every mode's share; each ``η_i`` only
+    its own mode's. ``blocks`` is ``(I, K, K)``, ``vectors`` ``(I, K)``.
+    """
+    I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
+    n = Kg + I * Km
+    A, v = np.zeros((n, n)), np.zeros(n)
+    A[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
+    v[:Kg] = vectors[:, :Kg].sum(axis=0)
+    for i in range(I):
+        sl = slice(Kg + i * Km, Kg + (i + 1) * Km)
+        A[:Kg, sl] = blocks[i, :Kg, Kg:]
+        A[sl, :Kg] = blocks[i, Kg:, :Kg]
+        A[sl, sl] = blocks[i, Kg:, Kg:]
+        v[sl] = vectors[i, Kg:]
+    return A, v

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from twin.update.algebra import coefficients, combined, design, shape_system, weigh
+from twin.update.algebra import coefficients, combined, design, joint_parameters, shape_system, weigh
 from twin.update.problem import Problem
 
 if TYPE_CHECKING:
@@ -62,8 +62,8 @@ def approximate(problem: Problem, state: State, prior: Prior) -> Approximation:
 
     Raises ``numpy.linalg.LinAlgError`` when a precision is not positive definite.
     """
-    I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
-    Hc = combined(problem, coefficients(problem, state))
+    c = coefficients(problem, state)
+    Hc = combined(problem, c)
     P, b = shape_system(problem, Hc, state.w)
     Lp = np.linalg.cholesky(P)
     y = np.linalg.solve(Lp, b[..., None])[..., 0]
@@ -71,23 +71,17 @@ def approximate(problem: Problem, state: State, prior: Prior) -> Approximation:
     z_hat = np.linalg.solve(np.swapaxes(Lp, 1, 2), y[..., None])[..., 0]
     D = design(problem, z_hat)
     Jt = D[:, 1:]  # (I, K, J n_r): the residual's derivative in the parameters at ẑ
-    r = D[:, 0] + np.einsum("ik,ikn->in", coefficients(problem, state)[:, 1:], Jt)
+    r = D[:, 0] + np.einsum("ik,ikn->in", c[:, 1:], Jt)
     JtW = weigh(state.w, Jt)
     C = JtW @ np.swapaxes(Jt, 1, 2)
     B = JtW @ Hc  # (I, K, n_z)
     PinvBt = np.linalg.solve(P, np.swapaxes(B, 1, 2))
     blocks = C - B @ PinvBt  # θ-precision of each mode, z integrated out
     grads = -(JtW @ r[:, :, None])[..., 0]
-    n = Kg + I * Km
-    S, g = np.zeros((n, n)), np.zeros(n)
-    S[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0) + np.diag(prior.global_precision)
-    g[:Kg] = grads[:, :Kg].sum(axis=0) - prior.global_precision * (state.t - prior.global_mean)
-    for i in range(I):
-        sl = slice(Kg + i * Km, Kg + (i + 1) * Km)
-        S[:Kg, sl] = blocks[i, :Kg, Kg:]
-        S[sl, :Kg] = blocks[i, Kg:, :Kg]
-        S[sl, sl] = blocks[i, Kg:, Kg:] + np.diag(prior.mode_precision[i])
-        g[sl] = grads[i, Kg:] - prior.mode_precision[i] * (state.eta[i] - prior.mode_mean[i])
+    S, g = joint_parameters(problem, blocks, grads)
+    precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
+    S[np.diag_indices_from(S)] += precision
+    g -= precision * (_flat(problem, state) - np.concatenate([prior.global_mean, prior.mode_mean.ravel()]))
     log_marginal += float(-0.5 * np.sum(prior.global_precision * (state.t - prior.global_mean) ** 2)
                           - 0.5 * np.sum(prior.mode_precision * (state.eta - prior.mode_mean) ** 2))  # fmt: skip
     L = np.linalg.cholesky(S)

@@ -19,7 +19,7 @@ from twin.extract.modesfile import read_modes, split_complex
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
-from twin.update.gibbs import NOISE_MODELS, Chain, Prior, initial_state, not_identifiable, run_chains, stack
+from twin.update.gibbs import Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
@@ -169,10 +169,10 @@ def update(
         correlated by the pole noise and gives better calibrated intervals on
         the paper's synthetic data (``benchmarks/update_cases.py``).
     collapsed : bool
-        Replace the Gibbs steps of the parameters by a Metropolis step on
-        their marginal with the shapes integrated out
-        (:mod:`twin.update.collapsed`): about 3 times the cost of a sweep,
-        but the chains no longer crawl along the parameter-shape ridge.
+        Add to every sweep a Metropolis step of the parameters on their
+        marginal with the shapes integrated out (:mod:`twin.update.collapsed`):
+        4 to 5 times the cost of a sweep, but the chains no longer crawl along
+        the parameter-shape ridge.
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -202,8 +202,7 @@ def update(
     for name, value, least in (("draws", draws, 1), ("chains", chains, 1), ("burn_in", burn_in, 0)):
         if int(value) != value or value < least:
             raise UpdateError(f"{name} must be an integer >= {least}, got {value}")
-    if noise_model not in NOISE_MODELS:
-        raise UpdateError(f"unknown noise model '{noise_model}'; choose one of {', '.join(NOISE_MODELS)}")
+    check_noise_model(noise_model)
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source

@@ -66,7 +66,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from twin.tasks import mapper
-from twin.update.algebra import coefficients, combined, design, shape_system, weigh
+from twin.update.algebra import coefficients, combined, design, joint_parameters, shape_system, weigh
 from twin.update.collapsed import marginal_move
 from twin.update.problem import Problem, UpdateError
 
@@ -84,6 +84,17 @@ NOISE_PRIOR_SHAPE = 5.0
 #: Covariance models of the residual realisations ``r_ij ~ N(0, Δ_i)``: ``diagonal`` (the paper's:
 #: independent rows) or ``full`` (correlated rows; inverse-Wishart prior and conditional).
 NOISE_MODELS = ("diagonal", "full")
+
+
+def check_noise_model(name: str) -> None:
+    """Raise :class:`UpdateError` unless ``name`` is one of :data:`NOISE_MODELS`."""
+    if name not in NOISE_MODELS:
+        raise UpdateError(f"unknown noise model '{name}'; choose one of {', '.join(NOISE_MODELS)}")
+
+
+def full_precision(w: np.ndarray) -> np.ndarray:
+    """Diagonal noise precisions ``(I, n_r)`` as the matrices ``(I, n_r, n_r)`` of the full noise model."""
+    return w[:, :, None] * np.eye(w.shape[1])
 
 
 @dataclass
@@ -116,8 +127,7 @@ class Prior:
     noise_model: str = "diagonal"
 
     def __post_init__(self) -> None:
-        if self.noise_model not in NOISE_MODELS:
-            raise UpdateError(f"unknown noise model '{self.noise_model}'; choose one of {', '.join(NOISE_MODELS)}")
+        check_noise_model(self.noise_model)
 
     @classmethod
     def flat(cls, problem: Problem, noise_shape: float = NOISE_PRIOR_SHAPE, noise_model: str = "diagonal") -> Prior:
@@ -192,18 +202,9 @@ def gaussian_draw(
 
 def parameter_precision(problem: Problem, state: State) -> np.ndarray:
     """Joint conditional precision of all scaled parameters ``[t, η_1, ..., η_I]`` at ``state``."""
-    I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
     D = design(problem, state.z)[:, 1:]
     blocks = weigh(state.w, D) @ np.swapaxes(D, 1, 2)  # (I, K, K)
-    n = Kg + I * Km
-    P = np.zeros((n, n))
-    P[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
-    for i in range(I):
-        sl = slice(Kg + i * Km, Kg + (i + 1) * Km)
-        P[:Kg, sl] = blocks[i, :Kg, Kg:]
-        P[sl, :Kg] = blocks[i, Kg:, :Kg]
-        P[sl, sl] = blocks[i, Kg:, Kg:]
-    return P
+    return joint_parameters(problem, blocks, np.zeros(blocks.shape[:2]))[0]
 
 
 def not_identifiable(problem: Problem, state: State) -> list[str]:
@@ -245,7 +246,7 @@ def initial_state(problem: Problem, noise_model: str = "diagonal") -> State:
     ms = np.mean(r**2, axis=1)
     state.w = 1.0 / np.where(ms > 0, ms, 1.0)
     if noise_model == "full":
-        state.w = state.w[:, :, None] * np.eye(n_r)
+        state.w = full_precision(state.w)
     return state
 
 
@@ -418,8 +419,8 @@ def run_chain(
 
     Starts from :func:`initial_state` (parameters at zero) unless ``state`` is given. With the full
     noise model and a start from zero, the first half of the burn-in sweeps with diagonal ``Δ``
-    (see :data:`NOISE_MODELS`). ``collapsed`` replaces the parameters' Gibbs steps by the collapsed
-    Metropolis step (:func:`sweep`); ``Chain.accepted`` is its acceptance per draw.
+    (see :data:`NOISE_MODELS`). ``collapsed`` adds the collapsed Metropolis step to every sweep
+    (:func:`sweep`); ``Chain.accepted`` is its acceptance per draw.
     """
     prior = prior or Prior.flat(problem)
     rng = rng or np.random.default_rng()
@@ -433,7 +434,7 @@ def run_chain(
     noise, lps, accepted = np.empty((draws, I)), np.empty(draws), np.zeros(draws, bool)
     for n in tqdm(range(burn_in + draws), desc=label, disable=not progress, leave=False):
         if warm and n == warm:
-            state.w = state.w[:, :, None] * np.eye(state.w.shape[1])
+            state.w = full_precision(state.w)
         lp = sweep(problem, state, warm_prior if n < warm else prior, rng, collapsed)
         k = n - burn_in
         if k >= 0:
