@@ -320,6 +320,15 @@ def _add_scheduler(p: argparse.ArgumentParser, what: str, default: str = "local"
     p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
 
 
+def _add_loop_settings(p: argparse.ArgumentParser) -> None:
+    """The demo's record and model options, shared by ``demo`` and ``sweep``."""
+    from twin.loop.demo import DEMO_SAMPLES
+
+    p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
+    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help=f"jackknife samples per mode (default: {DEMO_SAMPLES})")
+    p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``twin`` command."""
     parser = argparse.ArgumentParser(prog="twin", description="Digital twin of a rotating machine in water.")
@@ -442,16 +451,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scheduler(p, "candidate fits")
     p.set_defaults(func=_diagnose)
 
-    from twin.loop.demo import DEMO_SAMPLES, HIDDEN_EFFECTS, NOTHING
+    from twin.loop.demo import HIDDEN_EFFECTS, NOTHING
 
     p = sub.add_parser("demo", help="the whole loop on a truth with a hidden effect, with a report folder")
     p.add_argument("--out", default="twin-demo", help="report folder (default: twin-demo)")
     p.add_argument("--hidden", choices=(*HIDDEN_EFFECTS, NOTHING), default="magnetic_pull",
                    help="effect hidden in the truth, or none (default: magnetic_pull)")
-    p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
-    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help=f"jackknife samples per mode (default: {DEMO_SAMPLES})")
     p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise (default: 1)")
-    p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+    _add_loop_settings(p)
     # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
     _add_scheduler(p, "candidate fits", default="sync")
     p.set_defaults(func=_demo)
@@ -462,9 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f"every effect (default: all; 'all,none' adds the false-alarm check)")  # fmt: skip
     p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated (default: 1)")
     p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders (default: twin-sweep)")
-    p.add_argument("--duration", type=float, default=1200.0, help="record length [s] (default: 1200)")
-    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help=f"jackknife samples per mode (default: {DEMO_SAMPLES})")
-    p.add_argument("--model", default=None, help="the twin's model file (default: models/hydro_unit.toml)")
+    _add_loop_settings(p)
     _add_scheduler(p, "scenarios")
     p.set_defaults(func=_sweep)
     return parser
