@@ -20,6 +20,19 @@ def test_error_is_the_rms_relative_pole_distance():
     meas = np.array([-1 + 100j, -2 + 200j])
     model = meas * np.array([1.01, 1.0])
     assert overall_error(model, meas) == pytest.approx(0.01 / np.sqrt(2), rel=1e-12)
+    # equal relative uncertainties: the weighted error is the plain RMS
+    assert overall_error(model, meas, 1e-3 * np.abs(meas)[:, None] * [1, 1]) == pytest.approx(0.01 / np.sqrt(2), rel=1e-12)
+
+
+def test_error_weighs_each_pole_part_by_its_inverse_variance():
+    meas = np.array([100j, -60 + 80j])  # |λ| = 100
+    model = meas + np.array([1j, 3.0])  # 1% on the first mode's imaginary part, 3% on the second's real part
+    sigma = np.array([[0.1, 0.1], [1.0, 2.0]])
+    w = (100 / sigma) ** 2
+    expected = np.sqrt(2 * (w[0, 1] * 0.01**2 + w[1, 0] * 0.03**2) / w.sum())
+    assert overall_error(model, meas, sigma) == pytest.approx(expected, rel=1e-12)
+    # a mode whose pole is only known to 10% hardly counts: the error is the well-known mode's 1%
+    assert overall_error(model, meas, np.array([[0.1, 0.1], [10.0, 10.0]])) == pytest.approx(0.01, rel=0.01)
 
 
 def test_model_equal_to_the_truth_has_error_at_the_noise_floor(hydro_unit):
@@ -38,8 +51,12 @@ def test_hidden_effect_shows_in_the_table(hydro_unit):
     # mode 2 (generator mode) moves most: 11.7% in frequency, far beyond the measurement sigma
     k = int(np.argmax(np.abs(table["frequency_error"].values)))
     assert int(table["mode"][k]) == 2 and float(table["z_frequency"][k]) > 50
-    assert table.attrs["error"] == pytest.approx(overall_error(
-        table["model_frequency"].values * 0 + _poles(table), meas.pole[np.isin(meas.mode, table["mode"])]), rel=1e-9)
+    paired = np.isin(meas.mode, table["mode"])
+    assert table.attrs["error_rms"] == pytest.approx(overall_error(_poles(table), meas.pole[paired]), rel=1e-9)
+    assert table.attrs["error"] == pytest.approx(overall_error(_poles(table), meas.pole[paired], meas.sigma[paired]), rel=1e-9)
+    # E is the comparison's chi2 written as a relative pole error
+    norm = np.sum((np.abs(meas.pole[paired])[:, None] / meas.sigma[paired]) ** 2)
+    assert table.attrs["error"] == pytest.approx(np.sqrt(2 * table.attrs["chi2"] / norm), rel=1e-9)
 
 
 def _poles(table):

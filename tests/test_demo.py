@@ -36,13 +36,13 @@ def test_demo_refuses_an_unknown_hidden_effect(tmp_path):
 
 # The issue's hidden-effect tests, on signals: each truth is simulated through its FMU for 20 min,
 # the modes are extracted, and the twin without the effect is diagnosed and updated (Laplace update on the
-# poles). The parameters listed per case are ones 20 min of signals do not pin to 10% (posterior std 9.5%
-# for the tilt stiffness, 40-70% for the bearing stiffness changes, which the bearings' large
-# cross-coupling hides): they are checked against their own posterior std (|z| < 3) instead.
+# poles). Four effects meet the issue's three criteria (named first, E falls by 80% or more, every parameter
+# within 10% of its truth). The bearing changes' stiffness parameters are ones 20 min of signals do not pin
+# to 10% (posterior std 15-45%: the bearings' large cross-coupling hides them); they are checked against
+# their own posterior std (|z| < 3) instead.
 # The scenarios run as one sweep, one Dask task each, on a local cluster of two workers.
 HIDDEN_CASES = {
-    "magnetic_pull": (), "fsi": (),
-    "thrust_tilt:thrust": ("thrust.k_tilt_change",),
+    "magnetic_pull": (), "fsi": (), "seal_cross_coupling": (), "thrust_tilt:thrust": (),
     "bearing_change:UGB": ("UGB.stiffness_change",),
     "bearing_change:LGB": ("LGB.stiffness_change",),
 }  # fmt: skip
@@ -73,7 +73,7 @@ def test_hidden_effect_in_fmu_signals_is_found_and_identified(hidden, hidden_swe
             assert abs(value - truth[name]) < 3 * std, (name, value, std)
         else:
             assert value == pytest.approx(truth[name], rel=0.10), name
-    assert bool(r.passed)
+    assert bool(r.passed) and (bool(r.passed_strict) or bool(HIDDEN_CASES[hidden]))
 
 
 @pytest.mark.slow

@@ -230,7 +230,7 @@ def _compare(args: argparse.Namespace) -> int:
         rows = [{"mode": int(m), **{k: float(table[k].sel(mode=m)) for k in keep}} for m in table["mode"].values]
         shape = {str(c): float(v) for c, v in zip(table["channel"].values, table["channel_shape_error"].values)}
         print(json.dumps({"error": table.attrs["error"], "error_definition": table.attrs["error_definition"],
-                          "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
+                          "error_rms": table.attrs["error_rms"], "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
                           "channel_shape_error": shape,
                           "unpaired": [int(m) for m in np.atleast_1d(table.attrs["unpaired"])]}, indent=2))  # fmt: skip
     else:

@@ -91,11 +91,11 @@ class Fit:
 
     def error_before(self, meas: Measured) -> float:
         """The overall error ``E`` of the model without the effect, on the modes used."""
-        return overall_error(self.poles_before, meas.pole[self.measured])
+        return overall_error(self.poles_before, meas.pole[self.measured], meas.sigma[self.measured])
 
     def error_after(self, meas: Measured) -> float:
         """The overall error ``E`` with the fitted effect, on the modes used."""
-        return overall_error(self.poles_after, meas.pole[self.measured])
+        return overall_error(self.poles_after, meas.pole[self.measured], meas.sigma[self.measured])
 
     @property
     def residual_dof(self) -> int:
