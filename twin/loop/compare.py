@@ -19,9 +19,9 @@ point. The weights make ``E`` the χ² of the comparison written as a relative
 pole error, ``E² = 2 χ² / Σ (|λ̂| / σ)²``: modes measured better than the
 tolerance weigh alike, and a mode the record resolves only to a few percent (a
 heavily damped one) weighs less, so that one noisy mode does not set the
-error of a model that is right. The plain RMS is kept as ``error_rms``. The table behind ``E`` has
-the frequency and damping errors of every mode, their z-scores against the
-measurement uncertainty, the MAC, and the shape error of
+error of a model that is right. The plain RMS is kept as ``error_rms``. The
+table behind ``E`` has the frequency and damping errors of every mode, their
+z-scores against the measurement uncertainty, the MAC, and the shape error of
 every sensor.
 """
 
