@@ -1,6 +1,7 @@
 """twin demo and the hidden-effect tests on FMU signals: simulate a truth, extract, diagnose, add, update."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,9 +54,10 @@ NO_EFFECT_SEED = 5
 def hidden_sweep(hydro_unit, dask_local, tmp_path_factory):
     from twin.loop.sweep import sweep
 
-    scenarios = [(h, 1) for h in HIDDEN_CASES] + [("none", NO_EFFECT_SEED)]
-    table = sweep(scenarios, tmp_path_factory.mktemp("sweep"), model=hydro_unit, tasks=dask_local, progress=False)
-    return table.set_index(scenario="hidden")
+    scenarios = [(h, 1) for h in HIDDEN_CASES] + [("none", NO_EFFECT_SEED), ("shaft_stiffness_loss", 1)]
+    out = tmp_path_factory.mktemp("sweep")
+    table = sweep(scenarios, out, model=hydro_unit, tasks=dask_local, progress=False)
+    return table.set_index(scenario="hidden").assign_attrs(out=str(out))
 
 
 @pytest.mark.slow
@@ -82,3 +84,16 @@ def test_no_hidden_effect_in_fmu_signals_is_no_false_alarm(hidden_sweep, hydro_u
     assert str(r.verdict.values) == "nothing missing" and int(r.seed) == NO_EFFECT_SEED
     assert bool(r.passed)
     assert truth_values(hydro_unit, HIDDEN_EFFECTS["fsi"]) == {"FSI.added_mass": 6e4, "FSI.added_damping": 2e6}
+
+
+@pytest.mark.slow
+def test_change_outside_the_library_in_fmu_signals_is_unexplained_and_located(hidden_sweep):
+    from twin.loop.sweep import folder_name
+
+    # shaft element 18 at half its bending stiffness, simulated through the FMU: no library effect explains it
+    r = hidden_sweep.sel(scenario="shaft_stiffness_loss")
+    assert str(r.verdict.values) == "unexplained" and str(r.missing.values) == "" and int(r.location) == 18
+    assert bool(r.passed) and np.isnan(r["map"].values).all()  # nothing added, nothing updated
+    report = (Path(hidden_sweep.attrs["out"]) / folder_name("shaft_stiffness_loss", 1) / "report.md").read_text()
+    assert "Hidden in the truth: **shaft element 18 at 50% of its bending stiffness" in report
+    assert "Verdict: **unexplained**" in report and "shaft element 18" in report

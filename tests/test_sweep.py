@@ -9,9 +9,9 @@ from twin.errors import TwinError
 from twin.loop.sweep import Settings, scenario_grid, sweep, tabulate
 
 
-def _row(verdict, missing, before, after, params):
+def _row(verdict, missing, before, after, params, location=-1):
     return {"verdict": verdict, "missing": missing, "top_score": 40.0, "lead": 12.0, "error_before": before,
-            "error_after": after, "parameters": params, "elapsed_s": 1.0, "warnings": []}  # fmt: skip
+            "error_after": after, "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": []}  # fmt: skip
 
 
 def test_table_and_pass_rule():
@@ -40,6 +40,15 @@ def test_wrong_verdict_fails_the_scenario():
     t = tabulate([("none", 1), ("fsi", 1)], [_row("missing effect", "fsi", 0.01, 0.001, {}),
                                              _row("missing effect", "magnetic_pull", 0.05, 0.001, {})], Settings())
     assert t["passed"].values.tolist() == [False, False]
+
+
+def test_change_outside_the_library_passes_when_called_unexplained_and_located():
+    rows = [_row("unexplained", "", 0.02, 0.02, {}, location=18), _row("unexplained", "", 0.02, 0.02, {}, location=5),
+            _row("missing effect", "fsi", 0.02, 0.001, {}, location=-1)]  # fmt: skip
+    t = tabulate([("shaft_stiffness_loss", s) for s in (1, 2, 3)], rows, Settings())
+    assert t["passed"].values.tolist() == [True, False, False]
+    assert t["passed_strict"].values.tolist() == [True, False, False]
+    assert t["location"].values.tolist() == [18, 5, -1]
 
 
 def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path):

@@ -264,7 +264,7 @@ def _demo(args: argparse.Namespace) -> int:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
                      samples=args.samples, tasks=client)  # fmt: skip
     d = r.diagnosis
-    print(f"hidden in the truth: {', '.join(f'{n} = {v:.4g}' for n, v in r.truth.items()) or 'nothing'}")
+    print(f"hidden in the truth: {r.hidden_text()}")
     print(f"diagnosis: {d.verdict}" + (f" ({d.missing})" if d.missing else ""))
     if r.posterior is not None:
         ident = r.identified()
@@ -451,12 +451,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scheduler(p, "candidate fits")
     p.set_defaults(func=_diagnose)
 
-    from twin.loop.demo import HIDDEN_EFFECTS, NOTHING
+    from twin.loop.demo import HIDDEN_EFFECTS, NOTHING, OUTSIDE_LIBRARY, hidden_labels
 
     p = sub.add_parser("demo", help="the whole loop on a truth with a hidden effect, with a report folder")
     p.add_argument("--out", default="twin-demo", help="report folder (default: twin-demo)")
-    p.add_argument("--hidden", choices=(*HIDDEN_EFFECTS, NOTHING), default="magnetic_pull",
-                   help="effect hidden in the truth, or none (default: magnetic_pull)")
+    p.add_argument("--hidden", choices=hidden_labels(), default="magnetic_pull",
+                   help="effect hidden in the truth, a change outside the effects library "
+                        f"({', '.join(OUTSIDE_LIBRARY)}), or none (default: magnetic_pull)")  # fmt: skip
     p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise (default: 1)")
     _add_loop_settings(p)
     # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
@@ -465,8 +466,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", help="the demo's loop over hidden effects and seeds, one Dask task per scenario")
     p.add_argument("--hidden", default="all",
-                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, {NOTHING}; 'all' for "
-                        f"every effect (default: all; 'all,none' adds the false-alarm check)")  # fmt: skip
+                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, "
+                        f"{', '.join(OUTSIDE_LIBRARY)} (outside the library), {NOTHING}; 'all' for every library "
+                        f"effect (default: all; 'all,none' adds the false-alarm check)")  # fmt: skip
     p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated (default: 1)")
     p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders (default: twin-sweep)")
     _add_loop_settings(p)

@@ -60,6 +60,14 @@ def diagnosis_text(d: Diagnosis, meas: Measured) -> str:
     return "\n".join(lines)
 
 
+def _named(row: xr.Dataset) -> str:
+    """The effect a scenario's diagnosis named, or the shaft element it pointed to, or ``-``."""
+    if str(row.missing.values):
+        return str(row.missing.values)
+    location = int(row["location"]) if "location" in row else -1
+    return f"shaft element {location}" if location >= 0 else "-"
+
+
 def sweep_text(table: xr.Dataset) -> str:
     """One line per scenario of :func:`twin.loop.sweep.sweep`: verdict, error fall, parameter errors.
 
@@ -75,7 +83,7 @@ def sweep_text(table: xr.Dataset) -> str:
                          for n, e, s, t in zip(names, r.relative_error.values, r["std"].values, r.truth.values)
                          if np.isfinite(e))  # fmt: skip
         lines.append(f"{str(r.hidden.values):<22} {int(r.seed):>4} {str(r.verdict.values):<17} "
-                     f"{str(r.missing.values) or '-':<22} {float(r.lead):>8.1f} {100 * float(r.error_before):>8.3f}% "
+                     f"{_named(r):<22} {float(r.lead):>8.1f} {100 * float(r.error_before):>8.3f}% "
                      f"{100 * float(r.error_after):>7.3f}% {100 * float(r.fall):>5.1f}% {float(r.elapsed_s):>5.0f}s "
                      f"{'yes' if bool(r.passed) else 'NO':<6} {'yes' if bool(r.passed_strict) else 'NO':<6} {errs}")  # fmt: skip
     n = table.sizes["scenario"]
