@@ -4,7 +4,6 @@ Each truth hides one library effect from a twin that lacks it. The modes have
 pole noise of 0.1 rad/s (std per sample, 100 samples) and 5% shape noise.
 """
 
-
 import numpy as np
 import pytest
 

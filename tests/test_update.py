@@ -142,6 +142,10 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
     bad["pole"][1, 7] = np.nan
     with pytest.raises(UpdateError, match="'pole' is not finite at mode=4, sample=7"):
         update(hydro_unit, bad, None, fsi=True, progress=False)
+    still = sub.copy(deep=True)
+    still["pole"][0, :] = still["pole"][0, 0]
+    with pytest.raises(UpdateError, match=r"mode\(s\) \[3\] have 100 equal pole samples.*samples that differ"):
+        update(hydro_unit, still, None, fsi=True, progress=False)
     renamed = sub.assign_coords(channel=["SEAL_x", "SEAL_y", "UGB_x", "UGB_y", "LGB_x", "LGB_y", "GEN_x", "EXC_y"])
     with pytest.raises(UpdateError, match=r"channel\(s\) \['EXC_y'\] are not sensors"):
         update(hydro_unit, renamed, None, fsi=True, progress=False)

@@ -271,6 +271,13 @@ def check_modes(modes: xr.Dataset, source: str) -> None:
     if wrong_half.any():
         mode = modes["mode"].values[wrong_half][0]
         raise UpdateError(f"{source}: mode {mode} has pole samples with Im <= 0 (expected the Im > 0 pole)")
+    pole = modes["pole"].transpose("mode", "sample").values
+    still = np.all(pole == pole[:, :1], axis=1)
+    if still.any():
+        raise UpdateError(f"{source}: mode(s) {modes['mode'].values[still].tolist()} have {pole.shape[1]} equal pole "
+                          "samples; the updater learns the noise of the condensed eigen-equation from their scatter, "
+                          "so it needs pole samples that differ (jackknife samples of an extraction, or synthetic "
+                          "samples with a pole variance)")  # fmt: skip
 
 
 def build_problem(
