@@ -90,6 +90,7 @@ class ShaftStiffnessLoss:
         return dataclasses.replace(model, shaft=tuple(weaken(e) if e.n == self.element else e for e in model.shaft))
 
     def describe(self) -> str:
+        """The change in words, for reports."""
         return f"shaft element {self.element} at {self.factor:.0%} of its bending stiffness (outside the effects library)"
 
 
@@ -98,7 +99,13 @@ OUTSIDE_LIBRARY = {"shaft_stiffness_loss": ShaftStiffnessLoss(18, 0.5)}
 
 
 def hidden_labels() -> list[str]:
-    """Every ``hidden`` value the demo takes: library effects, changes outside the library, :data:`NOTHING`."""
+    """Every ``hidden`` value the demo takes: library effects, changes outside the library, :data:`NOTHING`.
+
+    Examples
+    --------
+    >>> hidden_labels()[-3:]
+    ['bearing_change:UGB', 'shaft_stiffness_loss', 'none']
+    """
     return [*HIDDEN_EFFECTS, *OUTSIDE_LIBRARY, NOTHING]
 
 
