@@ -357,4 +357,3 @@ def error_text(table: xr.Dataset) -> str:
     """
     return (f"E = {100 * table.attrs['error']:.2f}% ({table.sizes['mode']} paired modes; "
             f"{table.attrs['error_definition']}; unweighted RMS {100 * table.attrs['error_rms']:.2f}%)")
-

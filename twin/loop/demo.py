@@ -27,8 +27,8 @@ from twin.errors import TwinError
 from twin.fem.effects import BearingChange, FluidAddedMass, MagneticPull, SealCrossCoupling, ThrustTilt
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
-from twin.loop.diagnose import Diagnosis
 from twin.loop.compare import error_text
+from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
 from twin.netcdf import atomic_output
 from twin.loop.twin import Twin

@@ -64,7 +64,7 @@ def _named(row: xr.Dataset) -> str:
     """The effect a scenario's diagnosis named, or the shaft element it pointed to, or ``-``."""
     if str(row.missing.values):
         return str(row.missing.values)
-    location = int(row["location"]) if "location" in row else -1
+    location = int(row["location"])
     return f"shaft element {location}" if location >= 0 else "-"
 
 

@@ -17,8 +17,7 @@ element), the error falls by at least
 :data:`MAX_PARAMETER_ERROR` of its truth or within :data:`MAX_Z` posterior
 standard deviations of it (a parameter the record cannot pin down); with
 nothing hidden or a change outside the library, nothing is added or updated.
-It is
-*passed strictly* when every identified parameter is within
+It is *passed strictly* when every identified parameter is within
 :data:`MAX_PARAMETER_ERROR` of its truth, whatever its standard deviation.
 """
 
@@ -78,9 +77,10 @@ def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1
 
 
 def _check_hidden(hidden: Sequence[str]) -> None:
-    unknown = [h for h in hidden if h not in hidden_labels()]
+    known = hidden_labels()
+    unknown = [h for h in hidden if h not in known]
     if unknown:
-        raise TwinError(f"unknown hidden effect(s) {', '.join(unknown)}; choose from {', '.join(hidden_labels())}")
+        raise TwinError(f"unknown hidden effect(s) {', '.join(unknown)}; choose from {', '.join(known)}")
 
 
 def _found(hidden: str, row: dict) -> bool:
@@ -235,7 +235,8 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
             "error_before": (dims, before, {"units": "1", "long_name": "overall error E before the update"}),
             "error_after": (dims, after, {"units": "1", "long_name": "overall error E after the update"}),
             "fall": (dims, fall, {"units": "1", "long_name": "1 - E after / E before"}),
-            "found": (dims, found, {"long_name": "diagnosis named the hidden effect (or nothing, with none hidden)"}),
+            "found": (dims, found, {"long_name": "diagnosis named the hidden effect (nothing missing, with none hidden; "
+                                                 "unexplained and the right shaft element, outside the library)"}),
             "passed": (dims, passed, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
                                                    f"{MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of its truth"}),
             "passed_strict": (dims, strict, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
