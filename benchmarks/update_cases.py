@@ -8,8 +8,8 @@ Prints, for the first seed, per parameter: truth, MAP, relative error,
 posterior std, z-score, with the paper's figures beside them; then the
 coverage of the 90% credible intervals over all seeds.
 
-    python benchmarks/update_cases.py --case B [--seeds 20] [--draws 500] [--chains 1] [--burn-in 20]
-                                      [--noise-model diagonal|full] [--collapsed]
+    python benchmarks/update_cases.py --case B [--seeds 20] [--first-seed 1] [--draws 500] [--chains 1] [--burn-in 20]
+                                      [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear]
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from twin.errors import TwinWarning
 from twin.update import summary, synthesize_modes, update
 from twin.update.core import BURN_IN, MIN_MARGIN
 from twin.update.gibbs import NOISE_MODELS
+from twin.update.poles import POLE_MODELS
 
 #: The paper's reported MAP accuracy (relative error), for the table.
 PAPER = {"added_mass": "~1% (modes 1, 2 worse)", "added_damping": "~3% (modes 1, 2 worse)",
@@ -48,14 +49,14 @@ def paper_figure(name: str) -> str:
 
 
 def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN,
-        collapsed: bool = False):
+        collapsed: bool = False, pole_model: str = "samples"):
     ds = synthesize_modes(model, samples=100, seed=seed)
     params = "bearings" if case == "B" else None
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
         tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False,
-                      noise_model=noise_model, burn_in=burn_in, collapsed=collapsed)
+                      noise_model=noise_model, burn_in=burn_in, collapsed=collapsed, pole_model=pole_model)
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -66,25 +67,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=("A", "B"), default="B")
     ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--first-seed", type=int, default=1, help="seeds run: first-seed, ..., first-seed + seeds - 1")
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--chains", type=int, default=1)
     ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
     ap.add_argument("--burn-in", type=int, default=BURN_IN)
     ap.add_argument("--collapsed", action="store_true", help="add the collapsed Metropolis step to each sweep")
+    ap.add_argument("--pole-model", choices=POLE_MODELS, default="samples")
     args = ap.parse_args()
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax = [], [], []
-    for seed in range(1, args.seeds + 1):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in,
-                                           args.collapsed)
+                                           args.collapsed, args.pole_model)
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])
         covered.append(float(inside.mean()))
         covered_ok.append(float(inside.values[ok].mean()))
         zmax.append(float(np.nanmax(np.abs(table["z_score"].values[ok]))))
-        if seed == 1:
-            print(f"Case {args.case}, seed 1: {table.sizes['parameter']} parameters, {args.chains} chain(s) x "
+        if seed == args.first_seed:
+            print(f"Case {args.case}, seed {seed}: {table.sizes['parameter']} parameters, {args.chains} chain(s) x "
                   f"{args.draws} draws in {elapsed:.1f} s (including setup)")  # fmt: skip
             for m in msgs:
                 print("  warning:", m)

@@ -7,7 +7,7 @@
     twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
     twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
     twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
-                [--noise-model diagonal|full] [--collapsed] [--effect LABEL]
+                [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear] [--effect LABEL]
     twin compare MODEL.toml modes.nc [--posterior posterior.nc] [--effect LABEL] [--json] [--plot DIR]
     twin diagnose MODEL.toml modes.nc [--candidates LABEL,...] [--json]
     twin demo [--out DIR] [--hidden LABEL] [--duration S] [--seed N] [--model MODEL.toml]
@@ -176,7 +176,7 @@ def _update(args: argparse.Namespace) -> int:
     with _tasks(args) as client:
         tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
                       burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
-                      output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
+                      pole_model=args.pole_model, output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
     table = summary(tree["posterior"].to_dataset())
     print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
           f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
@@ -417,6 +417,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--collapsed", action="store_true",
                    help="add to every sweep a Metropolis step of the parameters with the shapes integrated "
                         "out (4-5x the time per sweep; chains mix along the parameter-shape ridge)")
+    p.add_argument("--pole-model", choices=("samples", "linear"), default="samples",
+                   help="how the pole samples enter the condensed model: at every sample (the paper's) or "
+                        "linearised about each mode's mean pole (no curvature bias near resonances of the "
+                        "unobserved DOFs); default: samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
     _add_scheduler(p, "chains")

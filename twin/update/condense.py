@@ -95,6 +95,7 @@ def condense(
     speed_rad_s: float,
     *,
     force_latent: bool = False,
+    centre: complex | None = None,
 ) -> Condensed:
     """PerCEM basis matrices of one mode at its pole samples.
 
@@ -113,6 +114,12 @@ def condense(
         Rotor speed Ω [rad/s].
     force_latent : bool
         Skip stage 2 even when it is possible (for checks).
+    centre : complex, optional
+        Pole at which the basis of the extra parameter-free rows is chosen
+        (default: the mean of ``poles``). At every pole the extra rows are
+        that basis projected on the complement of ``Ẑ_o'q``'s range, so a
+        row means the same combination of the ``o'`` rows at every sample
+        and the rows vary smoothly with the pole.
 
     Returns
     -------
@@ -145,16 +152,7 @@ def condense(
     r = np.setdiff1d(np.arange(n), s)
     n_o, n_q = len(observed), len(q)
 
-    # stage 1: Schur complement over r, batched over the pole samples
-    Z = dynamic_stiffness(fixed, poles, speed_rad_s)
-    Z_ss = Z[:, s[:, None], s]
-    if len(r):
-        Z_rr = Z[:, r[:, None], r]
-        Z_rs = Z[:, r[:, None], s]
-        Z_sr = Z[:, s[:, None], r]
-        Z_hat = Z_ss - Z_sr @ np.linalg.solve(Z_rr, Z_rs)
-    else:
-        Z_hat = Z_ss
+    Z_hat = _schur(fixed, s, r, poles, speed_rad_s)  # stage 1
     # basis matrices restricted to s (their footprints lie in p ⊂ s)
     Zk = np.stack([dynamic_stiffness({k: b[k][np.ix_(s, s)] for k in "MCGK"}, poles, speed_rad_s) for b in bases],
                   axis=1) if bases else np.zeros((len(poles), 0, len(s), len(s)), complex)  # fmt: skip
@@ -180,7 +178,7 @@ def condense(
     J = len(poles)
     if n_q:
         A_pinv = np.conj(np.swapaxes(Vh, -1, -2)) @ (np.conj(np.swapaxes(U[:, :, :n_q], -1, -2)) / sv[:, :, None])
-        U2h = np.conj(np.swapaxes(U[:, :, n_q:], -1, -2))  # (J, n_o' - n_q, n_o')
+        U2h = _extra_rows(U[:, :, n_q:], _complement(fixed, s, r, prime, q_pos, poles, centre, speed_rad_s))
     else:
         A_pinv = np.zeros((J, 0, len(prime)), complex)
         U2h = np.broadcast_to(np.eye(len(prime), dtype=complex), (J, len(prime), len(prime)))
@@ -199,6 +197,29 @@ def condense(
     R_x[:, 0] = U2h @ B
     T_x[:, 0][:, :, prime] = -U2h
     return Condensed(np.concatenate([R_p, R_x], axis=2), np.concatenate([T_p, T_x], axis=2), STAGE_2, ())
+
+
+def _schur(fixed: Mapping[str, np.ndarray], s: np.ndarray, r: np.ndarray, poles: np.ndarray,
+           speed_rad_s: float) -> np.ndarray:
+    """Stage 1: the Schur complement ``Ẑ = Z_ss − Z_sr Z_rr⁻¹ Z_rs`` at each pole, ``(J, n_s, n_s)``."""
+    Z = dynamic_stiffness(fixed, poles, speed_rad_s)
+    Z_ss = Z[:, s[:, None], s]
+    if not len(r):
+        return Z_ss
+    return Z_ss - Z[:, s[:, None], r] @ np.linalg.solve(Z[:, r[:, None], r], Z[:, r[:, None], s])
+
+
+def _complement(fixed, s, r, prime, q_pos, poles, centre, speed_rad_s) -> np.ndarray:
+    """Orthonormal basis ``(n_o', n_o' − n_q)`` of the complement of ``Ẑ_o'q``'s range at the centre pole."""
+    centre = np.mean(poles) if centre is None else centre
+    Z_hat = _schur(fixed, s, r, np.array([centre]), speed_rad_s)[0]
+    U = np.linalg.svd(Z_hat[np.ix_(prime, q_pos)])[0]
+    return U[:, len(q_pos):]
+
+
+def _extra_rows(U2: np.ndarray, N0: np.ndarray) -> np.ndarray:
+    """``N0ᴴ P⊥(λ)`` for each pole: the centre basis ``N0`` projected on each pole's complement ``U2`` (J, n_o', ·)."""
+    return (np.conj(N0.T) @ U2) @ np.conj(np.swapaxes(U2, -1, -2))
 
 
 def real_augment(A: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
 from twin.update.gibbs import Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack
-from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
+from twin.update.problem import Problem, UpdateError, build_problem, check_pole_model, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
 log = logging.getLogger(__name__)
@@ -136,6 +136,7 @@ def update(
     eps_std: float = 1e-6,
     noise_model: str = "diagonal",
     collapsed: bool = False,
+    pole_model: str = "samples",
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -173,6 +174,12 @@ def update(
         marginal with the shapes integrated out (:mod:`twin.update.collapsed`):
         4 to 5 times the cost of a sweep, but the chains no longer crawl along
         the parameter-shape ridge.
+    pole_model : {"samples", "linear"}
+        How the pole samples enter the condensed eigen-model
+        (:mod:`twin.update.poles`): the basis matrices at every sample (the
+        paper's) or linearised about each mode's mean pole, which removes the
+        bias the model's curvature in the pole puts into the residuals of
+        modes near a resonance of the unobserved DOFs.
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -203,6 +210,7 @@ def update(
         if int(value) != value or value < least:
             raise UpdateError(f"{name} must be an integer >= {least}, got {value}")
     check_noise_model(noise_model)
+    check_pole_model(pole_model)
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -210,7 +218,7 @@ def update(
     source = str(modes) if not isinstance(modes, xr.Dataset) else "modes"
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
-    problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, source=source)
+    problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, pole_model=pole_model, source=source)
     prior = _prior(problem, priors, noise_model)
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency)
@@ -221,7 +229,7 @@ def update(
                                   tasks=tasks, collapsed=collapsed))  # fmt: skip
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
-                "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed,
+                "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
                 "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",

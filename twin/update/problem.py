@@ -30,7 +30,8 @@ from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.parameters import MATRIX_KINDS, Parameter
 from twin.modes.analysis import state_matrix
-from twin.update.condense import LATENT_SHAPE, condense, dynamic_stiffness, parametrised_dofs, real_augment
+from twin.update.condense import LATENT_SHAPE, dynamic_stiffness, parametrised_dofs, real_augment
+from twin.update.poles import POLE_MODELS, condense_samples
 
 log = logging.getLogger(__name__)
 
@@ -167,6 +168,12 @@ class Problem:
         return self.global_names + [f"FSI.{k}_{m}" for m in self.modes for k in self.mode_names]
 
 
+def check_pole_model(name: str) -> None:
+    """Raise :class:`UpdateError` unless ``name`` is one of :data:`twin.update.poles.POLE_MODELS`."""
+    if name not in POLE_MODELS:
+        raise UpdateError(f"unknown pole model '{name}'; choose one of {', '.join(POLE_MODELS)}")
+
+
 def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> list[str]:
     """Parameter names from a ``--params`` value: group names, names or glob patterns.
 
@@ -287,6 +294,7 @@ def build_problem(
     *,
     fsi: bool = False,
     eps_std: float = 1e-6,
+    pole_model: str = "samples",
     source: str = "modes",
 ) -> Problem:
     """Set up the updating of ``params`` (and per-mode FSI) from a modes Dataset.
@@ -304,6 +312,10 @@ def build_problem(
         Also update the added mass and damping of each mode on the immersed region.
     eps_std : float
         σ of the relative perturbation ``e`` of the condensed eigen-equation.
+    pole_model : {"samples", "linear"}
+        How the pole samples enter the condensed model: the bases at every
+        sample (the paper's) or linearised about the mean pole
+        (:mod:`twin.update.poles`).
     source : str
         Name of the data in messages.
 
@@ -312,6 +324,7 @@ def build_problem(
     Problem
     """
     check_modes(modes, source)
+    check_pole_model(pole_model)
     params = list(params)
     if not params and not fsi:
         raise UpdateError("nothing to update: give parameters and/or per-mode FSI")
@@ -338,10 +351,12 @@ def build_problem(
                            for pm in poles]).reshape(mode_nominal.shape)  # fmt: skip
 
     margin, resonance = _condensation_margins(fixed, bases + fsi_bases, observed, poles, speed)
-    condensed = [condense(fixed, bases + fsi_bases, observed, pm, speed) for pm in poles]
+    condensed = [condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model)
+                 for pm in poles]  # fmt: skip
     methods = {c.method for c in condensed}
     if len(methods) > 1:  # one structure for all modes
-        condensed = [condense(fixed, bases + fsi_bases, observed, pm, speed, force_latent=True) for pm in poles]
+        condensed = [condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model,
+                                      force_latent=True) for pm in poles]  # fmt: skip
     method = condensed[0].method
     if method == LATENT_SHAPE:
         log.warning("too few parameter-free observed rows for stage 2: unobserved DOFs %s are sampled as latent "
