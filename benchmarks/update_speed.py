@@ -5,7 +5,11 @@ latent shapes and perturbations, log residual variances), written as one flat
 vector for emcee (affine-invariant ensemble, the generic sampler), run for the
 same wall time. ESS is ArviZ's bulk ESS of the 16 bearing coefficients.
 
-    python benchmarks/update_speed.py [--draws 500] [--seed 1]
+    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--noise-model diagonal|full] [--collapsed]
+                                      [--pole-model samples|linear]
+
+The options time the Gibbs sampler in another configuration (default: the
+paper's); emcee always samples the paper's posterior.
 """
 
 from __future__ import annotations
@@ -17,7 +21,8 @@ import numpy as np
 
 import twin
 from twin.update import synthesize_modes
-from twin.update.gibbs import Prior, State, initial_state, log_density, run_chain, sweep
+from twin.update.gibbs import NOISE_MODELS, Prior, State, initial_state, log_density, run_chain, sweep
+from twin.update.poles import POLE_MODELS
 from twin.update.posterior import _arviz
 from twin.update.problem import build_problem, select_parameters
 
@@ -26,16 +31,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
+    ap.add_argument("--collapsed", action="store_true")
+    ap.add_argument("--pole-model", choices=POLE_MODELS, default="samples")
     args = ap.parse_args()
     az = _arviz()
     model = twin.load_model("models/hydro_unit.toml")
     data = synthesize_modes(model, samples=100, seed=args.seed)
     t0 = time.perf_counter()
-    problem = build_problem(model, data, select_parameters(model, "bearings"), fsi=True)
+    params = select_parameters(model, "bearings")
+    problem = build_problem(model, data, params, fsi=True, pole_model=args.pole_model)
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()
-    chain = run_chain(problem, args.draws, burn_in=20, rng=np.random.default_rng(args.seed))
+    chain = run_chain(problem, args.draws, burn_in=20, rng=np.random.default_rng(args.seed),
+                      prior=Prior.flat(problem, noise_model=args.noise_model), collapsed=args.collapsed)
     gibbs_s = time.perf_counter() - t0
+    print(f"configuration: noise model {args.noise_model}, pole model {args.pole_model}"
+          f"{', collapsed step' if args.collapsed else ''}")
+    if (args.noise_model, args.collapsed, args.pole_model) != ("diagonal", False, "samples"):
+        problem = build_problem(model, data, params, fsi=True)  # emcee on the paper's posterior
     ess_g = np.array([az.ess(chain.t[None, :, k], method="bulk") for k in range(problem.n_global)])
     print(f"Gibbs, Case B (46 parameters), 1 chain x {args.draws} draws (+20 burn-in): {gibbs_s:.1f} s "
           f"(+ {setup:.1f} s setup); bulk ESS of the bearings: median {np.median(ess_g):.0f}, min {ess_g.min():.0f}; "

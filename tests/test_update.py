@@ -30,9 +30,10 @@ def _run(model, data, params, **kw):
     return tree, [str(w.message) for w in caught]
 
 
-def test_gibbs_reduces_to_the_exact_answer_as_the_noise_goes_to_zero(hydro_unit):
+@pytest.mark.parametrize("pole_model", ["samples", "linear"])
+def test_gibbs_reduces_to_the_exact_answer_as_the_noise_goes_to_zero(hydro_unit, pole_model):
     data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
-    tree, _ = _run(hydro_unit, data, "bearings", draws=30, chains=1, seed=0, eps_std=1e-9)
+    tree, _ = _run(hydro_unit, data, "bearings", draws=30, chains=1, seed=0, eps_std=1e-9, pole_model=pole_model)
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
     assert table.sizes["parameter"] == 46
     np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
@@ -70,20 +71,21 @@ def test_case_a_regression_and_burn_in_from_zero(hydro_unit, paper_modes):
     assert post["added_damping"].attrs["units"] == "N s/m"
 
 
-def test_full_noise_model_gives_calibrated_case_a_intervals(hydro_unit, paper_modes):
+def test_full_noise_and_linear_pole_models_give_calibrated_case_a_intervals(hydro_unit, paper_modes):
     # the pole noise moves every residual row together: with a full Δ_i (inverse-Wishart) the 90% intervals
     # cover the truth; with the paper's diagonal Δ_i they are too narrow (|z| up to 9 on these data, coverage
-    # about 50%; benchmarks/update_cases.py --noise-model diagonal|full measures both over 20 seeds)
-    from twin.update.core import MIN_MARGIN
-
-    tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full")
-    assert json.loads(tree.attrs["settings"])["noise_model"] == "full"
+    # about 50%). Linearised in the pole, the modes near a resonance of the unobserved DOFs lose the bias the
+    # model's curvature puts into their residuals: with the bases at every pole sample, the added damping of
+    # modes 13 and 15 sits at |z| = 49 and 12 on these data; linearised, every |z| is below 3.7.
+    # benchmarks/update_cases.py --noise-model --pole-model measures them over 20 seeds.
+    tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full",
+                   pole_model="linear")  # fmt: skip
+    settings = json.loads(tree.attrs["settings"])
+    assert settings["noise_model"] == "full" and settings["pole_model"] == "linear"
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
-    ok = tree["constant_data"]["condensation_margin"].values >= MIN_MARGIN  # modes not flagged near a resonance
-    names = [f"FSI.added_{k}_{m}" for m in np.flatnonzero(ok) + 1 for k in ("mass", "damping")]
-    row = table.sel(parameter=names)
-    assert np.all(np.abs(row["z_score"]) < 3.5), row["z_score"].to_series().abs().nlargest(3)
-    inside = (row["q05"] <= row["truth"]) & (row["truth"] <= row["q95"])
+    assert table.sizes["parameter"] == 30
+    assert np.all(np.abs(table["z_score"]) < 4), table["z_score"].to_series().abs().nlargest(3)
+    inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
     assert float(inside.mean()) >= 0.8
     with pytest.raises(UpdateError, match="unknown noise model 'banded'; choose one of diagonal, full"):
         update(hydro_unit, paper_modes, None, fsi=True, noise_model="banded", progress=False)
@@ -149,6 +151,8 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
     renamed = sub.assign_coords(channel=["SEAL_x", "SEAL_y", "UGB_x", "UGB_y", "LGB_x", "LGB_y", "GEN_x", "EXC_y"])
     with pytest.raises(UpdateError, match=r"channel\(s\) \['EXC_y'\] are not sensors"):
         update(hydro_unit, renamed, None, fsi=True, progress=False)
+    with pytest.raises(UpdateError, match="unknown pole model 'mean'; choose one of samples, linear"):
+        update(hydro_unit, sub, None, fsi=True, pole_model="mean", progress=False)
     with pytest.raises(UpdateError, match="prior given for 'UGB.kxx', which is not updated"):
         update(hydro_unit, sub, None, fsi=True, priors={"UGB.kxx": (1e9, 1e8)}, progress=False)
     # the runner mass and the per-mode added mass have the same footprint: not identifiable together
@@ -179,11 +183,12 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
     code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full", "--collapsed"])  # fmt: skip  (chains on a local Dask cluster)
+                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full", "--collapsed", "--pole-model", "linear"])  # fmt: skip  (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
     back = read_posterior(post)
-    assert json.loads(back.attrs["settings"])["noise_model"] == "full" and json.loads(back.attrs["settings"])["collapsed"]
+    settings = json.loads(back.attrs["settings"])
+    assert settings["noise_model"] == "full" and settings["collapsed"] and settings["pole_model"] == "linear"
     assert back["sample_stats"]["accepted"].dims == ("chain", "draw") and bool(back["sample_stats"]["accepted"].any())
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
     assert "nothing to update" in capsys.readouterr().err
