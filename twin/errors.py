@@ -42,5 +42,9 @@ class SignalError(TwinError, ValueError):
     """
 
 
+class UpdateError(TwinError, ValueError):
+    """The updating problem cannot be set up or solved as asked."""
+
+
 class TwinWarning(UserWarning):
     """Something in the input is suspicious but usable (a clipped channel, a short record, ...)."""

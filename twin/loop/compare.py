@@ -234,9 +234,9 @@ def overall_error(model_pole: np.ndarray, measured_pole: np.ndarray, sigma: np.n
     >>> round(overall_error(model, measured, np.array([[0.1, 0.1], [1.0, 1.0]])), 4)  # 2nd mode 10x less sure
     0.0104
     """
-    delta = (np.asarray(model_pole) - measured_pole) / np.abs(measured_pole)
     if sigma is None:
-        return float(np.sqrt(np.mean(np.abs(delta) ** 2)))
+        return float(np.sqrt(np.mean(relative_pole_error(model_pole, measured_pole) ** 2)))
+    delta = (np.asarray(model_pole) - measured_pole) / np.abs(measured_pole)
     w = (np.abs(measured_pole)[:, None] / np.asarray(sigma)) ** 2
     return float(np.sqrt(2 * np.sum(w[:, 0] * delta.real**2 + w[:, 1] * delta.imag**2) / np.sum(w)))
 

@@ -20,7 +20,8 @@ from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
 from twin.update.gibbs import Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack
-from twin.update.problem import Problem, UpdateError, build_problem, check_pole_model, select_parameters
+from twin.update.poles import check_pole_model
+from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
 log = logging.getLogger(__name__)

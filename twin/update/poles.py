@@ -35,12 +35,19 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from twin.errors import UpdateError
 from twin.update.condense import Condensed, condense
 
 #: Ways the pole samples enter the condensed model (see the module docstring).
 POLE_MODELS = ("samples", "linear")
 #: Finite-difference step of the pole derivatives, relative to the spread of the pole samples.
 STEP = 0.01
+
+
+def check_pole_model(name: str) -> None:
+    """Raise :class:`~twin.errors.UpdateError` unless ``name`` is one of :data:`POLE_MODELS`."""
+    if name not in POLE_MODELS:
+        raise UpdateError(f"unknown pole model '{name}'; choose one of {', '.join(POLE_MODELS)}")
 
 
 def condense_samples(
@@ -74,8 +81,7 @@ def condense_samples(
     >>> bool(np.allclose(lin.R.mean(axis=0), at_mean.R[0]))
     True
     """
-    if pole_model not in POLE_MODELS:
-        raise ValueError(f"unknown pole model '{pole_model}'; choose one of {', '.join(POLE_MODELS)}")
+    check_pole_model(pole_model)
     poles = np.asarray(poles, dtype=complex)
     centre = complex(poles.mean())
     if pole_model == "samples":

@@ -25,13 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from twin.errors import ModelError, TwinError
+from twin.errors import ModelError, UpdateError  # UpdateError: imported from here by callers
 from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.parameters import MATRIX_KINDS, Parameter
 from twin.modes.analysis import state_matrix
 from twin.update.condense import LATENT_SHAPE, dynamic_stiffness, parametrised_dofs, real_augment
-from twin.update.poles import POLE_MODELS, condense_samples
+from twin.update.poles import check_pole_model, condense_samples
 
 log = logging.getLogger(__name__)
 
@@ -45,10 +45,6 @@ PARAMETER_GROUPS = {
 FSI_PARAMETERS = (("added_mass", "kg", "M"), ("added_damping", "N s/m", "C"))
 #: Relative variance floor of the shape data (the reference entry's zero imaginary part).
 VARIANCE_FLOOR = 1e-8
-
-
-class UpdateError(TwinError, ValueError):
-    """The updating problem cannot be set up or solved as asked."""
 
 
 @dataclass(frozen=True)
@@ -166,12 +162,6 @@ class Problem:
     def parameter_labels(self) -> list[str]:
         """All parameter names: shared ones, then ``FSI.<kind>_<mode>`` mode by mode."""
         return self.global_names + [f"FSI.{k}_{m}" for m in self.modes for k in self.mode_names]
-
-
-def check_pole_model(name: str) -> None:
-    """Raise :class:`UpdateError` unless ``name`` is one of :data:`twin.update.poles.POLE_MODELS`."""
-    if name not in POLE_MODELS:
-        raise UpdateError(f"unknown pole model '{name}'; choose one of {', '.join(POLE_MODELS)}")
 
 
 def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> list[str]:
