@@ -35,3 +35,32 @@ def test_harmonic_flagged_with_its_order_and_a_lightly_damped_mode_not():
     assert h is not None and h["kurtosis"] < 1.8 and h["running_speed_multiple"] == 1
     assert harmonic_test(spec, n, fs, lam) is None  # Gaussian band: a mode
     assert harmonic_test(spec, n, fs, -0.05 * 2 * np.pi * 2.25 + 2j * np.pi * 2.25) is None  # 5% damped: not tested
+
+
+def test_lightly_damped_mode_away_from_the_running_speed_multiples_is_no_harmonic():
+    """A 1.11 Hz mode at 0.15% damping over 20 min: its band holds about 13 independent values, and its band
+    kurtosis can fall below the threshold by chance; at 0.5X it is no harmonic of the running speed."""
+    rng = np.random.default_rng(7)
+    fs, n = 16.0, 19_200  # 20 min
+    lam = -0.0015 * 2 * np.pi * 1.113 + 2j * np.pi * 1.113
+    draws = []
+    for _ in range(12):
+        q = sg.lfilter([1.0], [1.0, -np.exp(lam / fs)], rng.standard_normal(n) + 1j * rng.standard_normal(n))
+        y = np.column_stack([q.real, q.imag])
+        spec = np.fft.rfft(y, axis=0)
+        draws.append(band_kurtosis(spec, n, fs, 1.113 * 0.995, 1.113 * 1.005)[0].max())
+        assert harmonic_test(spec, n, fs, lam, running_speed_hz=134 / 60) is None
+        assert harmonic_test(spec, n, fs, lam) is None  # without the speed: damped beyond a sinusoid of 20 min
+    assert min(draws) < 2.8  # the kurtosis alone would be a coin toss: it does scatter far below 3
+
+
+def test_sinusoid_at_a_multiple_of_the_running_speed_is_a_harmonic_on_a_short_record():
+    fs, n = 16.0, 19_200
+    t = np.arange(n) / fs
+    f2 = 2 * 134 / 60  # 2X
+    y = np.column_stack([np.cos(2 * np.pi * f2 * t), np.sin(2 * np.pi * f2 * t)])
+    y += 0.1 * np.random.default_rng(0).standard_normal(y.shape)
+    spec = np.fft.rfft(y, axis=0)
+    h = harmonic_test(spec, n, fs, -1e-6 + 2j * np.pi * f2, running_speed_hz=134 / 60)
+    assert h is not None and h["running_speed_multiple"] == 2
+    assert harmonic_test(spec, n, fs, -1e-6 + 2j * np.pi * f2) is not None  # without the speed too

@@ -9,9 +9,10 @@ from twin.errors import TwinError
 from twin.loop.sweep import Settings, scenario_grid, sweep, tabulate
 
 
-def _row(verdict, missing, before, after, params, location=-1):
+def _row(verdict, missing, before, after, params, location=""):
     return {"verdict": verdict, "missing": missing, "top_score": 40.0, "lead": 12.0, "error_before": before,
-            "error_after": after, "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": []}  # fmt: skip
+            "error_after": after, "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": [],
+            "final_verdict": "nothing missing", "rounds": 2, "chi2_before": 900.0, "chi2_after": 18.0, "n_data": 20}  # fmt: skip
 
 
 def test_table_and_pass_rule():
@@ -43,38 +44,70 @@ def test_wrong_verdict_fails_the_scenario():
 
 
 def test_change_outside_the_library_passes_when_called_unexplained_and_located():
-    rows = [_row("unexplained", "", 0.02, 0.02, {}, location=18), _row("unexplained", "", 0.02, 0.02, {}, location=5),
-            _row("missing effect", "fsi", 0.02, 0.001, {}, location=-1)]  # fmt: skip
-    t = tabulate([("shaft_stiffness_loss", s) for s in (1, 2, 3)], rows, Settings())
-    assert t["passed"].values.tolist() == [True, False, False]
-    assert t["passed_strict"].values.tolist() == [True, False, False]
-    assert t["location"].values.tolist() == [18, 5, -1]
+    rows = [_row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:18"),
+            _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:5"),
+            _row("missing effect", "fsi", 0.02, 0.001, {}),
+            _row("unexplained", "", 0.02, 0.02, {}, location="disk_mass:generator")]  # fmt: skip
+    scenarios = [("shaft_stiffness_loss", s) for s in (1, 2, 3)] + [("disk_mass:generator@1.1", 1)]
+    t = tabulate(scenarios, rows, Settings())
+    assert t["passed"].values.tolist() == [True, False, False, True]
+    assert t["passed_strict"].values.tolist() == [True, False, False, True]
+    assert t["location"].values.tolist()[:2] == ["shaft_stiffness:18", "shaft_stiffness:5"]
+    assert t["expected"].values.tolist()[3] == "unexplained, at disk_mass:generator"
 
 
-def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path):
-    with pytest.raises(TwinError, match="unknown hidden effect.*gravity.*choose from magnetic_pull"):
+def test_two_hidden_effects_pass_only_when_both_are_named():
+    scenarios = [("magnetic_pull+seal_cross_coupling", 1)] * 3
+    both = {"MAG.stiffness": (-1.02e8, 4e6, -1e8), "SEAL.kxy": (4.9e7, 2e6, 5e7)}
+    rows = [_row("missing effect", "seal_cross_coupling+magnetic_pull", 0.05, 0.002, both),
+            _row("missing effect", "magnetic_pull", 0.05, 0.004, {"MAG.stiffness": (-1.3e8, 4e6, -1e8)}),
+            _row("missing effect", "magnetic_pull+seal_cross_coupling+fsi", 0.05, 0.002, both)]  # fmt: skip
+    t = tabulate(scenarios, rows, Settings())
+    assert t["passed"].values.tolist() == [True, False, False]  # the order does not matter; one missing or one extra fails
+
+
+def test_scenario_file(tmp_path):
+    from twin.loop.sweep import read_scenarios
+
+    f = tmp_path / "suite.txt"
+    f.write_text("# sizes\nmagnetic_pull@0.3 31,32\n\nmagnetic_pull+fsi 33  # two at once\n")
+    assert read_scenarios(f) == [("magnetic_pull@0.3", 31), ("magnetic_pull@0.3", 32), ("magnetic_pull+fsi", 33)]
+    f.write_text("magnetic_pull@0.3\n")
+    with pytest.raises(TwinError, match=r"suite.txt, line 1: expected 'SPEC SEED"):
+        read_scenarios(f)
+    f.write_text("none 1\nmagnetic_pul 2\n")
+    with pytest.raises(TwinError, match=r"line 2: .*unknown 'magnetic_pul'"):
+        read_scenarios(f)
+
+
+def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path, hydro_unit):
+    with pytest.raises(TwinError, match="unknown 'gravity'; choose from magnetic_pull"):
         scenario_grid(["magnetic_pull", "gravity"])
     with pytest.raises(TwinError, match="at least one scenario"):
         sweep([], tmp_path / "s")
-    with pytest.raises(TwinError, match="unknown hidden effect.*gravity"):
+    with pytest.raises(TwinError, match="unknown 'gravity'"):
         sweep([("gravity", 1)], tmp_path / "s")
+    with pytest.raises(TwinError, match="no disk 'turbine'.*'generator'"):
+        sweep([("disk_mass:turbine", 1)], tmp_path / "s", model=hydro_unit)
     assert not (tmp_path / "s").exists()
     assert main(["sweep", "--seeds", "1,x", "--out", str(tmp_path / "s")]) == 2
     assert main(["sweep", "--hidden", "all,gravity", "--out", str(tmp_path / "s")]) == 2
-    assert len(scenario_grid(seeds=[1, 2])) == 12
+    assert len(scenario_grid(seeds=[1, 2])) == 14
 
 
 def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     out = tmp_path / "sweep"
-    # 10-min records (the hidden-effect tests below use 20 min): both scenarios at once on a 2-worker local cluster
-    code = main(["sweep", "--hidden", "magnetic_pull,none", "--seeds", "1", "--duration", "600", "--samples", "10",
+    # 10-min records (the hidden-effect tests use 20 min), so twice the reference pull (the 80% fall needs the error
+    # five times its noise floor): both scenarios at once on a 2-worker local cluster
+    code = main(["sweep", "--hidden", "magnetic_pull@2,none", "--seeds", "1", "--duration", "600", "--samples", "10",
                  "--out", str(out), "--workers", "2"])  # fmt: skip
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "2 of 2 scenarios passed" in printed
     table = xr.load_dataset(out / "sweep.nc")
     assert table["verdict"].values.tolist() == ["missing effect", "nothing missing"]
-    assert (out / "magnetic_pull_seed1" / "report.md").is_file() and (out / "none_seed1" / "report.md").is_file()
+    assert (out / "magnetic_pull_x2_seed1" / "report.md").is_file() and (out / "none_seed1" / "report.md").is_file()
     assert "Nothing is hidden" in (out / "none_seed1" / "report.md").read_text()
+    assert "calibration: chi2 / n of the final model" in printed
     mag = table.sel(parameter="MAG.stiffness")
     assert abs(float(mag["relative_error"][0])) < 0.10 and np.isnan(float(mag["map"][1]))

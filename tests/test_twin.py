@@ -14,8 +14,8 @@ def test_the_loop_brings_the_error_down_and_keeps_the_history(hydro_unit, tmp_pa
                             pole_variance=(0.01, 0.01))  # fmt: skip
     tw = Twin(hydro_unit, data)
     d = tw.diagnose()
-    assert d.missing == "magnetic_pull"
-    tw.add_effect(d.missing)
+    assert d.missing == ("magnetic_pull",)
+    tw.add_effect("magnetic_pull")
     # plain Gibbs crept from zero along the parameter-shape ridge here (R-hat 1.5 after 300 draws, the std
     # inflated 20-fold by the creep); the overrelaxed parameter draws reach the posterior within a few sweeps
     tree = tw.update(d.ranking[0].names, draws=300, chains=2, seed=2, progress=False)
@@ -45,3 +45,34 @@ def test_laplace_update_identifies_the_added_effect_and_refuses_bad_method(hydro
         tw.update("MAG.stiffness", method="nuts")
     with pytest.raises(TypeError, match="no sampler settings"):
         tw.update("MAG.stiffness", method="laplace", draws=10)
+
+
+def test_run_goes_round_the_loop_to_the_end(hydro_unit):
+    """Two hidden effects: one round names both, updates them jointly; the next finds nothing missing."""
+    from twin.fem.effects import SealCrossCoupling
+
+    truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
+    data = synthesize_modes(hydro_unit, truth, n_modes=13, samples=100, seed=6, pole_variance=(0.01, 0.01))
+    tw = Twin(hydro_unit, data)
+    last = tw.run(candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB", "thrust_tilt:thrust"])
+    assert last.verdict == "nothing missing" and len(tw.diagnoses) == 2
+    assert set(tw.added) == {"magnetic_pull", "seal_cross_coupling"}
+    assert tw.history[-1].error < 0.2 * tw.history[0].error
+    assert tw.model.parameter("MAG.stiffness").nominal == pytest.approx(-1.5e8, rel=0.05)
+    assert tw.model.parameter("SEAL.kxy").nominal == pytest.approx(4e7, rel=0.05)
+    assert set(tw.posterior["parameter"].values) == {"MAG.stiffness", "SEAL.kxy"}
+
+
+def test_per_mode_effect_is_sized_to_the_measured_modes(hydro_unit):
+    """Twin.add_effect("fsi_per_mode") and its update: one added mass and damping per measured mode."""
+    from twin.fem.truthfile import paper_truth
+
+    data = synthesize_modes(hydro_unit, paper_truth(), samples=50, seed=2).isel(mode=[0, 2, 3, 4, 9])
+    tw = Twin(hydro_unit, data)
+    tw.add_effect("fsi_per_mode")
+    names = tw.added_parameters()
+    assert names == [f"FSI.{k}_{m}" for m in (1, 3, 4, 5, 10) for k in ("added_mass", "added_damping")]
+    post = tw.update(names, method="laplace")
+    assert tw.history[-1].error < 0.2 * tw.history[0].error
+    mass = post["map"].sel(parameter="FSI.added_mass_4")  # paper Table 2: 6.09e4 kg
+    assert abs(float(mass) - 6.09e4) < 3 * float(post["std"].sel(parameter="FSI.added_mass_4"))

@@ -34,6 +34,10 @@ from twin.errors import TwinError, TwinWarning
 
 log = logging.getLogger("twin")
 
+#: Defaults of the options that only the Gibbs sampler takes (``twin update``).
+GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "diagonal", "collapsed": False,
+                  "pole_model": "samples"}  # fmt: skip
+
 
 def _modal(args: argparse.Namespace) -> int:
     from twin.fem import load_model
@@ -165,14 +169,15 @@ def _synthesize_modes(args: argparse.Namespace) -> int:
 
 
 def _update(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
     from twin.update import summary, update
 
     if args.params is None and not args.fsi:
         raise TwinError("nothing to update: give --params and/or --fsi")
-    from twin.extract import read_modes
-
-    model = _model_with_effects(args.model, args.effect)
-    read_modes(args.modes)  # a bad modes file fails before a cluster starts
+    modes = read_modes(args.modes)  # a bad modes file fails before a cluster starts
+    model = _model_with_effects(args.model, args.effect, modes)
+    if args.method == "laplace":
+        return _update_laplace(args, model, modes)
     with _tasks(args) as client:
         tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
                       burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
@@ -192,12 +197,59 @@ def _update(args: argparse.Namespace) -> int:
     return 0
 
 
-def _model_with_effects(path: str, labels: list[str] | None):
+def _update_laplace(args: argparse.Namespace, model, modes) -> int:
+    """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
+    from twin.fem.effects import effect_label
+    from twin.loop.candidates import free_names
+    from twin.loop.compare import measured_modes
+    from twin.loop.fit import laplace_update
+    from twin.netcdf import check_writable, write_netcdf
+    from twin.update.posterior import laplace_tree
+    from twin.update.problem import select_parameters
+
+    check_writable(args.output)
+    sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default]
+    if sampler:
+        raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in sampler)})")
+    meas = measured_modes(modes)
+    names = select_parameters(model, args.params)
+    if args.fsi:
+        per_mode = [e for e in model.effects if e.per_mode]
+        if not per_mode:
+            model = _model_with_effects(args.model, [*(args.effect or []), "fsi_per_mode"], modes)
+            per_mode = [e for e in model.effects if e.per_mode]
+        names += free_names(model, per_mode[0], meas.mode)
+    updated, post = laplace_update(model, meas, names)
+    attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
+             "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
+             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
+    write_netcdf(laplace_tree(post, modes, attrs, seed=args.seed if args.seed is not None else 0), args.output)
+    print(f"Laplace update of {len(names)} parameters: chi2 {post.attrs['chi2_before']:.1f} -> {post.attrs['chi2_after']:.1f}")
+    print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
+    for k, n in enumerate(names):
+        bound = " (on its physical bound)" if n in post.attrs["at_bound"].split(", ") else ""
+        print(f"{n:<22} {float(post['map'][k]):>11.4g} {float(post['std'][k]):>10.3g} {str(post['unit'].values[k]):<8}{bound}")
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _model_with_effects(path: str, labels: list[str] | None, modes=None, posterior=None):
+    """The model file's model with library effects added: ``--effect`` labels and those a posterior was made
+    with (its ``effects`` attr); a per-mode effect takes one value per measured mode."""
     from twin.fem import load_model
+    from twin.fem.effects import effect_label
     from twin.loop.candidates import add_effects
 
     model = load_model(path)
-    return add_effects(model, labels) if labels else model
+    wanted = list(labels or [])
+    if posterior is not None:
+        wanted += json.loads(posterior.attrs.get("effects", "[]"))
+    present = {effect_label(e) for e in model.effects}
+    wanted = [w for i, w in enumerate(wanted) if w not in present and w not in wanted[:i]]
+    if not wanted:
+        return model
+    mode_labels = None if modes is None else [int(m) for m in modes["mode"].values]
+    return add_effects(model, wanted, mode_labels)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -205,12 +257,9 @@ def _compare(args: argparse.Namespace) -> int:
     from twin.loop.compare import compare
     from twin.loop.report import comparison_text
 
-    model = _model_with_effects(args.model, args.effect)
-    if args.posterior:
-        from twin.update import apply_posterior, read_posterior
-
-        model = apply_posterior(model, read_posterior(args.posterior), args.estimate)
-    table = compare(model, read_modes(args.modes), tolerance=args.tolerance)
+    modes = read_modes(args.modes)
+    model = _posterior_model(args, modes)
+    table = compare(model, modes, tolerance=args.tolerance)
     if args.history:
         from twin.loop.history import append_step, plot_history
 
@@ -232,10 +281,25 @@ def _compare(args: argparse.Namespace) -> int:
         print(json.dumps({"error": table.attrs["error"], "error_definition": table.attrs["error_definition"],
                           "error_rms": table.attrs["error_rms"], "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
                           "channel_shape_error": shape,
-                          "unpaired": [int(m) for m in np.atleast_1d(table.attrs["unpaired"])]}, indent=2))  # fmt: skip
+                          "poorly_paired": [int(m) for m in np.atleast_1d(table.attrs["poorly_paired"])]}, indent=2))  # fmt: skip
     else:
         print(comparison_text(table))
     return 0
+
+
+def _posterior_model(args: argparse.Namespace, modes):
+    """The model of ``--effect`` and ``--posterior`` (the effects the posterior needs are added)."""
+    tree = None
+    if args.posterior:
+        from twin.update import read_posterior
+
+        tree = read_posterior(args.posterior)
+    model = _model_with_effects(args.model, args.effect, modes, tree)
+    if tree is not None:
+        from twin.update import apply_posterior
+
+        model = apply_posterior(model, tree, args.estimate)
+    return model
 
 
 def _diagnose(args: argparse.Namespace) -> int:
@@ -245,8 +309,9 @@ def _diagnose(args: argparse.Namespace) -> int:
     from twin.loop.diagnose import diagnose
     from twin.loop.report import diagnosis_text
 
-    model = _model_with_effects(args.model, args.effect)
-    meas = measured_modes(read_modes(args.modes), args.tolerance)
+    modes = read_modes(args.modes)
+    model = _posterior_model(args, modes)
+    meas = measured_modes(modes, args.tolerance)
     labels = args.candidates.split(",") if args.candidates else None
     select(model, labels)  # unknown candidates fail before a cluster starts
     with _tasks(args) as client:
@@ -263,31 +328,88 @@ def _demo(args: argparse.Namespace) -> int:
     with _tasks(args) as client:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
                      samples=args.samples, tasks=client)  # fmt: skip
-    d = r.diagnosis
     print(f"hidden in the truth: {r.hidden_text()}")
-    print(f"diagnosis: {d.verdict}" + (f" ({d.missing})" if d.missing else ""))
+    for k, d in enumerate(r.twin.diagnoses, start=1):
+        print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
+              + (f"; at {d.locations[0].label}" if d.locations and d.verdict == "unexplained" else ""))  # fmt: skip
     if r.posterior is not None:
         ident = r.identified()
         for k, name in enumerate(ident["parameter"].values):
             err = float(ident["relative_error"][k])
             print(f"updated {name} = {float(ident['map'][k]):.4g} ± {float(ident['std'][k]):.2g} {ident['unit'].values[k]}"
                   + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
-    print(f"{'step':>4}  {'action':<40} {'error E':>9}")
-    for k, step in enumerate(r.twin.history):
-        print(f"{k:>4}  {step.action:<40} {100 * step.error:>8.3f}%")
+    _print_history(r.twin)
     print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
+    return 0
+
+
+def _print_history(tw) -> None:
+    print(f"{'step':>4}  {'action':<44} {'error E':>9} {'chi2':>9}")
+    for k, step in enumerate(tw.history):
+        print(f"{k:>4}  {step.action:<44} {100 * step.error:>8.3f}% {float(step.table.attrs['chi2']):>9.1f}")
+
+
+def _loop(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.history import write_history
+    from twin.loop.twin import Twin
+    from twin.netcdf import atomic_output, write_netcdf
+    from twin.update.posterior import laplace_tree
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise TwinError(f"--out {out} is a file, not a folder")
+    modes = read_modes(args.modes)
+    model = _model_with_effects(args.model, args.effect, modes)
+    labels = args.candidates.split(",") if args.candidates else None
+    if labels:
+        from twin.loop.candidates import select
+
+        select(model, labels)  # unknown candidates fail before any work
+    tw = Twin(model, modes, tolerance=args.tolerance)
+    kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed,
+                                                  "progress": False}  # fmt: skip
+    with _tasks(args) as client:
+        tw.run(method=args.method, max_rounds=args.rounds, candidates=labels, tasks=client, **kwargs)
+    out.mkdir(parents=True, exist_ok=True)
+    meas = tw.measured
+    with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
+        tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
+    write_history(tw.history_table(), out / "history.csv")
+    tw.plot_history(out / "history.png")
+    if tw.posterior is not None:
+        if args.method == "laplace":
+            from twin.fem.effects import effect_label
+
+            attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
+                     "method": tw.posterior.attrs["method"],
+                     "effects": json.dumps([effect_label(e) for e in tw.model.effects])}  # fmt: skip
+            write_netcdf(laplace_tree(tw.posterior, modes, attrs), out / "posterior.nc")
+        else:
+            write_netcdf(tw.posterior, out / "posterior.nc")
+    for k, d in enumerate(tw.diagnoses, start=1):
+        print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else ""))
+        print(f"  {d.summary}")
+    _print_history(tw)
+    wrote = ["diagnosis.json", "history.csv", "history.png"] + (["posterior.nc"] if tw.posterior is not None else [])
+    print(f"wrote {', '.join(str(out / w) for w in wrote)}")
+    if tw.added:
+        print(f"go on with: twin compare {args.model} {args.modes} --posterior {out / 'posterior.nc'}")
     return 0
 
 
 def _sweep(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.loop.demo import HIDDEN_EFFECTS
     from twin.loop.report import sweep_text
-    from twin.loop.sweep import Settings, scenario_grid, sweep
+    from twin.loop.scenarios import REFERENCE_EFFECTS
+    from twin.loop.sweep import Settings, read_scenarios, scenario_grid, sweep
 
     model = load_model(args.model) if args.model else None
-    hidden = [h for token in args.hidden.split(",") for h in (HIDDEN_EFFECTS if token == "all" else [token])]
-    scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
+    if args.scenarios:
+        scenarios = read_scenarios(args.scenarios)
+    else:
+        hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
+        scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
     settings = Settings(duration_s=args.duration, samples=args.samples)
     with _tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
@@ -399,25 +521,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--modes", type=int, default=None, help="number of modes (for a truth without per-mode effect)")
     p.set_defaults(func=_synthesize_modes)
 
-    p = sub.add_parser("update", help="Bayesian updating from mode samples (APerCEM Gibbs sampler)")
+    p = sub.add_parser("update", help="Bayesian updating from mode samples (APerCEM Gibbs sampler, or Laplace)")
     p.add_argument("model", help="model file (TOML)")
     p.add_argument("modes", help="modes file (NetCDF, mode x sample x channel)")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (posterior.nc, ArviZ groups)")
     p.add_argument("--params", default=None,
                    help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks)")
     p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
-    p.add_argument("--draws", type=int, default=500, help="draws kept per chain (default: 500)")
-    p.add_argument("--chains", type=int, default=4, help="number of chains (default: 4)")
-    p.add_argument("--burn-in", type=int, default=20, help="sweeps discarded per chain (default: 20)")
+    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
+                   help="gibbs: the APerCEM sampler on pole and shape samples; laplace: the Gaussian posterior of "
+                        "the pole fit inside the physical bounds (fast, blind to shapes); default: gibbs")
+    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help=f"draws kept per chain (default: {GIBBS_DEFAULTS['draws']})")
+    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help=f"number of chains (default: {GIBBS_DEFAULTS['chains']})")
+    p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"],
+                   help=f"sweeps discarded per chain (default: {GIBBS_DEFAULTS['burn_in']})")
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains")
     # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
-    p.add_argument("--noise-model", choices=("diagonal", "full"), default="diagonal",
+    p.add_argument("--noise-model", choices=("diagonal", "full"), default=GIBBS_DEFAULTS["noise_model"],
                    help="covariance of the residual realisations: diagonal (the paper's) or full (correlated rows, "
                         "better calibrated on synthetic data); default: diagonal")
     p.add_argument("--collapsed", action="store_true",
                    help="add to every sweep a Metropolis step of the parameters with the shapes integrated "
                         "out (4-5x the time per sweep; chains mix along the parameter-shape ridge)")
-    p.add_argument("--pole-model", choices=("samples", "linear"), default="samples",
+    p.add_argument("--pole-model", choices=("samples", "linear"), default=GIBBS_DEFAULTS["pole_model"],
                    help="how the pole samples enter the condensed model: at every sample (the paper's) or "
                         "linearised about each mode's mean pole (no curvature bias near resonances of the "
                         "unobserved DOFs); default: samples")
@@ -433,8 +559,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--estimate", choices=("map", "mean"), default="map", help="posterior point estimate (default: map)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull); repeatable")
-    p.add_argument("--tolerance", type=float, default=1e-3,
-                   help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
+    p.add_argument("--tolerance", type=float, default=0.0,
+                   help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
+                        "error (default: 0)")
     p.add_argument("--plot", default=None, metavar="DIR", help="write the figures (errors, MAC, spectra) into DIR")
     p.add_argument("--history", default=None, metavar="FILE",
                    help="add this comparison's error to the history FILE (CSV, created if missing) and plot it "
@@ -449,30 +576,59 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect to the model first; repeatable")
-    p.add_argument("--tolerance", type=float, default=1e-3,
-                   help="relative pole uncertainty accepted as model-form error (default: 1e-3)")
+    p.add_argument("--posterior", default=None,
+                   help="apply this posterior (posterior.nc of twin update or twin loop) first, with the effects it "
+                        "was made with: the next round of the loop")
+    p.add_argument("--estimate", choices=("map", "mean"), default="map", help="posterior point estimate (default: map)")
+    p.add_argument("--tolerance", type=float, default=0.0,
+                   help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
+                        "error (default: 0)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     _add_scheduler(p, "candidate fits")
     p.set_defaults(func=_diagnose)
 
-    from twin.loop.demo import HIDDEN_EFFECTS, NOTHING, OUTSIDE_LIBRARY, hidden_labels
+    p = sub.add_parser("loop", help="the twin loop to the end: diagnose, add the missing effects, update them jointly, "
+                                    "diagnose again")
+    p.add_argument("model", help="model file (TOML)")
+    p.add_argument("modes", help="modes file (NetCDF, mode x sample x channel)")
+    p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc "
+                                                      "(default: twin-loop)")
+    p.add_argument("--method", choices=("laplace", "gibbs"), default="laplace",
+                   help="how each round updates the added effects (default: laplace)")
+    p.add_argument("--rounds", type=int, default=4, help="rounds at most (default: 4)")
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect to the model first; repeatable")
+    p.add_argument("--tolerance", type=float, default=0.0,
+                   help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
+                        "error (default: 0)")
+    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="Gibbs draws per chain")
+    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="Gibbs chains")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the chains")
+    _add_scheduler(p, "candidate fits", default="sync")
+    p.set_defaults(func=_loop)
 
-    p = sub.add_parser("demo", help="the whole loop on a truth with a hidden effect, with a report folder")
+    p = sub.add_parser("demo", help="the whole loop on a truth with hidden changes, with a report folder")
     p.add_argument("--out", default="twin-demo", help="report folder (default: twin-demo)")
-    p.add_argument("--hidden", choices=hidden_labels(), default="magnetic_pull",
-                   help="effect hidden in the truth, a change outside the effects library "
-                        f"({', '.join(OUTSIDE_LIBRARY)}), or none (default: magnetic_pull)")  # fmt: skip
+    p.add_argument("--hidden", default="magnetic_pull",
+                   help="what the truth hides: a library effect (magnetic_pull, fsi, fsi_per_mode, seal_cross_coupling, "
+                        "thrust_tilt:thrust, bearing_change:UGB, bearing_change:LGB) at its reference size or scaled "
+                        "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
+                        "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
+                        "or none (default: magnetic_pull)")
     p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise (default: 1)")
     _add_loop_settings(p)
     # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
     _add_scheduler(p, "candidate fits", default="sync")
     p.set_defaults(func=_demo)
 
-    p = sub.add_parser("sweep", help="the demo's loop over hidden effects and seeds, one Dask task per scenario")
+    p = sub.add_parser("sweep", help="the demo's loop over hidden changes and seeds, one Dask task per scenario")
     p.add_argument("--hidden", default="all",
-                   help=f"hidden effects, comma-separated, from {', '.join(HIDDEN_EFFECTS)}, "
-                        f"{', '.join(OUTSIDE_LIBRARY)} (outside the library), {NOTHING}; 'all' for every library "
-                        f"effect (default: all; 'all,none' adds the false-alarm check)")  # fmt: skip
+                   help="what the truths hide, comma-separated specs as for twin demo; 'all' for every library effect "
+                        "at its reference size (default: all; 'all,none' adds the false-alarm check)")
+    p.add_argument("--scenarios", default=None, metavar="FILE",
+                   help="scenarios from a file, one 'SPEC SEED[,SEED...]' per line (instead of --hidden and --seeds), "
+                        "e.g. benchmarks/loop_suite.txt")
     p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated (default: 1)")
     p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders (default: twin-sweep)")
     _add_loop_settings(p)

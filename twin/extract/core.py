@@ -199,9 +199,8 @@ def extract(
     diag = dataclasses.replace(diag, cluster=labels)
 
     members = []
-    popularity = {int(n): int(np.sum([np.any(diag.order[c.members] == n) for c in modes])) for n in orders}
     for c in modes:
-        use = _orders_used(diag, c, popularity)
+        use = _orders_used(diag, c)
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
     poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress)
     n_orders = np.array([len(m[0]) for m in members])
@@ -235,14 +234,21 @@ def extract(
     return out
 
 
-def _orders_used(diag, cluster, popularity: dict[int, int]) -> np.ndarray:
-    """Up to ORDERS_PER_MODE members of a cluster: at the orders most modes share (fewer
-    eigenvalue problems per jackknife sample), then the closest to the cluster's median pole."""
+def _orders_used(diag, cluster) -> np.ndarray:
+    """The ORDERS_PER_MODE lowest model orders at which a cluster's mode is stable.
+
+    A mode's lowest stable orders are its parsimonious realisations. At orders
+    well above the number of modes, the extra (noise) poles re-arrange from one
+    leave-one-block-out record to the next and jostle the physical pole more
+    than the data's own variability does, so the jackknife spread comes out
+    too wide: on a one-mode record, 1.0 times the spread of estimates over
+    independent records at the true order, 1.4 times at four times it, 1.7 at
+    eight. Over 12 independent 20-min FMU records of the hydro unit the
+    lowest orders gave pole errors with chi2 / n = 0.99 against the jackknife
+    standard errors (0.57 when each mode took the orders most modes share).
+    """
     m = cluster.members
-    p = diag.pole[m]
-    median = np.median(p.real) + 1j * np.median(p.imag)
-    rank = np.lexsort((np.abs(p - median), [-popularity[int(n)] for n in diag.order[m]]))
-    return m[rank][:ORDERS_PER_MODE]
+    return m[np.argsort(diag.order[m], kind="stable")][:ORDERS_PER_MODE]
 
 
 def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float, n_blocks: int) -> None:

@@ -23,7 +23,11 @@ parameters are *changes* added to the element's own coefficients.
 
 Every effect also states :meth:`plausible_scale`: for each parameter, a
 generous magnitude a real machine could show. The diagnosis uses it as the
-prior scale of the parameter (the Occam factor of its evidence).
+prior scale of the parameter (the Occam factor of its evidence). And every
+parameter carries its physical bounds (:attr:`twin.fem.parameters.Parameter.bounds`):
+added mass and damping are not negative, a magnetic pull is not positive, a
+bearing or tilt-stiffness change leaves the total coefficient non-negative.
+Fits and priors stay inside them; :func:`describe` states them.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 from twin.errors import ModelError
-from twin.fem.elements import node_dofs
+from twin.fem.elements import POSITIVE, UNBOUNDED, node_dofs
 from twin.fem.parameters import Parameter, Term
 
 #: Ratio of a plausible water added damping to added mass [1/s] (the paper's
@@ -79,6 +83,11 @@ def _element(model, kind: str, name: str):
     raise ModelError(f"model '{model.name}' has no {kind} '{name}' (its {kind}s: {known})")
 
 
+def _element_value(model, element: str, key: str, default: float) -> float:
+    """An element coefficient at the model's values (read without assembling the model's parameters)."""
+    return float(model.values.get(f"{element}.{key}", default))
+
+
 def _cross_coupled(model, region: str) -> tuple[Term, ...]:
     """Skew-symmetric ``[[0, 1], [-1, 0]] / n`` on (x, y) of each region node."""
     nodes = model.regions[region]
@@ -93,8 +102,6 @@ class FluidAddedMass:
     key: ClassVar[str] = "fsi"
     region: ClassVar[str | None] = "immersed"
     element: ClassVar[str | None] = None
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (1, 1)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "the water around the runner moves with it, adding mass and damping to every mode alike"
@@ -107,9 +114,9 @@ class FluidAddedMass:
         dofs = model.region_dofs(self.region)
         return [
             Parameter("FSI.added_mass", self.added_mass, "kg", _shared("M", dofs),
-                      "added mass of the water, shared over the immersed DOFs"),
+                      "added mass of the water, shared over the immersed DOFs", bounds=POSITIVE),
             Parameter("FSI.added_damping", self.added_damping, "N s/m", _shared("C", dofs),
-                      "added damping of the water, shared over the immersed DOFs"),
+                      "added damping of the water, shared over the immersed DOFs", bounds=POSITIVE),
         ]  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
@@ -130,8 +137,6 @@ class FluidAddedMassPerMode:
     key: ClassVar[str] = "fsi_per_mode"
     region: ClassVar[str | None] = "immersed"
     element: ClassVar[str | None] = None
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (1, 1)
     per_mode: ClassVar[bool] = True
     explanation: ClassVar[str] = (
         "the water around the runner adds a different mass and damping to each mode"
@@ -159,9 +164,9 @@ class FluidAddedMassPerMode:
         out = []
         for i, (m, c) in enumerate(zip(self.added_mass, self.added_damping), start=1):
             out.append(Parameter(f"FSI.added_mass_{i}", m, "kg", _shared("M", dofs),
-                                 f"added mass of the water in mode {i}", per_mode=True))
+                                 f"added mass of the water in mode {i}", per_mode=True, bounds=POSITIVE))
             out.append(Parameter(f"FSI.added_damping_{i}", c, "N s/m", _shared("C", dofs),
-                                 f"added damping of the water in mode {i}", per_mode=True))
+                                 f"added damping of the water in mode {i}", per_mode=True, bounds=POSITIVE))
         return out  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
@@ -181,8 +186,6 @@ class MagneticPull:
     key: ClassVar[str] = "magnetic_pull"
     region: ClassVar[str | None] = "generator"
     element: ClassVar[str | None] = None
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (-1,)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "an off-centre generator rotor is pulled further off centre by the magnetic field: a negative stiffness"
@@ -196,7 +199,7 @@ class MagneticPull:
         n_nodes = len(model.regions[self.region])
         terms = (Term("K", dofs, np.eye(len(dofs)) / n_nodes),)
         return [Parameter("MAG.stiffness", self.stiffness, "N/m", terms,
-                          "radial magnetic stiffness at the air gap (negative: pull)")]  # fmt: skip
+                          "radial magnetic stiffness at the air gap (negative: pull)", bounds=(-np.inf, 0.0))]  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
         """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""
@@ -210,8 +213,6 @@ class SealCrossCoupling:
     key: ClassVar[str] = "seal_cross_coupling"
     region: ClassVar[str | None] = "seal"
     element: ClassVar[str | None] = None
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (0,)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "swirling leakage flow in the runner seals pushes the runner tangentially: a cross-coupled stiffness"
@@ -221,7 +222,7 @@ class SealCrossCoupling:
     def parameters(self, model) -> list[Parameter]:
         """``SEAL.kxy`` on the seal region (``K[x,y] = +k``, ``K[y,x] = -k``)."""
         return [Parameter("SEAL.kxy", self.kxy, "N/m", _cross_coupled(model, self.region),
-                          "cross-coupled seal stiffness (positive destabilises forward whirl)")]  # fmt: skip
+                          "cross-coupled seal stiffness (positive destabilises forward whirl)", bounds=UNBOUNDED)]  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
         """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""
@@ -240,8 +241,6 @@ class BearingChange:
     key: ClassVar[str] = "bearing_change"
     region: ClassVar[str | None] = None
     element: ClassVar[str | None] = "bearing"
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (0, 0)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "the guide bearing is softer or stiffer than modelled (wear, clearance, oil temperature)"
@@ -254,11 +253,13 @@ class BearingChange:
         """``<bearing>.stiffness_change`` and ``<bearing>.damping_change`` on the bearing's x, y."""
         b = _element(model, "bearing", self.bearing)
         dofs = node_dofs(b.node)[:2]
+        k = min(_element_value(model, b.name, key, b.coefficients[key]) for key in ("kxx", "kyy"))
+        c = min(_element_value(model, b.name, key, b.coefficients[key]) for key in ("cxx", "cyy"))
         return [
             Parameter(f"{b.name}.stiffness_change", self.stiffness, "N/m", (Term("K", dofs, np.eye(2)),),
-                      f"change of {b.name}'s direct stiffness kxx and kyy"),
+                      f"change of {b.name}'s direct stiffness kxx and kyy", bounds=(-max(k, 0.0), np.inf)),
             Parameter(f"{b.name}.damping_change", self.damping, "N s/m", (Term("C", dofs, np.eye(2)),),
-                      f"change of {b.name}'s direct damping cxx and cyy"),
+                      f"change of {b.name}'s direct damping cxx and cyy", bounds=(-max(c, 0.0), np.inf)),
         ]  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
@@ -277,8 +278,6 @@ class ThrustTilt:
     key: ClassVar[str] = "thrust_tilt"
     region: ClassVar[str | None] = None
     element: ClassVar[str | None] = "thrust"
-    #: Allowed sign of each parameter (+1 or -1), 0 for either; per mode for per-mode effects.
-    signs: ClassVar[tuple[int, ...]] = (0,)
     per_mode: ClassVar[bool] = False
     explanation: ClassVar[str] = (
         "the thrust pads resist tilting of the collar more or less than modelled (load, pad wear)"
@@ -289,9 +288,10 @@ class ThrustTilt:
     def parameters(self, model) -> list[Parameter]:
         """``<thrust>.k_tilt_change`` on the thrust node's alpha, beta."""
         t = _element(model, "thrust", self.thrust)
+        k = _element_value(model, t.name, "k_tilt", t.k_tilt)
         return [Parameter(f"{t.name}.k_tilt_change", self.k_tilt, "N m/rad",
                           (Term("K", node_dofs(t.node)[2:], np.eye(2)),),
-                          f"change of {t.name}'s tilt stiffness")]  # fmt: skip
+                          f"change of {t.name}'s tilt stiffness", bounds=(-max(k, 0.0), np.inf))]  # fmt: skip
 
     def plausible_scale(self, model) -> dict[str, float]:
         """Half the thrust's tilt stiffness."""
@@ -329,6 +329,28 @@ def effect_label(effect) -> str:
     if effect.element is None:
         return effect.key
     return f"{effect.key}:{getattr(effect, effect.element)}"
+
+
+def describe(effect, model) -> str:
+    """One paragraph on an effect: its physics, and each parameter with unit, physical bounds and prior scale.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> print(describe(MagneticPull(), load_model("models/hydro_unit.toml")))  # doctest: +NORMALIZE_WHITESPACE
+    magnetic_pull: an off-centre generator rotor is pulled further off centre by the magnetic field: a negative
+    stiffness. MAG.stiffness [N/m]: <= 0, plausible scale 8.91e+07.
+    """
+    scales = effect.plausible_scale(model)
+    parts = []
+    for p in effect.parameters(model):
+        bounds = p.bounds_text() or "either sign"
+        parts.append(f"{p.name} [{p.unit}]: {bounds}, plausible scale {scales[p.name]:.3g}")
+    if effect.per_mode and parts:
+        parts = [f"per mode i = 1..{effect.n_modes}, like the first: " + parts[0] + "; " + parts[1]]
+    elif effect.per_mode:
+        parts = ["FSI.added_mass_<i> [kg] and FSI.added_damping_<i> [N s/m] per mode i: >= 0"]
+    return f"{effect_label(effect)}: {effect.explanation}. " + "; ".join(parts) + "."
 
 
 def effect_fields(cls: type) -> dict[str, type]:

@@ -22,6 +22,10 @@ from twin.fem.parameters import Parameter, Term
 
 DOF_NAMES: tuple[str, ...] = ("x", "y", "alpha", "beta")
 DOFS_PER_NODE = 4
+#: Physical bounds of a mass, an inertia, a direct stiffness or damping (not negative), and of a
+#: cross-coupled coefficient (either sign).
+POSITIVE = (0.0, np.inf)
+UNBOUNDED = (-np.inf, np.inf)
 
 # Positions of the two bending planes inside an 8-DOF element vector
 # [x1, y1, a1, b1, x2, y2, a2, b2].
@@ -243,14 +247,15 @@ class Disk:
         x, y, a, b = node_dofs(self.node)
         gyro = np.array([[0.0, 1.0], [-1.0, 0.0]])
         return [
-            Parameter(f"{self.name}.m", self.m, "kg", (Term("M", (x, y), np.eye(2)),), f"mass of {self.name}"),
+            Parameter(f"{self.name}.m", self.m, "kg", (Term("M", (x, y), np.eye(2)),), f"mass of {self.name}",
+                      bounds=POSITIVE),
             Parameter(
                 f"{self.name}.Id", self.Id, "kg m^2", (Term("M", (a, b), np.eye(2)),),
-                f"diametral moment of inertia of {self.name}",
+                f"diametral moment of inertia of {self.name}", bounds=POSITIVE,
             ),
             Parameter(
                 f"{self.name}.Ip", self.Ip, "kg m^2", (Term("G", (a, b), gyro),),
-                f"polar moment of inertia of {self.name} (gyroscopic)",
+                f"polar moment of inertia of {self.name} (gyroscopic)", bounds=POSITIVE,
             ),
         ]  # fmt: skip
 
@@ -292,6 +297,7 @@ class Bearing:
                 Parameter(
                     f"{self.name}.{key}", self.coefficients[key], unit,
                     (_single_entry(kind, dofs, row, col),), f"{self.name} bearing {what} {key}",
+                    bounds=POSITIVE if row == col else UNBOUNDED,
                 )
             )  # fmt: skip
         return out
@@ -321,7 +327,7 @@ class ThrustBearing:
         dofs = node_dofs(self.node)[2:]
         return [
             Parameter(f"{self.name}.k_tilt", self.k_tilt, "N m/rad", (Term("K", dofs, np.eye(2)),),
-                      f"{self.name} tilt stiffness"),
+                      f"{self.name} tilt stiffness", bounds=POSITIVE),
             Parameter(f"{self.name}.c_tilt", self.c_tilt, "N m s/rad", (Term("C", dofs, np.eye(2)),),
-                      f"{self.name} tilt damping"),
+                      f"{self.name} tilt damping", bounds=POSITIVE),
         ]  # fmt: skip

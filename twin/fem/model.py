@@ -225,6 +225,19 @@ class RotorModel:
             self.parameter(name)
         return dataclasses.replace(self, values={**self.values, **values})
 
+    def with_effects(self, *effects) -> RotorModel:
+        """A copy of the model with more effects switched on (library effects or local changes).
+
+        Examples
+        --------
+        >>> from twin import load_model
+        >>> from twin.fem.effects import MagneticPull
+        >>> m = load_model("models/hydro_unit.toml").with_effects(MagneticPull(-1e8))
+        >>> m.parameter("MAG.stiffness").nominal
+        -100000000.0
+        """
+        return dataclasses.replace(self, effects=(*self.effects, *effects))
+
     # -- assembly -----------------------------------------------------------------
     @cached_property
     def fixed_matrices(self) -> dict[str, np.ndarray]:

@@ -81,12 +81,17 @@ class Parameter:
         True for effect parameters that take one value per mode (e.g. the
         added mass of each mode in water); such a parameter is not part of the
         single FEM, see :mod:`twin.fem.effects`.
+    bounds : (float, float)
+        Physically possible values ``(low, high)`` [SI], infinite where
+        there is no limit: a mass or a direct bearing stiffness is not
+        negative, a magnetic pull is not positive. Fits and priors keep the
+        parameter inside them.
 
     Examples
     --------
-    >>> p = Parameter("B.kxx", 1e6, "N/m", (Term("K", (0,), [[1.0]]),))
-    >>> p.dofs, p.kinds
-    ((0,), ('K',))
+    >>> p = Parameter("B.kxx", 1e6, "N/m", (Term("K", (0,), [[1.0]]),), bounds=(0.0, np.inf))
+    >>> p.dofs, p.kinds, p.within(-1.0)
+    ((0,), ('K',), False)
     """
 
     name: str
@@ -95,13 +100,28 @@ class Parameter:
     terms: tuple[Term, ...]
     description: str = ""
     per_mode: bool = False
+    bounds: tuple[float, float] = (-np.inf, np.inf)
     _dofs: tuple[int, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "nominal", float(self.nominal))
+        low, high = (float(b) for b in self.bounds)
+        if not low < high:
+            raise ValueError(f"parameter '{self.name}': bounds must have low < high, got ({low}, {high})")
+        object.__setattr__(self, "bounds", (low, high))
         object.__setattr__(self, "terms", tuple(self.terms))
         dofs = sorted({d for t in self.terms for d in t.dofs})
         object.__setattr__(self, "_dofs", tuple(dofs))
+
+    def within(self, value: float) -> bool:
+        """Whether ``value`` [SI] lies inside the physical :attr:`bounds` (ends included)."""
+        return bool(self.bounds[0] <= value <= self.bounds[1])
+
+    def bounds_text(self) -> str:
+        """The bounds in words, e.g. ``'>= 0'``, ``'<= 0'``, ``'>= -5.47e+07'`` (empty when unbounded)."""
+        low, high = self.bounds
+        parts = ([f">= {low:.4g}"] if np.isfinite(low) else []) + ([f"<= {high:.4g}"] if np.isfinite(high) else [])
+        return " and ".join(parts)
 
     @property
     def dofs(self) -> tuple[int, ...]:

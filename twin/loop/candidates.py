@@ -81,16 +81,20 @@ def library(model: RotorModel) -> list[Candidate]:
 
 
 def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
-    """The library candidates named by ``labels`` (all when None); unknown labels are an error."""
+    """The library candidates named by ``labels`` (all when None); unknown labels are an error.
+
+    Labels of effects the model already has are no candidates (a diagnosis refits them) and are skipped.
+    """
     available = library(model)
     if labels is None:
         return available
     by_label = {c.label: c for c in available}
-    unknown = [lab for lab in labels if lab not in by_label]
+    present = {effect_label(e) for e in model.effects}
+    unknown = [lab for lab in labels if lab not in by_label and lab not in present]
     if unknown:
         raise ModelError(f"no candidate effect {unknown} for model '{model.name}'; available: "
                          f"{', '.join(by_label) or 'none'} (library keys: {', '.join(EFFECTS)})")  # fmt: skip
-    return [by_label[lab] for lab in labels]
+    return [by_label[lab] for lab in labels if lab in by_label]
 
 
 def with_effect(model: RotorModel, effect) -> RotorModel:
@@ -98,8 +102,43 @@ def with_effect(model: RotorModel, effect) -> RotorModel:
     return dataclasses.replace(model, effects=(*model.effects, effect))
 
 
-def add_effects(model: RotorModel, labels: Sequence[str]) -> RotorModel:
+def sized(candidate: Candidate, labels: Sequence[int]) -> Candidate:
+    """A per-mode candidate with one zero value per mode up to the largest measured mode label (others as they are).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> c = select(load_model("models/hydro_unit.toml"), ["fsi_per_mode"])[0]
+    >>> sized(c, [1, 2, 4]).effect.n_modes
+    4
+    """
+    if not candidate.per_mode:
+        return candidate
+    n = int(max(labels))
+    return Candidate(candidate.label, FluidAddedMassPerMode((0.0,) * n, (0.0,) * n))
+
+
+def free_names(model: RotorModel, effect, labels: Sequence[int]) -> list[str]:
+    """The parameters of ``effect`` that measured modes ``labels`` can determine (a per-mode effect's for those modes).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.fem.effects import FluidAddedMassPerMode
+    >>> free_names(load_model("models/hydro_unit.toml"), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
+    ['FSI.added_mass_1', 'FSI.added_damping_1', 'FSI.added_mass_3', 'FSI.added_damping_3']
+    """
+    names = [p.name for p in effect.parameters(model)]
+    if effect.per_mode:
+        wanted = {int(m) for m in labels}
+        names = [n for n in names if int(n.rsplit("_", 1)[1]) in wanted]
+    return names
+
+
+def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[int] | None = None) -> RotorModel:
     """The model with the library effects ``labels`` added, zero-valued (their values come from an update).
+
+    A per-mode effect takes one value per mode up to the largest of ``mode_labels`` (the measured modes).
 
     Examples
     --------
@@ -109,5 +148,7 @@ def add_effects(model: RotorModel, labels: Sequence[str]) -> RotorModel:
     ['MAG.stiffness', 'LGB.stiffness_change', 'LGB.damping_change']
     """
     for c in select(model, list(labels)):
-        model = with_effect(model, c.effect)
+        if c.per_mode and mode_labels is None:
+            raise ModelError(f"'{c.label}' has one value per mode: say which modes (mode_labels)")
+        model = with_effect(model, (sized(c, mode_labels) if c.per_mode else c).effect)
     return model

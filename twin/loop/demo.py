@@ -1,14 +1,16 @@
-"""``twin demo``: the whole loop from nothing, on a truth with a hidden effect.
+"""``twin demo``: the whole loop from nothing, on a truth with hidden changes.
 
 1. export the model as an FMU;
-2. simulate the proximeter signals of a truth with one library effect hidden
-   (FMI co-simulation through FMPy: runner turbulence, 1X unbalance, 5% noise);
+2. simulate the proximeter signals of a truth that hides a scenario
+   (:mod:`twin.loop.scenarios`: library effects, a local change outside the
+   library, or nothing), by FMI co-simulation through FMPy (runner
+   turbulence, 1X unbalance, 5% noise);
 3. extract the modes (automated SSI, jackknife samples);
-4. compare the model with them, diagnose the missing effect;
-5. add the top-ranked effect, update its parameters, compare again;
+4. go round the loop (:meth:`twin.loop.twin.Twin.run`): compare, diagnose,
+   add every effect found missing, update them jointly, diagnose again;
 
 and write a report folder: ``report.md``, the figures, ``signals.nc``,
-``modes.nc``, ``diagnosis.json``, ``history.csv`` and the FMU.
+``modes.nc``, ``diagnosis.json`` (every round), ``history.csv`` and the FMU.
 """
 
 from __future__ import annotations
@@ -24,89 +26,19 @@ import numpy as np
 import xarray as xr
 
 from twin.errors import TwinError
-from twin.fem.effects import BearingChange, FluidAddedMass, MagneticPull, SealCrossCoupling, ThrustTilt
 from twin.fem.model import RotorModel
-from twin.fem.truthfile import Truth
-from twin.loop.compare import error_text
+from twin.loop.compare import PER_MODE_NAME, Measured, error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
-from twin.netcdf import atomic_output
+from twin.loop.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
+from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
 
-#: Effects the demo and the hidden-effect tests can hide, with their truth values (SI).
-HIDDEN_EFFECTS = {
-    "magnetic_pull": MagneticPull(-1e8),
-    "seal_cross_coupling": SealCrossCoupling(5e7),
-    "fsi": FluidAddedMass(6e4, 2e6),
-    "thrust_tilt:thrust": ThrustTilt("thrust", 1e9),
-    "bearing_change:LGB": BearingChange("LGB", -3e7, -3e8),
-    "bearing_change:UGB": BearingChange("UGB", -2e8, 2e7),
-}
-# Sizes: each changes the modes well beyond what 20 min of signals resolve (the error E of the truth model
-# against its own extracted modes is about 0.07%; 0.2-0.3% unweighted) and keeps the truth stable at
-# 134 rpm (a seal cross-coupling of 7e7 N/m already makes it unstable; UGB damping -5e7 N s/m too). The
-# tilt stiffness change is 4x its prior scale (half the nominal tilt stiffness): smaller changes move the
-# modes too little for 20 min of signals to pin them to 10%; the prior pulls its MAP about 5% low.
 #: Jackknife samples per mode of the demo: 80 s blocks of its 20-min record, longer than three time
 #: constants (about 3 x 25 s) of the unit's slowest mode, so the sample spread is honest for every mode.
 DEMO_SAMPLES = 15
-#: ``hidden`` value of a truth with no effect hidden (the false-alarm check).
-NOTHING = "none"
-
-
-@dataclasses.dataclass(frozen=True)
-class ShaftStiffnessLoss:
-    """A local loss of shaft bending stiffness (a crack, a weakened section): no effect of the library.
-
-    Hidden in a demo's truth, it checks that the diagnosis says no library
-    effect explains the discrepancy and points at the element.
-
-    Examples
-    --------
-    >>> from twin import load_model
-    >>> model = load_model("models/hydro_unit.toml")
-    >>> weak = ShaftStiffnessLoss(18, 0.5).apply(model)
-    >>> weak.shaft[18].material.E / model.shaft[18].material.E
-    0.5
-    """
-
-    element: int
-    factor: float  # remaining fraction of the element's E and G
-
-    def apply(self, model: RotorModel) -> RotorModel:
-        """``model`` with the element's Young's and shear moduli times :attr:`factor`."""
-        if not 0 < self.factor:
-            raise TwinError(f"a shaft stiffness factor must be positive, got {self.factor}")
-        if not any(e.n == self.element for e in model.shaft):
-            raise TwinError(f"model '{model.name}' has no shaft element {self.element} "
-                            f"(elements 0 to {len(model.shaft) - 1})")  # fmt: skip
-
-        def weaken(e):
-            mat = dataclasses.replace(e.material, E=self.factor * e.material.E, G=self.factor * e.material.G)
-            return dataclasses.replace(e, material=mat)
-
-        return dataclasses.replace(model, shaft=tuple(weaken(e) if e.n == self.element else e for e in model.shaft))
-
-    def describe(self) -> str:
-        """The change in words, for reports."""
-        return f"shaft element {self.element} at {self.factor:.0%} of its bending stiffness (outside the effects library)"
-
-
-#: Hidden changes outside the effects library: the diagnosis should call them unexplained and locate them.
-OUTSIDE_LIBRARY = {"shaft_stiffness_loss": ShaftStiffnessLoss(18, 0.5)}
-
-
-def hidden_labels() -> list[str]:
-    """Every ``hidden`` value the demo takes: library effects, changes outside the library, :data:`NOTHING`.
-
-    Examples
-    --------
-    >>> hidden_labels()[-3:]
-    ['bearing_change:UGB', 'shaft_stiffness_loss', 'none']
-    """
-    return [*HIDDEN_EFFECTS, *OUTSIDE_LIBRARY, NOTHING]
 
 
 def default_model_path() -> Path:
@@ -114,35 +46,69 @@ def default_model_path() -> Path:
     return Path(__file__).resolve().parents[2] / "models" / "hydro_unit.toml"
 
 
-def truth_values(model: RotorModel, effect) -> dict[str, float]:
-    """The parameter values [SI] an effect has when added to ``model``.
+def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: list[dict]) -> dict[str, float]:
+    """Truth values by the twin's parameter names: a per-mode value of target mode ``i`` of the truth goes to
+    the measured mode nearest to it in pole (the twin numbers per-mode parameters by measured mode).
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> truth_values(load_model("models/hydro_unit.toml"), HIDDEN_EFFECTS["magnetic_pull"])
-    {'MAG.stiffness': -100000000.0}
+    >>> import numpy as np
+    >>> from twin.loop.compare import Measured
+    >>> meas = Measured(np.array([1, 2]), np.array([-0.1 + 6.3j, -0.2 + 63j]), np.ones((2, 2)), np.ones((2, 1)), ["a"])
+    >>> modes = [{"frequency_hz": 1.0, "damping_ratio": 0.01}, {"frequency_hz": 5.0, "damping_ratio": 0.01},
+    ...          {"frequency_hz": 10.0, "damping_ratio": 0.01}]
+    >>> truth_for_measured({"FSI.added_mass_3": 7.0, "MAG.stiffness": -1.0}, meas, modes)
+    {'MAG.stiffness': -1.0, 'FSI.added_mass_2': 7.0}
     """
-    return {p.name: p.nominal for p in effect.parameters(dataclasses.replace(model, effects=(effect,)))}
+    out = {k: v for k, v in truth.items() if not PER_MODE_NAME.match(k)}
+    if not truth_modes or len(out) == len(truth):
+        return out
+    f = np.array([m["frequency_hz"] for m in truth_modes])
+    z = np.array([m["damping_ratio"] for m in truth_modes])
+    w = 2 * np.pi * f / np.sqrt(1 - z**2)
+    target = w * (-z + 1j * np.sqrt(1 - z**2))
+    for label, pole in zip(meas.mode, meas.pole):
+        i = int(np.argmin(np.abs(target - pole) / np.abs(pole))) + 1
+        for kind in ("added_mass", "added_damping"):
+            if f"FSI.{kind}_{i}" in truth:
+                out[f"FSI.{kind}_{int(label)}"] = truth[f"FSI.{kind}_{i}"]
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
 class DemoResult:
-    """What the demo did: the twin (with its history), the diagnosis, the update and where it all went."""
+    """What the demo did: the scenario, the twin (with its history and diagnoses), the update, where it went."""
 
     out: Path
+    scenario: Scenario
     twin: Twin
-    diagnosis: Diagnosis
-    posterior: xr.Dataset | None
-    truth: dict[str, float]
+    truth: dict[str, float]  # by the twin's parameter names
     timings_s: dict[str, float]
-    outside: ShaftStiffnessLoss | None = None  # the hidden change, when it is outside the effects library
+    model: RotorModel
+
+    @property
+    def diagnosis(self) -> Diagnosis:
+        """The first round's diagnosis."""
+        return self.twin.diagnoses[0]
+
+    @property
+    def final(self) -> Diagnosis:
+        """The last round's diagnosis."""
+        return self.twin.diagnoses[-1]
+
+    @property
+    def named(self) -> tuple[str, ...]:
+        """Every effect the loop added."""
+        return tuple(self.twin.added)
+
+    @property
+    def posterior(self) -> xr.Dataset | None:
+        """The Laplace posterior of the last update (None when nothing was added)."""
+        return self.twin.posterior
 
     def hidden_text(self) -> str:
         """What the truth hides, in words."""
-        if self.outside is not None:
-            return self.outside.describe()
-        return ", ".join(f"{n} = {v:.4g}" for n, v in self.truth.items()) or "nothing"
+        return self.scenario.describe(self.model)
 
     @property
     def report(self) -> Path:
@@ -171,7 +137,7 @@ def run_demo(
     progress: bool = True,
     tasks: Any = None,
 ) -> DemoResult:
-    """Run the loop end to end on a truth with ``hidden`` and write the report folder ``out``.
+    """Run the loop end to end on a truth that hides ``hidden`` and write the report folder ``out``.
 
     Parameters
     ----------
@@ -180,9 +146,9 @@ def run_demo(
     model : RotorModel, optional
         The twin's model (default: :func:`default_model_path`).
     hidden : str
-        Label of the hidden effect, a key of :data:`HIDDEN_EFFECTS`, a change
-        outside the library (a key of :data:`OUTSIDE_LIBRARY`), or
-        :data:`NOTHING` for a truth that is the model itself.
+        What the truth hides: a scenario spec (:func:`twin.loop.scenarios.parse_scenario`),
+        e.g. ``magnetic_pull``, ``magnetic_pull@2.5+seal_cross_coupling``,
+        ``disk_mass:generator@1.1`` or ``none``.
     duration_s, fs_hz : float
         Record length [s] and sampling rate [Hz] of the simulated signals.
     samples : int
@@ -208,19 +174,16 @@ def run_demo(
     from twin.fmu.simulate import simulate
     from twin.loop.plots import _pyplot, comparison_figures
 
-    if hidden not in hidden_labels():
-        raise TwinError(f"unknown hidden effect '{hidden}'; choose one of {', '.join(hidden_labels())}")
+    scenario = parse_scenario(hidden)
     if model is None:
         path = default_model_path()
         if not path.exists():
             raise TwinError(f"the demo model {path} is not there (an installed copy without the source tree?): "
                             "give a model file")  # fmt: skip
         model = load_model(path)
+    scenario.check(model)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    effects = (HIDDEN_EFFECTS[hidden],) if hidden in HIDDEN_EFFECTS else ()
-    outside = OUTSIDE_LIBRARY.get(hidden)
-    truth = {k: v for e in effects for k, v in truth_values(model, e).items()}
     timings: dict[str, float] = {}
 
     def stage(name: str, t0: float) -> None:
@@ -231,7 +194,7 @@ def run_demo(
     export_fmu(model, out / f"{model.name}.fmu", step_s=1.0 / fs_hz)
     stage("export FMU", t0)
     t0 = time.perf_counter()
-    signals = simulate(outside.apply(model) if outside else model, duration_s=duration_s, fs_hz=fs_hz, seed=seed, truth=Truth(effects, source=hidden),
+    signals = simulate(model, duration_s=duration_s, fs_hz=fs_hz, seed=seed, truth=scenario.truth(),
                        output=out / "signals.nc", progress=progress, command="twin demo")  # fmt: skip
     stage("simulate truth (FMU through FMPy)", t0)
     t0 = time.perf_counter()
@@ -244,21 +207,17 @@ def run_demo(
     t0 = time.perf_counter()
     tw = Twin(model, modes)
     comparison_figures(tw.compare(), out, prefix="before_")
-    d = tw.diagnose(tasks=tasks)
-    (out / "diagnosis.json").write_text(d.to_json(tw.measured))
-    stage("compare and diagnose", t0)
-    posterior = None
-    t0 = time.perf_counter()
-    if d.missing is not None:
-        tw.add_effect(d.missing)
-        posterior = tw.update(d.ranking[0].names, method="laplace")
+    tw.run(method="laplace", tasks=tasks)
+    stage("diagnose, add, update (loop rounds)", t0)
+    meas = tw.measured
+    with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
+        tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
+    if tw.added:
         comparison_figures(tw.compare(), out, prefix="after_")
-    else:
-        log.info("the diagnosis found no missing effect (%s): nothing to add", d.verdict)
-    stage("add effect and update", t0)
     tw.plot_history(out / "history.png")
     write_history(tw.history_table(), out / "history.csv")
-    result = DemoResult(out, tw, d, posterior, truth, timings, outside)
+    truth = truth_for_measured(scenario.truth_values(model), meas, json.loads(modes.attrs.get("truth_modes", "[]")))
+    result = DemoResult(out, scenario, tw, truth, timings, model)
     write_report(result, modes)
     return result
 
@@ -271,11 +230,11 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     """Write ``report.md`` of a demo run (figures are already in the folder)."""
     tw, d, meas = result.twin, result.diagnosis, result.twin.measured
     name = tw.history[0].model.name
-    if result.outside is None and not result.truth:
+    if result.scenario.nothing:
         hidden = f"Nothing is hidden: the truth is the twin's model, `{name}`."
     else:
-        units = "" if result.outside is not None else " (SI)"
-        hidden = f"Hidden in the truth: **{result.hidden_text()}**{units}. The twin's model, `{name}`, does not have it."
+        hidden = (f"Hidden in the truth: **{result.hidden_text()}** (SI; spec `{result.scenario.spec}`). "
+                  f"The twin's model, `{name}`, does not have it. The right diagnosis: {result.scenario.expected()}.")
     settings = json.loads(modes.attrs["settings"])
     lines = ["# twin demo", "", hidden,
              "", "## What was run", ""]  # fmt: skip
@@ -294,15 +253,18 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
             for r in (before.isel(mode=k) for k in range(before.sizes["mode"]))]  # fmt: skip
     lines += _md_table(["mode", "f meas [Hz]", "f model [Hz]", "df [%]", "zeta meas [%]", "zeta model [%]", "MAC"], rows)
     lines += ["", "![errors](before_errors.png) ![MAC](before_mac.png)", "", "![spectra](before_spectra.png)", "",
-              "## Diagnosis", "", f"Verdict: **{d.verdict}**" + (f" ({d.missing})" if d.missing else "") + ".", "",
-              d.summary, ""]  # fmt: skip
+              "## Diagnosis", ""]  # fmt: skip
+    for k, dk in enumerate(tw.diagnoses, start=1):
+        lines += [f"Round {k}: **{dk.verdict}**" + (f" ({', '.join(dk.missing)})" if dk.missing else "") + ".", "",
+                  dk.summary, ""]  # fmt: skip
+    lines += ["Round 1, every candidate fitted alone:", ""]
     rows = [[str(k), f.label, f"{f.log_bayes_factor:.1f}", f"{100 * f.error_after(meas):.3f}"]
             for k, f in enumerate(d.ranking, start=1)]  # fmt: skip
     lines += _md_table(["rank", "effect", "ln B", "E after fit [%]"], rows)
     lines += ["", "Why:", ""] + [f"- {d.explanations[f.label]}" for f in d.ranking] + [""]
     if result.posterior is not None:
         ident = result.identified()
-        lines += ["## Update", "", f"{ident.attrs['method']}.", ""]
+        lines += ["## Update", "", f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.", ""]
         rows = [[str(r["parameter"].values), f"{float(r.truth):.4g}", f"{float(r['map']):.4g}", f"{float(r['std']):.2g}",
                  f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
                 for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip

@@ -1,28 +1,38 @@
-"""Diagnose a model against measured modes: where it fails and which effect is missing.
+"""Diagnose a model against measured modes: where it fails, and which effects are missing.
 
 1. **Where**: the comparison table (:func:`twin.loop.compare.compare`) gives
-   the modes whose frequency or damping is off by more than
-   :data:`Z_LIMIT` measurement sigmas, and the sensors with the largest shape
-   error. The model *fails* when the pole residuals are not consistent with
-   the measurement uncertainty: their χ² exceeds the 99.9% quantile of the
-   χ² law with as many degrees of freedom as data.
-2. **Which effect**: every candidate of the library
-   (:func:`twin.loop.candidates.library`) is fitted to the measured poles and
-   ranked by its log Bayes factor against the model as it is
-   (:mod:`twin.loop.fit`: Laplace approximation, priors at the effects'
-   plausible scales). We chose the Bayes factor over an information criterion
-   or LOO because it weighs each parameter by how sharply the data pin it
-   relative to what is physically plausible (the Occam factor), which a
-   count of parameters (AIC, BIC) cannot do for a per-mode effect with 30
-   parameters against a one-parameter stiffness; and it needs one fit per
-   candidate, not one per left-out mode. ``ln B > 3`` (odds above 20:1) is
-   strong evidence on the Kass-Raftery scale.
-3. **Verdict**: the top candidate is *the missing effect* when it is strongly
-   supported and its residuals are consistent with the uncertainty. With no
-   failure and no strongly supported candidate, nothing is missing. When the
-   model fails and no candidate explains the residuals, the diagnosis says so
-   and points to the shaft element whose stiffness change would explain the
-   most of them (a localisation scan outside the library).
+   the modes whose frequency or damping is off by more than :data:`Z_LIMIT`
+   measurement sigmas, the sensors with the largest shape error, and the
+   measured modes the model has no mode like. The model *fails* when the
+   pole residuals are not consistent with the measurement uncertainty: their
+   χ² exceeds the 99.9% quantile of the χ² law with as many degrees of
+   freedom as data.
+2. **Which effects**, by evidence (:mod:`twin.loop.fit`: Laplace
+   approximation, priors at the effects' plausible scales inside their
+   physical bounds). Stepwise: each round fits every remaining library
+   candidate (:func:`twin.loop.candidates.library`) *jointly* with the effects
+   already chosen and with those the model has, and adds the one of the
+   largest log Bayes factor while it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
+   odds above 20:1 on the Kass-Raftery scale); after each addition, an effect
+   chosen earlier that the others now make unnecessary (its own ``ln B``
+   below the threshold) is dropped. So two effects at once are named
+   together, and a first choice that only mimicked them is undone. We chose
+   the Bayes factor over an information criterion or LOO because it weighs
+   each parameter by how sharply the data pin it relative to what is
+   physically plausible (the Occam factor), which a count of parameters
+   cannot do for a per-mode effect with 2 parameters per mode against a
+   one-parameter stiffness.
+3. **Outside the library**: a scan of local changes (each shaft element's
+   stiffness, each disk's mass and inertia, :mod:`twin.loop.locate`), fitted
+   alone and on top of the chosen effects.
+4. **Verdict**: "unexplained" with the place when one local change explains
+   the data far better (``ln B`` larger by :data:`STRONG_EVIDENCE`) than the
+   chosen library effects; "missing effect" naming every chosen effect when
+   they leave residuals within the uncertainty; "partly explained" when they
+   do not; "nothing missing" when the model does not fail and no effect is
+   supported; "not enough data" when the measured modes cover too little of
+   the band or the record is too short (:mod:`twin.loop.coverage`), whatever
+   the fits say.
 """
 
 from __future__ import annotations
@@ -37,12 +47,14 @@ import numpy as np
 import scipy.stats
 import xarray as xr
 
+from twin.fem.effects import describe
 from twin.fem.model import RotorModel
-from twin.loop.candidates import Candidate, select
+from twin.loop.candidates import Candidate, free_names, select, sized
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
-from twin.loop.fit import Fit, _residual, _Tracker, fit_candidate, scaled_rows
-from twin.loop.sensitivity import footprint_jacobian, solve_modes
-from twin.tasks import mapper
+from twin.loop.coverage import Coverage, coverage
+from twin.loop.fit import Fit, fit, log_evidence_as_is
+from twin.loop.locate import Location, locate
+from twin.tasks import mapper, one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -52,8 +64,10 @@ Z_LIMIT = 3.0
 STRONG_EVIDENCE = 3.0
 #: Quantile of the χ² law above which residuals are not consistent with the uncertainty.
 CONSISTENCY_QUANTILE = 0.999
-#: Prior scale of a shaft element's relative stiffness change in the localisation scan.
-LOCAL_CHANGE_SCALE = 0.5
+#: Library effects named at most (the stepwise search stops there).
+MAX_EFFECTS = 3
+#: Verdicts of a diagnosis.
+VERDICTS = ("missing effect", "partly explained", "unexplained", "nothing missing", "not enough data")
 
 
 def consistent(chi2: float, dof: int) -> bool:
@@ -68,53 +82,30 @@ def consistent(chi2: float, dof: int) -> bool:
 
 
 @dataclass(frozen=True)
-class Location:
-    """A shaft element whose stiffness change alone would explain part of the residuals."""
-
-    element: int
-    nodes: tuple[int, int]
-    z_m: tuple[float, float]
-    relative_change: float
-    explained: float  # fraction of the residual χ² it removes
-    log_bayes_factor: float  # of the one-parameter change, linearised (exact for a linear model)
-
-
-def locate(model: RotorModel, meas: Measured, top: int = 3) -> list[Location]:
-    """Scan the shaft elements: the best single-element stiffness change for the pole residuals.
-
-    Linearised at the model: for element ``e`` with stiffness ``K_e``, the
-    change ``δ K_e`` that best fits the residuals removes
-    ``(Jᵀr)² / JᵀJ`` of their χ². With the prior ``δ ~ N(0, s²)``,
-    ``s`` = :data:`LOCAL_CHANGE_SCALE`, the log Bayes factor of the change is
-    ``½ s² (Jᵀr)² / (1 + s² JᵀJ) − ½ ln(1 + s² JᵀJ)``.
-    """
-    sol = solve_modes(model)
-    tracker = _Tracker(model, sol, meas)
-    r = -_residual(tracker.poles, meas, tracker.rows)
-    chi2 = float(r @ r)
-    if chi2 == 0 or not len(tracker.rows):
-        return []
-    terms = [[t for t in el.terms() if t.kind == "K"] for el in model.shaft]
-    J = scaled_rows(footprint_jacobian(sol, terms, tracker.cols), meas, tracker.rows)
-    norm = np.sum(J**2, axis=0)
-    delta = np.where(norm > 0, J.T @ r / np.where(norm > 0, norm, 1.0), 0.0)
-    gain = np.where(norm > 0, (J.T @ r) ** 2 / np.where(norm > 0, norm, 1.0), 0.0)
-    s2 = LOCAL_CHANGE_SCALE**2
-    ln_b = 0.5 * s2 * (J.T @ r) ** 2 / (1 + s2 * norm) - 0.5 * np.log1p(s2 * norm)
-    z = model.node_z
-    out = []
-    for e in np.argsort(gain)[::-1][:top]:
-        out.append(Location(int(e), (int(e), int(e) + 1), (float(z[e]), float(z[e + 1])), float(delta[e]),
-                            float(gain[e] / chi2), float(ln_b[e])))  # fmt: skip
-    return out
-
-
-@dataclass(frozen=True)
 class Diagnosis:
-    """What :func:`diagnose` found; :meth:`to_dict` is the JSON layout."""
+    """What :func:`diagnose` found; :meth:`to_dict` is the JSON layout.
 
-    verdict: str  # "missing effect", "nothing missing", "unexplained", "partly explained"
-    missing: str | None
+    Attributes
+    ----------
+    verdict : str
+        One of :data:`VERDICTS`.
+    missing : tuple of str
+        The library effects found missing (empty for none).
+    fits : list of Fit
+        The first round: every candidate fitted alone (jointly with the
+        model's own effects), its ``log_bayes_factor`` against the model.
+    final : Fit or None
+        The joint fit of the model's own effects and the ones found missing.
+    path : list of (str, str, float)
+        The stepwise search: ``("add" | "drop", label, ln B)``.
+    locations : list of Location
+        Local changes outside the library, best first.
+    coverage : Coverage or None
+        What the measured modes cover of the band (None for synthetic modes).
+    """
+
+    verdict: str
+    missing: tuple[str, ...]
     fits: list[Fit]
     explanations: dict[str, str]
     table: xr.Dataset
@@ -124,51 +115,68 @@ class Diagnosis:
     sensors: list[str]
     locations: list[Location] = field(default_factory=list)
     summary: str = ""
+    final: Fit | None = None
+    path: list[tuple[str, str, float]] = field(default_factory=list)
+    coverage: Coverage | None = None
 
     @property
     def ranking(self) -> list[Fit]:
-        """Fits by log Bayes factor, best first."""
+        """First-round fits by log Bayes factor, best first."""
         return sorted(self.fits, key=lambda f: -f.log_bayes_factor)
 
+    @property
+    def named(self) -> str:
+        """The missing effects joined by ``+`` (empty for none)."""
+        return "+".join(self.missing)
+
     def to_dict(self, meas: Measured) -> dict:
-        """``{"verdict", "missing", "summary", "error", "ranking": [...], "failing", "locations"}``."""
-        ranking = []
-        for f in self.ranking:
-            ranking.append({
-                "effect": f.label,
-                "score": f.log_bayes_factor,
-                "score_kind": "log Bayes factor against the model as it is (Laplace)",
-                "error_before": f.error_before(meas),
-                "error_after": f.error_after(meas),
-                "chi2_after": f.chi2_after,
-                "explains": consistent(f.chi2_after, f.residual_dof),
-                "parameters": {n: {"value": float(v), "std": float(s), "unit": u}
-                               for n, v, s, u in zip(f.names, f.values, f.std, f.units)},
-                "at_bound": f.at_bound,
-                "converged": f.converged,
-                "why": self.explanations.get(f.label, ""),
-            })  # fmt: skip
+        """``{"verdict", "missing", "summary", "error", "ranking": [...], "final", "path", "failing", "locations", ...}``."""
+        ranking = [_fit_dict(f, meas, self.explanations.get(f.label, "")) for f in self.ranking]
         return {
             "verdict": self.verdict,
-            "missing": self.missing,
+            "missing": list(self.missing),
             "summary": self.summary,
             "error": float(self.table.attrs["error"]),
             "chi2": self.chi2,
             "n_data": self.n_data,
             "failing": self.failing_modes,
+            "poorly_paired": [int(m) for m in np.atleast_1d(self.table.attrs["poorly_paired"])],
             "sensors_by_shape_error": self.sensors,
+            "coverage": None if self.coverage is None else {
+                "band_hz": list(self.coverage.band_hz), "model_modes_in_band": len(self.coverage.in_band_hz),
+                "measured": self.coverage.n_measured, "duration_s": self.coverage.duration_s,
+                "enough": self.coverage.enough, "text": self.coverage.text()},
             "ranking": ranking,
-            "locations": [loc.__dict__ | {"nodes": list(loc.nodes), "z_m": list(loc.z_m)} for loc in self.locations],
-        }
+            "final": None if self.final is None else _fit_dict(self.final, meas, ""),
+            "path": [{"action": a, "effect": lab, "score": s} for a, lab, s in self.path],
+            "locations": [loc.__dict__ | {"element": loc.element} for loc in self.locations],
+        }  # fmt: skip
 
     def to_json(self, meas: Measured) -> str:
         """The diagnosis as JSON text."""
         return json.dumps(self.to_dict(meas), indent=2)
 
 
-def _explain(f: Fit, candidate: Candidate, meas: Measured, best: float) -> str:
+def _fit_dict(f: Fit, meas: Measured, why: str) -> dict:
+    return {
+        "effect": f.label,
+        "score": f.log_bayes_factor,
+        "score_kind": "log Bayes factor (Laplace)",
+        "error_before": f.error_before(meas),
+        "error_after": f.error_after(meas),
+        "chi2_after": f.chi2_after,
+        "explains": consistent(f.chi2_after, f.residual_dof),
+        "parameters": {n: {"value": float(v), "std": float(s), "unit": u}
+                       for n, v, s, u in zip(f.names, f.values, f.std, f.units)},
+        "at_bound": f.at_bound,
+        "converged": f.converged,
+        "why": why,
+    }  # fmt: skip
+
+
+def _explain(f: Fit, candidate: Candidate, model: RotorModel, meas: Measured, best: float) -> str:
     e0, e1 = 100 * f.error_before(meas), 100 * f.error_after(meas)
-    words = f"{candidate.label} ({candidate.explanation}): error {e0:.2f}% -> {e1:.2f}%, ln B = {f.log_bayes_factor:.1f}"
+    words = f"{describe(candidate.effect, model)} Error {e0:.2f}% -> {e1:.2f}%, ln B = {f.log_bayes_factor:.1f}"
     if f.log_bayes_factor < 0:
         words += "; the better fit does not pay for its parameters"
     elif f.log_bayes_factor < STRONG_EVIDENCE:
@@ -176,29 +184,54 @@ def _explain(f: Fit, candidate: Candidate, meas: Measured, best: float) -> str:
     if f.log_bayes_factor < best - 1:
         words += f"; {best - f.log_bayes_factor:.0f} ln-units below the best"
     if f.at_bound:
-        words += f"; {', '.join(f.at_bound)} pushed against its physical sign (fits the wrong way)"
+        words += f"; {', '.join(f.at_bound)} on its physical bound (the data push it beyond)"
     return words
 
 
+def _fit_set(extra: Sequence[Candidate], model: RotorModel, meas: Measured, own: Sequence[str],
+             start: dict, reference: float, label: str | None = None) -> Fit:  # fmt: skip
+    """The joint fit of the model's own effects and the candidates ``extra``."""
+    m = model.with_effects(*[c.effect for c in extra])
+    names = list(own) + [n for c in extra for n in free_names(m, c.effect, meas.mode)]
+    return fit(m, meas, names, label or "+".join(c.label for c in extra) or "the model's effects",
+               reference=reference, start=start)  # fmt: skip
+
+
+def _fit_with(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
+              included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
+    """One candidate fitted jointly with the effects already chosen; labelled by the candidate."""
+    return _fit_set([*included, candidate], model, meas, own, start, reference, label=candidate.label)
+
+
+def _exclusive(a: Candidate, b: Candidate) -> bool:
+    return {a.effect.key, b.effect.key} == {"fsi", "fsi_per_mode"}
+
+
+@one_blas_thread
 def diagnose(
     model: RotorModel,
     modes: xr.Dataset | Measured,
     *,
     candidates: Sequence[str] | None = None,
     tolerance: float = TOLERANCE,
+    max_effects: int = MAX_EFFECTS,
     tasks: Any = None,
 ) -> Diagnosis:
-    """Where the model fails against the measured modes, and which library effect is missing.
+    """Where the model fails against the measured modes, and which library effects are missing.
 
     Parameters
     ----------
     model : RotorModel
+        The model as it is; the effects it has are refitted with every
+        candidate (the loop's earlier rounds).
     modes : xarray.Dataset or Measured
         Measured modes (``modes.nc`` layout).
     candidates : sequence of str, optional
         Candidate labels (default: the whole library, see :func:`twin.loop.candidates.library`).
     tolerance : float
         Relative pole uncertainty accepted as model-form error.
+    max_effects : int
+        Library effects named at most.
     tasks : distributed.Client or mapper, optional
         Where the candidate fits run, one task each (:func:`twin.tasks.mapper`):
         in this process by default.
@@ -210,20 +243,51 @@ def diagnose(
     Examples
     --------
     >>> from twin import load_model
-    >>> from twin.fem.effects import MagneticPull
+    >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
     >>> model = load_model("models/hydro_unit.toml")
-    >>> data = synthesize_modes(model, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1)
-    >>> d = diagnose(model, data, candidates=["magnetic_pull", "seal_cross_coupling", "thrust_tilt:thrust"])
-    >>> d.verdict, d.missing
-    ('missing effect', 'magnetic_pull')
+    >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
+    >>> data = synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01))
+    >>> d = diagnose(model, data, candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB"])
+    >>> d.verdict, sorted(d.missing)
+    ('missing effect', ['magnetic_pull', 'seal_cross_coupling'])
     """
     meas = modes if isinstance(modes, Measured) else measured_modes(modes, tolerance)
     table = compare(model, meas)
-    chosen = select(model, candidates)
-    fits = mapper(tasks, desc="candidate fits")(_fit, chosen, model=model, meas=meas)
+    chosen = [sized(c, meas.mode) for c in select(model, candidates)]
+    run = mapper(tasks, desc="candidate fits")
+    own = [n for e in model.effects for n in free_names(model, e, meas.mode)]
+    lnz_as_is, _ = log_evidence_as_is(model, meas)
+    base = _fit_set([], model, meas, own, {}, lnz_as_is) if own else None
+    base_lnz = base.log_evidence if base is not None else lnz_as_is
+
+    included: list[Candidate] = []
+    current, current_lnz = base, base_lnz
+    first: list[Fit] | None = None
+    path: list[tuple[str, str, float]] = []
+    remaining = list(chosen)
+    while remaining and len(included) < max_effects:
+        start = current.value_of() if current is not None else {}
+        fits = run(_fit_with, remaining, model=model, meas=meas, own=own, included=tuple(included), start=start,
+                   reference=current_lnz)  # fmt: skip
+        if first is None:
+            first = fits
+        k = int(np.argmax([f.log_bayes_factor for f in fits]))
+        if not fits[k].log_bayes_factor > STRONG_EVIDENCE:
+            break
+        added = remaining[k]
+        included.append(added)
+        path.append(("add", added.label, fits[k].log_bayes_factor))
+        current, current_lnz = fits[k], fits[k].log_evidence
+        remaining = [c for j, c in enumerate(remaining) if j != k and not _exclusive(c, added)]
+        current, current_lnz = _drop_unneeded(included, path, current, model, meas, own, run)
+    first = first or []
     by_label = {c.label: c for c in chosen}
+    best = max((f.log_bayes_factor for f in first), default=-np.inf)
+    explanations = {f.label: _explain(f, by_label[f.label], model.with_effects(by_label[f.label].effect), meas, best)
+                    for f in first}  # fmt: skip
+
     chi2, n_data = float(table.attrs["chi2"]), int(table.attrs["n_data"])
     fails = not consistent(chi2, n_data)
     failing = {
@@ -231,58 +295,92 @@ def diagnose(
         "damping": table["mode"].values[np.abs(table["z_damping"].values) > Z_LIMIT].tolist(),
     }
     sensors = [str(c) for c in table["channel"].values[np.argsort(-table["channel_shape_error"].values)]]
-    ranked = sorted(fits, key=lambda f: -f.log_bayes_factor)
-    best = ranked[0].log_bayes_factor if ranked else -np.inf
-    explanations = {f.label: _explain(f, by_label[f.label], meas, best) for f in ranked}
-    top = ranked[0] if ranked else None
-    strong = top is not None and top.log_bayes_factor > STRONG_EVIDENCE
-    explains = top is not None and consistent(top.chi2_after, top.residual_dof)
-    where = _where(failing, sensors)
-    locations = locate(model, meas) if fails or strong else []
-    outside = max((loc.log_bayes_factor for loc in locations), default=-np.inf)
-    if strong and outside > top.log_bayes_factor + STRONG_EVIDENCE:
-        strong = explains = False  # a change outside the library explains the residuals far better
-    if strong and explains:
-        verdict, missing = "missing effect", top.label
-        summary = (f"The model misses {top.label}: {by_label[top.label].explanation}. Fitted, it brings the error "
-                   f"from {100 * top.error_before(meas):.2f}% to {100 * top.error_after(meas):.2f}% and leaves "
-                   f"residuals within the measurement uncertainty (ln B = {top.log_bayes_factor:.1f} against the "
-                   f"model as it is).")  # fmt: skip
-        if len(ranked) > 1:
-            summary += f" Next best: {ranked[1].label} (ln B = {ranked[1].log_bayes_factor:.1f})."
-    elif not fails and not strong:
-        verdict, missing = "nothing missing", None
+    alone = locate(model, meas, base, reference=base_lnz, tasks=tasks) if fails or included else []
+    cover = coverage(model, meas)
+    final = current if included else base
+    lib_gain = current_lnz - base_lnz
+    named = tuple(c.label for c in included)
+    where = _where(failing, sensors, table)
+    if alone and alone[0].log_bayes_factor > max(lib_gain, 0.0) + STRONG_EVIDENCE:
+        verdict, missing, locations = "unexplained", (), alone
+        loc = alone[0]
+        summary = (f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no effect of the library explains it"
+                   + (f" as well ({'+'.join(named)}: ln B = {lib_gain:.1f})" if named else "")
+                   + f". Outside the library, {loc.text()}. {where}")  # fmt: skip
+    elif included:
+        explains = consistent(final.chi2_after, final.residual_dof)
+        locations = [] if explains else locate(model.with_effects(*[c.effect for c in included]), meas, final,
+                                                reference=current_lnz, tasks=tasks)  # fmt: skip
+        verdict, missing = ("missing effect" if explains else "partly explained"), named
+        steps = "; ".join(f"{a} {lab} (ln B = {s:.1f})" for a, lab, s in path)
+        summary = (f"The model misses {' and '.join(named)}: "
+                   + "; ".join(by_label[n].explanation for n in named)
+                   + f". Fitted jointly, they bring the error from {100 * final.error_before(meas):.2f}% to "
+                   f"{100 * final.error_after(meas):.2f}% (ln B = {lib_gain:.1f} against the model as it is; "
+                   f"search: {steps}).")  # fmt: skip
+        if explains:
+            summary += " The residuals are within the measurement uncertainty."
+        else:
+            summary += (f" They leave residuals beyond the measurement uncertainty (chi2 = {final.chi2_after:.1f} "
+                        f"for {final.residual_dof} degrees of freedom): something else is missing too. {where}")  # fmt: skip
+            if locations and locations[0].log_bayes_factor > STRONG_EVIDENCE:
+                summary += f" Outside the library, {locations[0].text()}."
+    elif fails:
+        verdict, missing, locations = "unexplained", (), alone
+        top = max(first, key=lambda f: f.log_bayes_factor) if first else None
+        summary = (f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no candidate effect of the library "
+                   f"explains it (best: {top.label if top else 'none'}, ln B = {best:.1f}). {where}")  # fmt: skip
+        if alone:
+            summary += f" Outside the library, {alone[0].text()}."
+    else:
+        verdict, missing, locations = "nothing missing", (), []
         summary = (f"Nothing is missing: the model's poles agree with the measured ones within their uncertainty "
                    f"(chi2 = {chi2:.1f} for {n_data} data) and no candidate effect is supported (best ln B = "
                    f"{best:.1f}).")  # fmt: skip
-    else:
-        loc = locations[0] if locations else None
-        hint = (f" A stiffness change of shaft element {loc.element} (nodes {loc.nodes[0]}-{loc.nodes[1]}, "
-                f"z = {loc.z_m[0]:.2f} to {loc.z_m[1]:.2f} m, {100 * loc.relative_change:+.0f}% linearised) would "
-                f"explain {100 * loc.explained:.0f}% of the residual chi2 (ln B = {loc.log_bayes_factor:.1f}).")\
-            if loc else ""  # fmt: skip
-        if strong:
-            verdict, missing = "partly explained", top.label
-            summary = (f"{top.label} helps (ln B = {top.log_bayes_factor:.1f}, error {100 * top.error_before(meas):.2f}% "
-                       f"-> {100 * top.error_after(meas):.2f}%) but leaves residuals beyond the measurement "
-                       f"uncertainty: something outside the library is missing too. {where}{hint}")  # fmt: skip
-        else:
-            verdict, missing = "unexplained", None
-            summary = (f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no candidate effect of the library "
-                       f"explains it (best: {top.label if top else 'none'}, ln B = {best:.1f}). {where}{hint}")  # fmt: skip
+    if cover is not None and not cover.enough:
+        found = f" With these data the diagnosis would be: {verdict}" + (f" ({', '.join(missing)})" if missing else "")
+        verdict, missing = "not enough data", ()
+        summary = f"Not enough data to judge the model: {cover.text()}.{found}. Measure longer or add sensors."
+    elif cover is not None:
+        summary += f" ({cover.text()}.)"
     log.info("diagnosis: %s", summary)
-    return Diagnosis(verdict, missing, fits, explanations, table, chi2, n_data, failing, sensors, locations, summary)
+    return Diagnosis(verdict, missing, first, explanations, table, chi2, n_data, failing, sensors, locations, summary,
+                     final, path, cover)  # fmt: skip
 
 
-def _fit(candidate: Candidate, model: RotorModel, meas: Measured) -> Fit:
-    return fit_candidate(model, meas, candidate)
+def _drop_unneeded(included: list[Candidate], path: list, current: Fit, model: RotorModel, meas: Measured,
+                   own: Sequence[str], run) -> tuple[Fit, float]:  # fmt: skip
+    """Drop, one at a time, an earlier choice whose own log Bayes factor (given the others) is not strong."""
+    while len(included) > 1:
+        earlier = included[:-1]
+        start = current.value_of()
+        without = run(_fit_without, earlier, model=model, meas=meas, own=own, included=tuple(included), start=start,
+                      reference=0.0)  # fmt: skip
+        gains = [current.log_evidence - f.log_evidence for f in without]
+        k = int(np.argmin(gains))
+        if gains[k] > STRONG_EVIDENCE:
+            break
+        dropped = earlier[k]
+        included.remove(dropped)
+        path.append(("drop", dropped.label, gains[k]))
+        current = without[k]
+    return current, current.log_evidence
 
 
-def _where(failing: dict[str, list[int]], sensors: list[str]) -> str:
+def _fit_without(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
+                 included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
+    rest = [c for c in included if c is not candidate]
+    return _fit_set(rest, model, meas, own, start, reference)
+
+
+def _where(failing: dict[str, list[int]], sensors: list[str], table: xr.Dataset) -> str:
     parts = []
     if failing["frequency"]:
         parts.append(f"frequency of mode(s) {', '.join(map(str, failing['frequency']))}")
     if failing["damping"]:
         parts.append(f"damping of mode(s) {', '.join(map(str, failing['damping']))}")
     text = f"It fails in the {' and the '.join(parts)}" if parts else "No single mode is off by more than 3 sigmas"
+    poorly = [int(m) for m in np.atleast_1d(table.attrs["poorly_paired"])]
+    if poorly:
+        text += f"; the model has no mode like measured mode(s) {', '.join(map(str, poorly))} (MAC < {table.attrs['min_mac']:g})"
     return f"{text}; largest shape errors at sensor(s) {', '.join(sensors[:2])}."

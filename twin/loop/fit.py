@@ -1,77 +1,268 @@
-"""Fit one candidate effect to measured poles, and its evidence (Laplace approximation).
+"""Fit a hypothesis (a set of model parameters) to measured poles, and its evidence (Laplace approximation).
 
 Data: the measured poles ``λ̂_i`` with uncertainties ``σ`` (real and
-imaginary part, see :func:`twin.loop.compare.measured_modes`). Parameters:
-the effect's ``θ = s ⊙ u`` with ``s`` its plausible scale
-(:meth:`plausible_scale` of the effect) and prior ``u ~ N(0, I)``, halved to
-one side for sign-constrained parameters (added mass and damping ≥ 0,
-magnetic stiffness ≤ 0).
+imaginary part, see :func:`twin.loop.compare.measured_modes`), every measured
+mode paired with a model mode (:func:`twin.loop.compare.pair_with_measured`).
+A *hypothesis* is a list of the model's parameters: those of its effects, of
+a candidate effect, of a local change, or element coefficients. Each has the
+prior ``θ_k = μ_k + s_k u_k``, ``u_k ~ N(0, 1)`` truncated to the
+parameter's physical bounds (:attr:`twin.fem.parameters.Parameter.bounds`):
+``μ_k = 0`` and ``s_k`` the effect's plausible scale for an effect's
+parameter (no effect until the data say so), ``μ_k`` the model's value and
+``s_k`` :data:`twin.fem.effects.CHANGE_FRACTION` of it for any other.
 
-The MAP ``u*`` minimises ``½|r(u)|² + ½|u|²`` with ``r`` the pole residuals in
-sigmas (Levenberg-Marquardt, exact pole derivatives from
-:mod:`twin.loop.sensitivity`, modes followed by MAC from one step to the
-next). The log evidence against the model without the effect (the log Bayes
-factor) is, to Laplace's approximation with the Gauss-Newton Hessian
-``H = JᵀJ + I``,
+The MAP ``u*`` minimises ``½|r(u)|² + ½|u|²`` inside the bounds, ``r`` the
+pole residuals in sigmas (projected Levenberg-Marquardt, exact pole
+derivatives from :mod:`twin.loop.sensitivity`). The pairing is redone at
+every trial point, so a model mode that moves past another is followed to
+where it pairs best. That makes the objective jump where a mode changes
+partner: a strongly moved mode pairs with a wrong, nearby model mode at the
+start, and the first step towards its real partner looks worse. So the
+descent starts from the best of a few points along each shared parameter's
+prior (:data:`START_POINTS`), the others held at the start. The log evidence of the hypothesis is, to Laplace's
+approximation with the Gauss-Newton Hessian ``H = JᵀJ + I``,
 
-    ln B = ½|r(0)|² − ½|r(u*)|² − ½|u*|² − ½ ln det H + n_signed ln 2.
+    ln Z = −½|r(u*)|² − ½|u*|² − ½ ln det H − Σ_k ln P_k,
 
-The first two terms are the better fit; the rest is the Occam factor: a
-parameter the data pin far more sharply than its plausible scale costs about
-``ln(s/σ_θ)``. Per-mode effects fit each mode on its own (their parameters
-touch one mode each), and their log evidences add.
+``P_k`` the prior mass inside parameter ``k``'s bounds (½ for a sign
+constraint); the model as it is, with nothing fitted, has ``ln Z = −½|r|²``.
+The log Bayes factor of one hypothesis against another is the difference of
+their ``ln Z``: the better fit, less the Occam factor, a parameter the data
+pin far more sharply than its plausible scale costing about ``ln(s/σ_θ)``.
+
+A model with per-mode FSI (``fsi_per_mode``) gives each measured mode from its
+own FEM, altered by that mode's added mass and damping: its poles cost one
+eigen-solution per measured mode, and the mode's own parameters move only it.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.stats
 import xarray as xr
 
 from twin.errors import ModelError
-from twin.fem.effects import CHANGE_FRACTION, FluidAddedMass, with_shared_fsi
+from twin.fem.effects import CHANGE_FRACTION, with_shared_fsi
 from twin.fem.model import RotorModel
-from twin.loop.candidates import Candidate, with_effect
-from twin.loop.compare import Measured, channel_dofs, overall_error, pair_with_measured
-from twin.loop.sensitivity import ModalSolution, pole_jacobian, solve_modes
+from twin.loop.compare import (
+    PER_MODE_NAME,
+    Measured,
+    _per_mode_effect,
+    channel_dofs,
+    overall_error,
+    pair_with_measured,
+    pairing_cost,
+    per_mode_values,
+)
+from twin.loop.sensitivity import ModalSolution, follow_mode, pole_jacobian, solve_modes
 from twin.modes.shapes import mac
+from twin.tasks import one_blas_thread
 
 log = logging.getLogger(__name__)
 
+#: Start points tried along each shared parameter's prior, in prior units (the best becomes the start).
+START_POINTS = (-2.0, -1.0, -0.5, 0.5, 1.0, 2.0)
+#: A per-mode partner followed by Newton must keep this MAC (all DOFs) with its last shape, else it is paired anew.
+FOLLOW_MAC = 0.9
 #: Levenberg-Marquardt iterations at most, and the Newton decrement ``gᵀH⁻¹g / 2`` (a change of the log evidence) that counts as converged.
 MAX_ITERATIONS = 40
 DECREMENT_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
+class Prior:
+    """Truncated Gaussian priors ``θ = mean + scale u``, ``u ~ N(0, 1)`` inside ``[low, high]`` (SI).
+
+    Examples
+    --------
+    >>> p = Prior(["MAG.stiffness"], np.zeros(1), np.array([1e8]), np.array([-np.inf]), np.zeros(1))
+    >>> round(p.log_mass, 4)  # a sign constraint keeps half the prior
+    -0.6931
+    """
+
+    names: list[str]
+    mean: np.ndarray
+    scale: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    @property
+    def u_low(self) -> np.ndarray:
+        """Lower bounds in prior units."""
+        return (self.low - self.mean) / self.scale
+
+    @property
+    def u_high(self) -> np.ndarray:
+        """Upper bounds in prior units."""
+        return (self.high - self.mean) / self.scale
+
+    @property
+    def log_mass(self) -> float:
+        """``Σ ln P_k``: the log prior mass inside the bounds."""
+        mass = scipy.stats.norm.cdf(self.u_high) - scipy.stats.norm.cdf(self.u_low)
+        return float(np.sum(np.log(mass)))
+
+    def values(self, u: np.ndarray) -> dict[str, float]:
+        """Parameter values [SI] at prior coordinates ``u``."""
+        return {n: float(m + s * x) for n, m, s, x in zip(self.names, self.mean, self.scale, u)}
+
+    def coordinates(self, values: Mapping[str, float]) -> np.ndarray:
+        """Prior coordinates ``u`` of values [SI], clipped into the bounds."""
+        u = (np.array([values[n] for n in self.names]) - self.mean) / self.scale
+        return np.clip(u, self.u_low, self.u_high)
+
+
+def effect_priors(model: RotorModel, effect) -> dict[str, float]:
+    """``{parameter: plausible scale [SI]}`` of an effect of ``model``, in parameter order."""
+    scales = effect.plausible_scale(model)
+    return {p.name: scales[p.name] for p in effect.parameters(model)}
+
+
+def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
+    """The priors of parameters ``names`` of ``model`` (see the module docstring).
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.loop.candidates import add_effects
+    >>> model = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull"])
+    >>> p = prior_for(model, ["MAG.stiffness", "UGB.kxx"])
+    >>> float(p.mean[0]), bool(p.scale[1] == 0.5 * model.parameter("UGB.kxx").nominal), float(p.high[0]), float(p.low[1])
+    (0.0, True, 0.0, 0.0)
+    """
+    owned: dict[str, float] = {}
+    for effect in model.effects:
+        owned.update(effect_priors(model, effect))
+    mean, scale, low, high = [], [], [], []
+    for n in names:
+        p = model.parameter(n)  # names an unknown parameter clearly
+        if n in owned:
+            m, s = 0.0, owned[n]
+        else:
+            m, s = p.nominal, CHANGE_FRACTION * abs(p.nominal)
+        if not s > 0:
+            raise ModelError(f"parameter '{n}' has no prior scale (nominal {p.nominal:g}): give it through an effect")
+        mean.append(m), scale.append(float(s)), low.append(p.bounds[0]), high.append(p.bounds[1])
+    return Prior(list(names), np.array(mean), np.array(scale), np.array(low), np.array(high))
+
+
+@dataclass(frozen=True)
+class Poles:
+    """Model partners of the measured modes at one parameter point: poles, MACs, and ``∂λ/∂θ`` if asked."""
+
+    poles: np.ndarray  # (n,) complex
+    mac: np.ndarray  # (n,)
+    jacobian: np.ndarray | None  # (n, k) complex, per SI unit of each parameter
+
+
+class PoleModel:
+    """The model's partner of every measured mode as a function of parameter values.
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.loop.compare import measured_modes
+    >>> from twin.update import synthesize_modes
+    >>> model = load_model("models/hydro_unit.toml")
+    >>> at = PoleModel(model, measured_modes(synthesize_modes(model, samples=5, seed=1))).at({}, ["runner.m"])
+    >>> at.poles.shape, at.jacobian.shape
+    ((15,), (15, 1))
+    """
+
+    def __init__(self, model: RotorModel, meas: Measured) -> None:
+        self.model, self.meas = model, meas
+        self.dofs = channel_dofs(model, meas.channels)
+        self.per_mode = _per_mode_effect(model) is not None
+        self.base = with_shared_fsi(model) if self.per_mode else model
+        self._followed: dict[int, tuple[complex, np.ndarray]] = {}  # per-mode partners, by measured index
+
+    def at(self, values: Mapping[str, float], names: Sequence[str] = ()) -> Poles:
+        """Partners at ``values`` (overriding the model's), with ``∂λ/∂θ`` for ``names`` when given."""
+        if not self.per_mode:
+            sol = solve_modes(self.model, values)
+            m, cols = pair_with_measured(sol, self.meas, self.dofs)
+            jac = pole_jacobian(self.model, sol, list(names), cols) if len(names) else None
+            return Poles(sol.poles[cols], m[np.arange(len(cols)), cols], jac)
+        return self._per_mode_at(values, names)
+
+    def _partner(self, r: int, values: Mapping[str, float]) -> tuple[ModalSolution, int]:
+        """The partner of measured mode ``r`` in the FEM at ``values``: followed by Newton from its last
+        partner (:func:`twin.loop.sensitivity.follow_mode`), or, the first time or when the followed mode
+        changed shape (MAC on all DOFs below :data:`FOLLOW_MAC`), chosen by pairing cost among all modes."""
+        if r in self._followed:
+            pole, shape = self._followed[r]
+            sol = follow_mode(self.base, values, pole, shape)
+            if sol is not None and mac(shape[None, :], sol.right[:1])[0, 0] >= FOLLOW_MAC:
+                self._followed[r] = (sol.poles[0], sol.right[0])
+                return sol, 0
+        sol = solve_modes(self.base, values)
+        cost, _ = pairing_cost(self.meas.subset(np.array([r])), sol.poles, sol.right[:, self.dofs])
+        k = int(np.argmin(cost[0]))
+        self._followed[r] = (sol.poles[k], sol.right[k])
+        return sol, k
+
+    def _per_mode_at(self, values: Mapping[str, float], names: Sequence[str]) -> Poles:
+        shared = {k: v for k, v in values.items() if not PER_MODE_NAME.match(k)}
+        all_values = {**self.model.values, **dict(values)}
+        n = len(self.meas.mode)
+        poles, macs = np.empty(n, complex), np.empty(n)
+        jac = np.zeros((n, len(names)), complex) if len(names) else None
+        fsi = ["FSI.added_mass", "FSI.added_damping"]
+        for r in range(n):
+            label = int(self.meas.mode[r])
+            altered = per_mode_values(self.model, self.base, label, all_values)
+            sol, k = self._partner(r, {**shared, **altered})
+            macs[r] = float(mac(self.meas.shape[r][None, :], sol.right[k, self.dofs][None, :])[0, 0])
+            poles[r] = sol.poles[k]
+            if jac is None:
+                continue
+            own = {f"FSI.added_mass_{label}": 0, f"FSI.added_damping_{label}": 1}
+            cols = [j for j, nm in enumerate(names) if not PER_MODE_NAME.match(nm)]
+            if cols:
+                jac[r, cols] = pole_jacobian(self.base, sol, [names[j] for j in cols], [k])[0]
+            mine = [(j, own[nm]) for j, nm in enumerate(names) if nm in own]
+            if mine:
+                d = pole_jacobian(self.base, sol, fsi, [k])[0]
+                for j, q in mine:
+                    jac[r, j] = d[q]
+        return Poles(poles, macs, jac)
+
+
+@dataclass(frozen=True)
 class Fit:
-    """The fitted candidate.
+    """A fitted hypothesis.
 
     Attributes
     ----------
     label : str
-        Candidate label.
+        What was fitted (a candidate label, ``a+b`` for several, ``update``).
     names, units : list of str
         Fitted parameters.
     values, std : (k,) float
         MAP and Laplace posterior std [SI].
+    covariance : (k, k) float
+        Laplace posterior covariance [SI].
     scale : (k,) float
         Prior (plausible) scale [SI].
-    measured : (n,) int
-        Indices of the measured modes used (paired with the model).
     poles_before, poles_after : (n,) complex
-        Model poles without and with the fitted effect.
+        Partners of every measured mode at the start values and at the MAP.
+    mac_after : (n,) float
+        Their MAC at the MAP.
     chi2_before, chi2_after : float
         Sum of squared residuals in sigmas.
+    log_evidence : float
+        ``ln Z`` of the hypothesis (module docstring); comparable between
+        hypotheses on the same measured modes.
     log_bayes_factor : float
-        ``ln B`` against the model without the effect.
+        ``ln Z`` less that of the reference hypothesis (by default the model
+        as it is, at the start values).
     converged : bool
     at_bound : list of str
-        Sign-constrained parameters whose MAP sits at zero.
+        Parameters whose MAP sits on a physical bound.
     """
 
     label: str
@@ -79,117 +270,137 @@ class Fit:
     units: list[str]
     values: np.ndarray
     std: np.ndarray
+    covariance: np.ndarray
     scale: np.ndarray
-    measured: np.ndarray
     poles_before: np.ndarray
     poles_after: np.ndarray
+    mac_after: np.ndarray
     chi2_before: float
     chi2_after: float
+    log_evidence: float
     log_bayes_factor: float
     converged: bool
     at_bound: list[str] = field(default_factory=list)
 
     def error_before(self, meas: Measured) -> float:
-        """The overall error ``E`` of the model without the effect, on the modes used."""
-        return overall_error(self.poles_before, meas.pole[self.measured], meas.sigma[self.measured])
+        """The overall error ``E`` at the start values."""
+        return overall_error(self.poles_before, meas.pole, meas.sigma)
 
     def error_after(self, meas: Measured) -> float:
-        """The overall error ``E`` with the fitted effect, on the modes used."""
-        return overall_error(self.poles_after, meas.pole[self.measured], meas.sigma[self.measured])
+        """The overall error ``E`` at the MAP."""
+        return overall_error(self.poles_after, meas.pole, meas.sigma)
 
     @property
     def residual_dof(self) -> int:
-        """Degrees of freedom left to the residuals: two data per mode used, less the parameters."""
-        return 2 * len(self.measured) - len(self.names)
+        """Degrees of freedom left to the residuals: two data per measured mode, less the parameters."""
+        return 2 * len(self.poles_after) - len(self.names)
+
+    def value_of(self) -> dict[str, float]:
+        """``{name: MAP}`` [SI]."""
+        return dict(zip(self.names, map(float, self.values)))
 
 
-class _Tracker:
-    """Follows the model modes paired with measured modes from one parameter point to the next."""
-
-    def __init__(self, model: RotorModel, sol: ModalSolution, meas: Measured, keep: np.ndarray | None = None):
-        _, rows, cols = pair_with_measured(sol, meas, channel_dofs(model, meas.channels))
-        if keep is not None:
-            sel = np.isin(rows, keep)
-            rows, cols = rows[sel], cols[sel]
-        self.rows = rows
-        self.update(sol, cols)
-
-    def follow(self, sol: ModalSolution) -> np.ndarray:
-        """Indices into ``sol`` of the tracked modes (MAC on all DOFs, nearest pole breaks ties)."""
-        m = mac(self.shapes, sol.right)
-        dist = np.abs(sol.poles[None, :] - self.poles[:, None]) / np.abs(self.poles[:, None])
-        return np.argmax(m - 1e-3 * dist, axis=1)
-
-    def update(self, sol: ModalSolution, cols: np.ndarray) -> None:
-        self.cols, self.shapes, self.poles = cols, sol.right[cols], sol.poles[cols]
-
-
-def scaled_rows(values: np.ndarray, meas: Measured, rows: np.ndarray) -> np.ndarray:
+def scaled_rows(values: np.ndarray, meas: Measured) -> np.ndarray:
     """Complex per-mode rows (residuals or Jacobian rows) as real parts over σ_re, then imaginary over σ_im."""
     values = np.asarray(values)
     shape = (-1,) + (1,) * (values.ndim - 1)
-    sig_re, sig_im = meas.sigma[rows, 0].reshape(shape), meas.sigma[rows, 1].reshape(shape)
+    sig_re, sig_im = meas.sigma[:, 0].reshape(shape), meas.sigma[:, 1].reshape(shape)
     return np.concatenate([values.real / sig_re, values.imag / sig_im])
 
 
-def _residual(poles: np.ndarray, meas: Measured, rows: np.ndarray) -> np.ndarray:
-    return scaled_rows(poles - meas.pole[rows], meas, rows)
+def residual(poles: np.ndarray, meas: Measured) -> np.ndarray:
+    """Pole residuals of every measured mode in sigmas (real parts, then imaginary parts)."""
+    return scaled_rows(poles - meas.pole, meas)
 
 
-def _jacobian(model, sol, names, cols, meas, rows, scale) -> np.ndarray:
-    return scaled_rows(pole_jacobian(model, sol, names, cols) * scale[None, :], meas, rows)
+def log_evidence_as_is(model: RotorModel, meas: Measured) -> tuple[float, np.ndarray]:
+    """``(ln Z, poles)`` of the model as it is, nothing fitted: ``ln Z = −½|r|²``."""
+    at = PoleModel(model, meas).at({})
+    r = residual(at.poles, meas)
+    return float(-0.5 * r @ r), at.poles
 
 
-def fit_parameters(
+@one_blas_thread
+def fit(
     model: RotorModel,
     meas: Measured,
-    label: str,
     names: Sequence[str],
-    scale: np.ndarray,
-    signs: Sequence[int],
-    keep: np.ndarray | None = None,
+    label: str = "fit",
+    *,
+    reference: float | None = None,
+    start: Mapping[str, float] | None = None,
 ) -> Fit:
-    """MAP fit of parameters ``names`` (zero at the start) to the measured poles, with its evidence.
+    """MAP fit of the hypothesis ``names`` to the measured poles, with its log evidence.
 
-    The parameters are ``θ = scale * u`` with the prior of the module
-    docstring; ``keep`` restricts the data to some measured modes (indices).
+    Parameters
+    ----------
+    model : RotorModel
+        Has every parameter of ``names`` (add candidate effects first).
+    meas : Measured
+    names : sequence of str
+        The hypothesis: parameters to fit, priors from :func:`prior_for`.
+    label : str
+        Name of the hypothesis in reports.
+    reference : float, optional
+        ``ln Z`` of the hypothesis to compare with (default: the model as it is).
+    start : mapping, optional
+        Start values [SI] (default: the model's values, clipped into the bounds).
+
+    Returns
+    -------
+    Fit
+
+    Examples
+    --------
+    >>> from twin import load_model
+    >>> from twin.fem.effects import MagneticPull
+    >>> from twin.fem.truthfile import Truth
+    >>> from twin.loop.compare import measured_modes
+    >>> from twin.update import synthesize_modes
+    >>> base = load_model("models/hydro_unit.toml")
+    >>> data = synthesize_modes(base, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1,
+    ...                         pole_variance=(0.01, 0.01))
+    >>> f = fit(base.with_effects(MagneticPull()), measured_modes(data), ["MAG.stiffness"], "magnetic_pull")
+    >>> round(float(f.values[0]) / -2e8, 1), f.log_bayes_factor > 3
+    (1.0, True)
     """
-    names, scale, signs = list(names), np.asarray(scale, float), np.asarray(signs)
-    base = {n: model.parameter(n).nominal for n in names}
-
-    def values(u):
-        return {n: base[n] + s * x for n, s, x in zip(names, scale, u)}
-
-    sol = solve_modes(model, values(np.zeros(len(names))))
-    tracker = _Tracker(model, sol, meas, keep)
-    rows = tracker.rows
-    poles_before = tracker.poles.copy()
-    u = np.zeros(len(names))
-    r0 = r = _residual(tracker.poles, meas, rows)
-    J = _jacobian(model, sol, names, tracker.cols, meas, rows, scale)
+    names = list(names)
+    prior = prior_for(model, names)
+    pm = PoleModel(model, meas)
+    first = {n: model.parameter(n).nominal for n in names} | dict(start or {})
+    u0 = prior.coordinates(first)
+    u = _best_start(pm, prior, u0, meas)
+    at = pm.at(prior.values(u), names)
+    as_is = np.array([model.parameter(n).nominal for n in names])
+    moved = not np.allclose(list(prior.values(u0).values()), as_is, rtol=1e-12, atol=1e-12 * prior.scale.max(initial=0))
+    poles_before = pm.at({}).poles if moved or u is not u0 else at.poles  # the model as it is
+    r0 = residual(poles_before, meas)
+    r = residual(at.poles, meas)
+    J = scaled_rows(at.jacobian * prior.scale[None, :], meas)
     cost = 0.5 * (r @ r + u @ u)
+    lo, hi = prior.u_low, prior.u_high
     mu, converged = 1e-3, False
     for _ in range(MAX_ITERATIONS):
         H = J.T @ J + np.eye(len(u))
         g = J.T @ r + u
-        # a sign-constrained parameter at zero, pushed outwards, stays at zero
-        free = ~((signs != 0) & (u == 0.0) & (signs * g > 0))
+        # a parameter on a bound, pushed outwards, stays there
+        free = ~(((u <= lo) & (g > 0)) | ((u >= hi) & (g < 0)))
         Hf, gf = H[np.ix_(free, free)], g[free]
         if not free.any() or 0.5 * gf @ np.linalg.solve(Hf, gf) < DECREMENT_TOLERANCE:
             converged = True
             break
         step = np.zeros(len(u))
         step[free] = np.linalg.solve(Hf + mu * np.diag(np.diag(Hf)), -gf)
-        trial = u + step
-        trial = np.where(signs > 0, np.maximum(trial, 0.0), np.where(signs < 0, np.minimum(trial, 0.0), trial))
-        s_new = solve_modes(model, values(trial))
-        cols = tracker.follow(s_new)
-        r_new = _residual(s_new.poles[cols], meas, rows)
-        new_cost = 0.5 * (r_new @ r_new + trial @ trial)
+        trial = np.clip(u + step, lo, hi)
+        try:
+            new = pm.at(prior.values(trial), names)
+        except ModelError:  # a point where the model cannot be solved (mass not positive definite): step back
+            new = None
+        r_new = residual(new.poles, meas) if new is not None else None
+        new_cost = 0.5 * (r_new @ r_new + trial @ trial) if new is not None else np.inf
         if new_cost <= cost:
-            u, r, cost, sol = trial, r_new, new_cost, s_new
-            tracker.update(sol, cols)
-            J = _jacobian(model, sol, names, cols, meas, rows, scale)
+            u, r, cost, at = trial, r_new, new_cost, new
+            J = scaled_rows(at.jacobian * prior.scale[None, :], meas)
             mu = max(mu / 3, 1e-9)
         else:
             mu *= 4
@@ -197,106 +408,46 @@ def fit_parameters(
                 converged = True  # no descent direction left: a (possibly constrained) minimum
                 break
     H = J.T @ J + np.eye(len(u))
-    ln_det = float(np.linalg.slogdet(H)[1])
-    n_signed = int(np.count_nonzero(signs))
-    ln_b = 0.5 * (r0 @ r0 - r @ r - u @ u) - 0.5 * ln_det + n_signed * np.log(2.0)
-    std = scale * np.sqrt(np.diag(np.linalg.inv(H)))
-    at_bound = [n for n, sg, x in zip(names, signs, u) if sg and x == 0.0]
+    ln_z = float(-0.5 * (r @ r + u @ u) - 0.5 * np.linalg.slogdet(H)[1] - prior.log_mass)
+    ref = float(-0.5 * r0 @ r0) if reference is None else float(reference)
+    cov = np.linalg.inv(H) * np.outer(prior.scale, prior.scale)
+    std = np.sqrt(np.diag(cov))
+    on_bound = (np.isfinite(lo) & (u <= lo)) | (np.isfinite(hi) & (u >= hi))
     units = [model.parameter(n).unit for n in names]
-    return Fit(label, names, units, scale * u, std, scale, rows, poles_before, tracker.poles.copy(),
-               float(r0 @ r0), float(r @ r), float(ln_b), converged, at_bound)  # fmt: skip
+    values = np.array([prior.values(u)[n] for n in names])
+    return Fit(label, names, units, values, std, cov, prior.scale, poles_before, at.poles.copy(), at.mac.copy(),
+               float(r0 @ r0), float(r @ r), ln_z, ln_z - ref, converged,
+               [n for n, b in zip(names, on_bound) if b])  # fmt: skip
 
 
-def fit_candidate(model: RotorModel, meas: Measured, candidate: Candidate) -> Fit:
-    """Fit one candidate effect to the measured poles (see the module docstring).
-
-    Examples
-    --------
-    >>> import dataclasses
-    >>> from twin import load_model
-    >>> from twin.fem.effects import MagneticPull
-    >>> from twin.loop.candidates import Candidate
-    >>> from twin.loop.compare import measured_modes
-    >>> from twin.update import synthesize_modes
-    >>> from twin.fem.truthfile import Truth
-    >>> model = load_model("models/hydro_unit.toml")
-    >>> data = synthesize_modes(model, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1,
-    ...                         pole_variance=(0.01, 0.01))
-    >>> fit = fit_candidate(model, measured_modes(data), Candidate("magnetic_pull", MagneticPull()))
-    >>> round(float(fit.values[0]) / -2e8, 1)
-    1.0
-    """
-    if candidate.per_mode:
-        return _fit_per_mode(model, meas, candidate)
-    altered = with_effect(model, candidate.effect)
-    priors = effect_priors(altered, candidate.effect)
-    return fit_parameters(altered, meas, candidate.label, list(priors), np.array([s for s, _ in priors.values()]),
-                          [g for _, g in priors.values()])  # fmt: skip
+def _best_start(pm: PoleModel, prior: Prior, u0: np.ndarray, meas: Measured) -> np.ndarray:
+    """``u0`` or the point of :data:`START_POINTS` along one shared parameter with the lowest objective."""
+    best, best_cost = u0, np.inf
+    shared = [k for k, n in enumerate(prior.names) if not PER_MODE_NAME.match(n)]
+    points = [u0]
+    for k in shared:
+        for x in START_POINTS:
+            u = u0.copy()
+            u[k] = np.clip(x, prior.u_low[k], prior.u_high[k])
+            if not np.array_equal(u, u0) and not any(np.array_equal(u, q) for q in points):
+                points.append(u)
+    for u in points:
+        try:
+            r = residual(pm.at(prior.values(u)).poles, meas)
+        except ModelError:
+            continue
+        cost = 0.5 * (r @ r + u @ u)
+        if cost < best_cost:
+            best, best_cost = u, cost
+    return best
 
 
-def _fit_per_mode(model: RotorModel, meas: Measured, candidate: Candidate) -> Fit:
-    """Per-mode FSI: each paired mode fitted alone with its own added mass and damping; evidences add."""
-    base = with_shared_fsi(model)
-    shared = ["FSI.added_mass", "FSI.added_damping"]
-    scales = FluidAddedMass().plausible_scale(base)
-    scale = np.array([scales[n] for n in shared])
-    fits = []
-    for row in _Tracker(base, solve_modes(base), meas).rows:
-        fit = fit_parameters(base, meas, candidate.label, shared, scale, FluidAddedMass.signs, keep=np.array([row]))
-        if len(fit.measured) == 1:
-            label = int(meas.mode[row])
-            fits.append(dataclasses.replace(fit, names=[f"{n}_{label}" for n in fit.names],
-                                            at_bound=[f"{n}_{label}" for n in fit.at_bound]))  # fmt: skip
-
-    def joined(attr):
-        return np.concatenate([getattr(f, attr) for f in fits]) if fits else np.array([])
-
-    return Fit(candidate.label, [n for f in fits for n in f.names], [u for f in fits for u in f.units],
-               joined("values"), joined("std"), joined("scale"), joined("measured").astype(int),
-               joined("poles_before"), joined("poles_after"), float(sum(f.chi2_before for f in fits)),
-               float(sum(f.chi2_after for f in fits)), float(sum(f.log_bayes_factor for f in fits)),
-               all(f.converged for f in fits), [n for f in fits for n in f.at_bound])  # fmt: skip
-
-
-def effect_priors(model: RotorModel, effect) -> dict[str, tuple[float, int]]:
-    """``{parameter: (plausible scale [SI], allowed sign)}`` of an effect of ``model``, in parameter order."""
-    names = [p.name for p in effect.parameters(model)]
-    scales = effect.plausible_scale(model)
-    signs = tuple(effect.signs) * (len(names) // max(len(effect.signs), 1))  # per-mode effects repeat theirs
-    return {n: (scales[n], g) for n, g in zip(names, signs)}
-
-
-def prior_scales(model: RotorModel, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Prior scale [SI] and allowed sign of each parameter, for :func:`fit_parameters`.
-
-    An effect's parameter takes the effect's plausible scale and sign; any other
-    parameter :data:`twin.fem.effects.CHANGE_FRACTION` of its nominal value, either sign.
-
-    Examples
-    --------
-    >>> from twin import load_model
-    >>> from twin.loop.candidates import add_effects
-    >>> model = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull"])
-    >>> scale, signs = prior_scales(model, ["MAG.stiffness", "UGB.kxx"])
-    >>> signs.tolist(), bool(scale[1] == 0.5 * model.parameter("UGB.kxx").nominal)
-    ([-1, 0], True)
-    """
-    owned = {n: prior for effect in model.effects for n, prior in effect_priors(model, effect).items()}
-    scale, sign = [], []
-    for n in names:
-        nominal = model.parameter(n).nominal  # names an unknown parameter clearly
-        s, g = owned.get(n, (CHANGE_FRACTION * abs(nominal), 0))
-        if not s > 0:
-            raise ModelError(f"parameter '{n}' has no prior scale (nominal {nominal:g}): give it through an effect")
-        scale.append(float(s)), sign.append(int(g))
-    return np.array(scale), np.array(sign)
-
-
+@one_blas_thread
 def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> tuple[RotorModel, xr.Dataset]:
     """Gaussian (Laplace) posterior of parameters ``names`` from the measured poles, and the model at its MAP.
 
-    The fit of :func:`fit_parameters` from the model's current values, with the
-    priors of :func:`prior_scales`. Poles only: fast, and blind to shape errors.
+    The fit of :func:`fit` from the model's current values, with the priors
+    of :func:`prior_for`. Poles only: fast, and blind to shape errors.
 
     Returns
     -------
@@ -321,22 +472,24 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
     (1.0, 1.0)
     """
     names = list(names)
-    scale, signs = prior_scales(model, names)
-    fit = fit_parameters(model, meas, "update", names, scale, signs)
-    values = {n: model.parameter(n).nominal + v for n, v in zip(names, fit.values)}
+    f = fit(model, meas, names, "update")
+    values = f.value_of()
     post = xr.Dataset(
         {
-            "map": ("parameter", [values[n] for n in names], {"long_name": "posterior mode (Laplace)"}),
-            "std": ("parameter", fit.std, {"long_name": "posterior std (Laplace)"}),
-            "prior_scale": ("parameter", scale, {"long_name": "prior std (plausible scale)"}),
-            "unit": ("parameter", fit.units),
+            "map": ("parameter", f.values, {"long_name": "posterior mode (Laplace)"}),
+            "std": ("parameter", f.std, {"long_name": "posterior std (Laplace)"}),
+            "prior_scale": ("parameter", f.scale, {"long_name": "prior std (plausible scale)"}),
+            "covariance": (("parameter", "parameter_2"), f.covariance, {"long_name": "posterior covariance (Laplace)"}),
+            "low": ("parameter", [model.parameter(n).bounds[0] for n in names], {"long_name": "physical lower bound"}),
+            "high": ("parameter", [model.parameter(n).bounds[1] for n in names], {"long_name": "physical upper bound"}),
+            "unit": ("parameter", f.units),
         },
-        coords={"parameter": names},
+        coords={"parameter": names, "parameter_2": names},
         attrs={"method": "Laplace approximation of the pole-fit posterior (twin.loop.fit.laplace_update)",
-               "chi2_before": fit.chi2_before, "chi2_after": fit.chi2_after,
-               "log_bayes_factor": fit.log_bayes_factor, "converged": int(fit.converged),
-               "at_bound": ", ".join(fit.at_bound)},
+               "chi2_before": f.chi2_before, "chi2_after": f.chi2_after,
+               "log_bayes_factor": f.log_bayes_factor, "converged": int(f.converged),
+               "at_bound": ", ".join(f.at_bound)},
     )  # fmt: skip
-    if not fit.converged:
+    if not f.converged:
         log.warning("Laplace update of %s did not converge in %d iterations", names, MAX_ITERATIONS)
     return model.with_values(values), post

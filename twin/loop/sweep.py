@@ -1,24 +1,23 @@
-"""Scenario sweeps: the demo's loop over hidden effects and seeds, one task per scenario.
+"""Scenario sweeps: the demo's loop over hidden changes and seeds, one task per scenario.
 
-A scenario is a hidden effect (a key of :data:`twin.loop.demo.HIDDEN_EFFECTS`,
-a change outside the library, a key of :data:`twin.loop.demo.OUTSIDE_LIBRARY`,
-or ``"none"``) and a seed of the turbulence and the sensor noise. Each runs
-:func:`twin.loop.demo.run_demo` into its own report folder
-``OUT/<hidden>_seed<N>`` and returns a small summary; the scenarios are
-independent, so they run as tasks on Dask (:mod:`twin.tasks`) as well as one
-after the other here. The summaries make one Dataset over ``scenario``
-(and ``parameter`` for the identified values), written to ``OUT/sweep.nc``.
+A scenario is a spec of what the truth hides (:mod:`twin.loop.scenarios`:
+library effects at some size, several at once, a local change outside the
+library, or ``none``) and a seed of the turbulence and the sensor noise. Each
+runs :func:`twin.loop.demo.run_demo` into its own report folder and returns a
+small summary; the scenarios are independent, so they run as tasks on Dask
+(:mod:`twin.tasks`) as well as one after the other here. The summaries make
+one Dataset over ``scenario`` (and ``parameter`` for the identified values),
+written to ``OUT/sweep.nc``.
 
-A scenario is *passed* when the diagnosis names the hidden effect (or, with
-nothing hidden, says nothing is missing; with a change outside the library,
-says nothing in the library explains the data and points at its shaft
-element), the error falls by at least
-:data:`MIN_FALL` and every identified parameter is within
+A scenario is *passed* when the diagnosis is right (:meth:`~twin.loop.scenarios.Scenario.expected`:
+exactly the hidden library effects named; "unexplained" and the place of a
+hidden local change; "nothing missing" with nothing hidden), the error falls
+by at least :data:`MIN_FALL` and every identified parameter is within
 :data:`MAX_PARAMETER_ERROR` of its truth or within :data:`MAX_Z` posterior
 standard deviations of it (a parameter the record cannot pin down); with
-nothing hidden or a change outside the library, nothing is added or updated.
-It is *passed strictly* when every identified parameter is within
-:data:`MAX_PARAMETER_ERROR` of its truth, whatever its standard deviation.
+nothing to add, nothing is updated. It is *passed strictly* when every
+identified parameter is within :data:`MAX_PARAMETER_ERROR` of its truth,
+whatever its standard deviation.
 """
 
 from __future__ import annotations
@@ -39,7 +38,8 @@ import xarray as xr
 from twin import __version__
 from twin.errors import TwinError
 from twin.fem.model import RotorModel
-from twin.loop.demo import DEMO_SAMPLES, HIDDEN_EFFECTS, NOTHING, OUTSIDE_LIBRARY, hidden_labels, run_demo
+from twin.loop.demo import DEMO_SAMPLES, run_demo
+from twin.loop.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
 from twin.netcdf import check_writable, write_netcdf
 from twin.tasks import mapper
 
@@ -64,33 +64,68 @@ class Settings:
 
 
 def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:
-    """Every hidden effect with every seed (default: the whole table of hidden effects).
+    """Every hidden spec with every seed (default: each library effect at its reference size).
 
     Examples
     --------
     >>> scenario_grid(["magnetic_pull", "none"], seeds=[1, 2])
     [('magnetic_pull', 1), ('magnetic_pull', 2), ('none', 1), ('none', 2)]
     """
-    hidden = list(HIDDEN_EFFECTS) if hidden is None else list(hidden)
-    _check_hidden(hidden)
+    hidden = list(REFERENCE_EFFECTS) if hidden is None else list(hidden)
+    for h in hidden:
+        parse_scenario(h)  # names a bad spec
     return [(h, int(s)) for h, s in itertools.product(hidden, seeds)]
 
 
-def _check_hidden(hidden: Sequence[str]) -> None:
-    known = hidden_labels()
-    unknown = [h for h in hidden if h not in known]
-    if unknown:
-        raise TwinError(f"unknown hidden effect(s) {', '.join(unknown)}; choose from {', '.join(known)}")
+def read_scenarios(path: str | Path) -> list[tuple[str, int]]:
+    r"""Scenarios from a text file: one ``SPEC SEED[,SEED...]`` per line, ``#`` comments.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     f = pathlib.Path(tmp, "s.txt")
+    ...     _ = f.write_text("# suite\nmagnetic_pull@0.2 31,32\nnone 40\n")
+    ...     read_scenarios(f)
+    [('magnetic_pull@0.2', 31), ('magnetic_pull@0.2', 32), ('none', 40)]
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as err:
+        raise TwinError(f"{path}: cannot read the scenarios ({err.strerror})") from None
+    out = []
+    for n, line in enumerate(lines, start=1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        parts = text.split()
+        if len(parts) != 2:
+            raise TwinError(f"{path}, line {n}: expected 'SPEC SEED[,SEED...]', got '{text}'")
+        try:
+            seeds = [int(x) for x in parts[1].split(",")]
+            parse_scenario(parts[0])
+        except ValueError:
+            raise TwinError(f"{path}, line {n}: seeds are comma-separated integers, got '{parts[1]}'") from None
+        except TwinError as err:
+            raise TwinError(f"{path}, line {n}: {err}") from None
+        out += [(parts[0], s) for s in seeds]
+    if not out:
+        raise TwinError(f"{path}: no scenario in the file")
+    return out
 
 
-def _found(hidden: str, row: dict) -> bool:
-    """Whether the diagnosis of a scenario is right: the hidden effect named, nothing missing with nothing
-    hidden, or, for a change outside the library, "unexplained" and pointing at its shaft element."""
-    if hidden == NOTHING:
+def right_diagnosis(scenario: Scenario, row: dict) -> bool:
+    """Whether a scenario's diagnosis is right (see the module docstring)."""
+    named, location = set(filter(None, row["missing"].split("+"))), row["location"]
+    if scenario.nothing:
         return row["verdict"] == "nothing missing"
-    if hidden in OUTSIDE_LIBRARY:
-        return row["verdict"] == "unexplained" and row["location"] == OUTSIDE_LIBRARY[hidden].element
-    return row["verdict"] == "missing effect" and row["missing"] == hidden
+    if not scenario.changes:
+        return row["verdict"] == "missing effect" and named == set(scenario.labels)
+    place = location in scenario.change_labels
+    if not scenario.effects:
+        return row["verdict"] == "unexplained" and place and not named
+    return row["verdict"] == "partly explained" and named == set(scenario.labels) and place
 
 
 def folder_name(hidden: str, seed: int) -> str:
@@ -98,10 +133,10 @@ def folder_name(hidden: str, seed: int) -> str:
 
     Examples
     --------
-    >>> folder_name("bearing_change:LGB", 2)
-    'bearing_change_LGB_seed2'
+    >>> folder_name("bearing_change:LGB@0.5", 2)
+    'bearing_change_LGB_x0.5_seed2'
     """
-    return f"{hidden.replace(':', '_')}_seed{seed}"
+    return f"{parse_scenario(hidden).folder}_seed{seed}"
 
 
 def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, settings: Settings) -> dict:
@@ -112,22 +147,29 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
         warnings.simplefilter("always")
         r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
                      **dataclasses.asdict(settings))  # fmt: skip
-    d = r.diagnosis
+    d, final = r.diagnosis, r.final
     ranking = d.ranking
     params: dict[str, tuple[float, float, float]] = {}
     if r.posterior is not None:
         ident = r.identified()
         for k, name in enumerate(ident["parameter"].values):
             params[str(name)] = (float(ident["map"][k]), float(ident["std"][k]), float(ident["truth"][k]))
+    located = final.locations or d.locations
     return {
-        "verdict": d.verdict,
-        "missing": d.missing or "",
+        "verdict": d.verdict if not r.named else ("missing effect" if final.verdict == "nothing missing"
+                                                   else final.verdict),
+        "missing": "+".join(r.named) if r.named else "+".join(d.missing),
+        "rounds": len(r.twin.diagnoses),
+        "final_verdict": final.verdict,
         "top_score": ranking[0].log_bayes_factor if ranking else np.nan,
         "lead": ranking[0].log_bayes_factor - ranking[1].log_bayes_factor if len(ranking) > 1 else np.nan,
         "error_before": r.twin.history[0].error,
         "error_after": r.twin.history[-1].error,
+        "chi2_before": float(r.twin.history[0].table.attrs["chi2"]),
+        "chi2_after": float(r.twin.history[-1].table.attrs["chi2"]),
+        "n_data": int(r.twin.history[0].table.attrs["n_data"]),
         "parameters": params,
-        "location": d.locations[0].element if d.locations else -1,
+        "location": located[0].label if located and d.verdict in ("unexplained", "partly explained") else "",
         "elapsed_s": time.perf_counter() - t0,
         "warnings": [(w.category, str(w.message)) for w in caught],
     }
@@ -164,9 +206,10 @@ def sweep(
     -------
     xarray.Dataset
         Over ``scenario`` (coordinates ``hidden``, ``seed``): ``verdict``,
-        ``missing``, ``top_score``, ``lead``, ``error_before``, ``error_after``,
-        ``fall``, ``passed``, ``passed_strict``, ``elapsed_s``; over ``scenario`` x ``parameter``:
-        ``map``, ``std``, ``truth``, ``relative_error``, ``z``.
+        ``missing``, ``expected``, ``location``, ``rounds``, ``top_score``, ``lead``,
+        ``error_before``, ``error_after``, ``chi2_before``, ``chi2_after``, ``n_data``,
+        ``fall``, ``found``, ``passed``, ``passed_strict``, ``elapsed_s``; over
+        ``scenario`` x ``parameter``: ``map``, ``std``, ``truth``, ``relative_error``, ``z``.
 
     Examples
     --------
@@ -182,13 +225,14 @@ def sweep(
     from twin.loop.demo import default_model_path
 
     scenarios = [(str(h), int(s)) for h, s in scenarios]
-    _check_hidden([h for h, _ in scenarios])
     if not scenarios:
         raise TwinError("a sweep needs at least one scenario")
+    model = model if model is not None else load_model(default_model_path())
+    for h, _ in scenarios:
+        parse_scenario(h).check(model)  # a bad spec fails before any work
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "sweep.nc")
-    model = model if model is not None else load_model(default_model_path())
     t0 = time.perf_counter()
     rows = mapper(tasks, progress=progress, desc="scenarios")(
         run_scenario, scenarios, model=model, out=str(out), settings=settings
@@ -219,30 +263,37 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
     after = np.array([r["error_after"] for r in rows])
     fall = 1.0 - after / before
     hidden = [h for h, _ in scenarios]
-    found = np.array([_found(h, r) for h, r in zip(hidden, rows)])
+    parsed = [parse_scenario(h) for h in hidden]
+    found = np.array([right_diagnosis(sc, r) for sc, r in zip(parsed, rows)])
     within = np.isnan(par["truth"]) | (np.abs(rel) <= MAX_PARAMETER_ERROR)  # no truth: nothing to check
     close = within | (np.abs(z) <= MAX_Z)
-    nothing = np.array([h == NOTHING or h in OUTSIDE_LIBRARY for h in hidden])  # nothing to add and update
+    nothing = np.array([not sc.effects for sc in parsed])  # nothing to add and update
     passed = found & (nothing | ((fall >= MIN_FALL) & close.all(axis=1)))
     strict = found & (nothing | ((fall >= MIN_FALL) & within.all(axis=1)))
     dims, pdims = ("scenario",), ("scenario", "parameter")
     return xr.Dataset(
         {
             "verdict": (dims, [r["verdict"] for r in rows]),
-            "missing": (dims, [r["missing"] for r in rows], {"long_name": "effect the diagnosis named ('' for none)"}),
+            "missing": (dims, [r["missing"] for r in rows], {"long_name": "effects the loop named, joined by + ('' for none)"}),
+            "expected": (dims, [sc.expected() for sc in parsed], {"long_name": "the right diagnosis"}),
+            "final_verdict": (dims, [r["final_verdict"] for r in rows], {"long_name": "verdict of the loop's last round"}),
+            "rounds": (dims, [r["rounds"] for r in rows], {"long_name": "diagnosis rounds of the loop"}),
+            "chi2_before": (dims, [r["chi2_before"] for r in rows], {"long_name": "chi2 of the model before the loop"}),
+            "chi2_after": (dims, [r["chi2_after"] for r in rows], {"long_name": "chi2 after the loop"}),
+            "n_data": (dims, [r["n_data"] for r in rows], {"long_name": "data of the comparison (2 per measured mode)"}),
             "top_score": (dims, [r["top_score"] for r in rows], {"long_name": "log Bayes factor of the top candidate"}),
             "lead": (dims, [r["lead"] for r in rows], {"long_name": "log Bayes factor of the top over the runner-up"}),
             "error_before": (dims, before, {"units": "1", "long_name": "overall error E before the update"}),
             "error_after": (dims, after, {"units": "1", "long_name": "overall error E after the update"}),
             "fall": (dims, fall, {"units": "1", "long_name": "1 - E after / E before"}),
-            "found": (dims, found, {"long_name": "diagnosis named the hidden effect (nothing missing, with none hidden; "
-                                                 "unexplained and the right shaft element, outside the library)"}),
+            "found": (dims, found, {"long_name": "the diagnosis is right: exactly the hidden effects named, nothing "
+                                                 "missing with none hidden, unexplained at the hidden local change"}),
             "passed": (dims, passed, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
                                                    f"{MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of its truth"}),
             "passed_strict": (dims, strict, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
                                                           f"{MAX_PARAMETER_ERROR:.0%} of its truth"}),
-            "location": (dims, [r["location"] for r in rows], {"long_name": "shaft element the diagnosis points "
-                                                                             "to when nothing in the library explains the data (-1: none)"}),
+            "location": (dims, [r["location"] for r in rows], {"long_name": "local change the diagnosis points to when "
+                                                                             "the library does not explain the data ('' for none)"}),
             "elapsed_s": (dims, [r["elapsed_s"] for r in rows], {"units": "s"}),
             "map": (pdims, par["map"], {"units": "SI", "long_name": "identified value (Laplace MAP)"}),
             "std": (pdims, par["std"], {"units": "SI", "long_name": "posterior standard deviation"}),

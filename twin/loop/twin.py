@@ -2,7 +2,9 @@
 
 Each step (the start, an added effect, an update) records the model it left
 and its error against the measured modes, so the history shows the error
-falling step by step.
+falling step by step. :meth:`Twin.run` goes round the loop to the end:
+diagnose, add every effect found missing, update jointly all the effects
+added so far, diagnose again, until nothing new is missing.
 """
 
 from __future__ import annotations
@@ -11,17 +13,22 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import xarray as xr
 
+from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
-from twin.loop.candidates import add_effects
-from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
+from twin.loop.candidates import add_effects, free_names
+from twin.loop.compare import PER_MODE_NAME, TOLERANCE, Measured, compare, measured_modes
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.fit import laplace_update
 from twin.loop.history import history_dataset, plot_history
 
 log = logging.getLogger(__name__)
+
+#: Rounds of :meth:`Twin.run` at most.
+MAX_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -60,11 +67,11 @@ class Twin:
     ...                         pole_variance=(0.01, 0.01))
     >>> tw = Twin(model, data)
     >>> tw.diagnose(candidates=["magnetic_pull", "seal_cross_coupling"]).missing
-    'magnetic_pull'
+    ('magnetic_pull',)
     >>> _ = tw.add_effect("magnetic_pull")
     >>> _ = tw.update(["MAG.stiffness"], draws=200, chains=1, seed=1, progress=False)
     >>> [round(100 * s.error, 2) for s in tw.history]
-    [2.74, 2.74, 0.04]
+    [0.18, 0.18, 0.01]
     """
 
     def __init__(self, model: RotorModel, modes: xr.Dataset, tolerance: float = TOLERANCE) -> None:
@@ -72,6 +79,9 @@ class Twin:
         self.tolerance = tolerance
         self.measured: Measured = measured_modes(modes, tolerance)
         self.history: list[Step] = []
+        self.added: list[str] = []  # labels of the effects the loop added
+        self.diagnoses: list[Diagnosis] = []
+        self.posterior: xr.Dataset | xr.DataTree | None = None  # of the last update
         self._record("start", model)
 
     @property
@@ -90,12 +100,65 @@ class Twin:
         return self.history[-1].table
 
     def diagnose(self, candidates: Sequence[str] | None = None, **kwargs) -> Diagnosis:
-        """Where the current model fails and which library effect is missing."""
-        return diagnose(self.model, self.measured, candidates=candidates, tolerance=self.tolerance, **kwargs)
+        """Where the current model fails and which library effects are missing (the effects it has refitted)."""
+        d = diagnose(self.model, self.measured, candidates=candidates, tolerance=self.tolerance, **kwargs)
+        self.diagnoses.append(d)
+        return d
 
     def add_effect(self, label: str) -> Step:
-        """Add a library effect, zero-valued (the error is unchanged until an update)."""
-        return self._record(f"add {label}", add_effects(self.model, [label]))
+        """Add a library effect, zero-valued (the error is unchanged until an update).
+
+        A per-mode effect (``fsi_per_mode``) takes one value per measured mode.
+        """
+        step = self._record(f"add {label}", add_effects(self.model, [label], self.measured.mode))
+        self.added.append(label)
+        return step
+
+    def added_parameters(self) -> list[str]:
+        """The parameters of every effect the loop added (a per-mode effect's for the measured modes)."""
+        labels = set(self.added)
+        return [n for e in self.model.effects if effect_label(e) in labels
+                for n in free_names(self.model, e, self.measured.mode)]  # fmt: skip
+
+    def run(
+        self, *, method: str = "laplace", max_rounds: int = MAX_ROUNDS, candidates: Sequence[str] | None = None,
+        tasks: Any = None, **kwargs,
+    ) -> Diagnosis:  # fmt: skip
+        """Go round the loop to the end; returns the last diagnosis.
+
+        Each round diagnoses the current model; when it names effects the
+        model does not have yet, they are added and every effect the loop
+        has added is updated jointly (``method`` and ``kwargs`` as
+        :meth:`update`). The loop stops when a diagnosis names nothing new
+        ("nothing missing", "unexplained", "not enough data", or the same
+        effects again), or after ``max_rounds`` rounds.
+
+        Examples
+        --------
+        >>> from twin import load_model
+        >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
+        >>> from twin.fem.truthfile import Truth
+        >>> from twin.update import synthesize_modes
+        >>> model = load_model("models/hydro_unit.toml")
+        >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
+        >>> tw = Twin(model, synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01)))
+        >>> tw.run(candidates=["magnetic_pull", "seal_cross_coupling", "thrust_tilt:thrust"]).verdict
+        'nothing missing'
+        >>> [s.action for s in tw.history]  # doctest: +NORMALIZE_WHITESPACE
+        ['start', 'add seal_cross_coupling', 'add magnetic_pull', 'update SEAL.kxy, MAG.stiffness (Laplace)']
+        >>> abs(tw.model.parameter("MAG.stiffness").nominal / -1.5e8 - 1) < 0.10
+        True
+        """
+        d = None
+        for _ in range(max_rounds):
+            d = self.diagnose(candidates=candidates, tasks=tasks)
+            new = [label for label in d.missing if label not in self.added]
+            if not new:
+                break
+            for label in new:
+                self.add_effect(label)
+            self.update(self.added_parameters(), method=method, **kwargs)
+        return d
 
     def update(
         self, params: str | Sequence[str], *, method: str = "gibbs", estimate: str = "map", **kwargs
@@ -117,13 +180,17 @@ class Twin:
         """
         from twin.update.problem import select_parameters
 
-        names = select_parameters(self.model, params)
-        label = params if isinstance(params, str) else ", ".join(params)
+        per_mode = [] if isinstance(params, str) else [n for n in params if PER_MODE_NAME.match(n)]
+        names = select_parameters(self.model, [n for n in ([params] if isinstance(params, str) else params)
+                                               if n not in per_mode]) + per_mode  # fmt: skip
+        label = params if isinstance(params, str) else (", ".join(params) if len(params) <= 4
+                                                         else f"{len(params)} parameters ({params[0]}, ...)")
         if method == "laplace":
             if kwargs:
                 raise TypeError(f"method 'laplace' takes no sampler settings, got {sorted(kwargs)}")
             model, post = laplace_update(self.model, self.measured, names)
             self._record(f"update {label} (Laplace)", model)
+            self.posterior = post
             return post
         if method != "gibbs":
             raise ValueError(f"method must be 'gibbs' or 'laplace', got {method!r}")
@@ -131,6 +198,7 @@ class Twin:
 
         tree = update(self.model, self.modes, names, **kwargs)
         self._record(f"update {label}", apply_posterior(self.model, tree, estimate))
+        self.posterior = tree
         return tree
 
     def history_table(self) -> xr.Dataset:

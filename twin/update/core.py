@@ -16,6 +16,7 @@ import xarray as xr
 from twin import __version__
 from twin.errors import TwinWarning
 from twin.extract.modesfile import read_modes, split_complex
+from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
@@ -241,6 +242,7 @@ def update(
         "modes_source": source,
         "settings": json.dumps(settings),
         "condensation": problem.method,
+        "effects": json.dumps([effect_label(e) for e in model.effects]),
         "sampler": "Gibbs: t | rest, eta_i | rest, (psi_i, eps_i) | rest, Delta_i | rest (closed form)",
         "elapsed_s": elapsed,
     }

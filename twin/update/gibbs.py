@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from twin.tasks import mapper
+from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import coefficients, combined, design, joint_parameters, shape_system, weigh
 from twin.update.collapsed import marginal_move
 from twin.update.problem import Problem, UpdateError
@@ -403,6 +403,7 @@ def _mean_variance(w: np.ndarray) -> np.ndarray:
     return np.mean(np.diagonal(np.linalg.inv(w), axis1=1, axis2=2), axis=1)
 
 
+@one_blas_thread
 def run_chain(
     problem: Problem,
     draws: int,

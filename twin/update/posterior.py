@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -28,11 +29,14 @@ import numpy as np
 import xarray as xr
 from scipy.stats import gaussian_kde
 
-from twin.errors import TwinError
+from twin.errors import TwinError, TwinWarning
+from twin.extract.modesfile import split_complex
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.model import RotorModel
 from twin.netcdf import write_netcdf
 
+#: Names of per-mode parameters (``FSI.added_mass_3``).
+PER_MODE = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
 #: Groups every posterior file has.
 GROUPS = ("posterior", "sample_stats", "observed_data", "constant_data")
 #: R-hat above which a warning is given.
@@ -139,9 +143,14 @@ def read_posterior(path: str | Path) -> xr.DataTree:
 
 
 def estimates(posterior: xr.Dataset, estimate: str = "map") -> dict[str, float]:
-    """Point estimate of every parameter (``"map"``: marginal posterior mode, or ``"mean"``), SI."""
+    """Point estimate of every parameter (``"map"``: marginal posterior mode, or ``"mean"``), SI.
+
+    A Laplace posterior (:func:`laplace_tree`) carries its exact MAP in the attr ``laplace_map``.
+    """
     if estimate not in ("map", "mean"):
         raise TwinError(f"estimate must be 'map' or 'mean', got {estimate!r}")
+    if estimate == "map" and "laplace_map" in posterior.attrs:
+        return {k: float(v) for k, v in json.loads(posterior.attrs["laplace_map"]).items()}
     draws = parameter_draws(posterior)
     flat = draws.stack(sample=("chain", "draw"))
     if estimate == "mean":
@@ -152,10 +161,14 @@ def estimates(posterior: xr.Dataset, estimate: str = "map") -> dict[str, float]:
 def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, estimate: str = "map") -> RotorModel:
     """The model with the posterior's point estimates applied (the twin after an update).
 
-    Shared parameters replace the model's values; per-mode FSI becomes (or
-    replaces) the model's ``fsi_per_mode`` effect, value ``i`` for target mode
-    ``i``. Target modes the posterior does not cover keep the model's
-    per-mode values (zero when it has none).
+    Shared parameters (``theta``, including a mode-independent ``FSI.added_mass``)
+    replace the model's values; per-mode FSI becomes (or replaces) the
+    model's ``fsi_per_mode`` effect, value ``i`` for target mode ``i``.
+    Target modes the posterior does not cover keep the model's per-mode
+    values (zero when it has none). An estimate outside its parameter's
+    physical bounds (a flat-prior posterior of a parameter the data hardly
+    determine) is put on the bound, with a warning naming it: the model
+    stays physical and solvable.
 
     Examples
     --------
@@ -170,12 +183,14 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     if isinstance(posterior, xr.DataTree):
         posterior = posterior["posterior"].to_dataset()
     values = estimates(posterior, estimate)
-    shared = {k: v for k, v in values.items() if not k.startswith("FSI.added_")}
+    modes = posterior["mode"].values.astype(int) if "added_mass" in posterior else np.zeros(0, int)
+    per_mode = {f"FSI.{k}_{m}" for k in ("added_mass", "added_damping") for m in modes}
+    shared = {k: v for k, v in values.items() if k not in per_mode}
+    shared = {k: _within_bounds(k, v, model.parameter(k).bounds) for k, v in shared.items()}
     updated = model.with_values(shared) if shared else model
-    if "added_mass" not in posterior:
+    if not len(modes):
         return updated
-    modes = posterior["mode"].values.astype(int)
-    if len(modes) == 0 or modes.min() < 1 or len(set(modes)) != len(modes):
+    if modes.min() < 1 or len(set(modes)) != len(modes):
         raise TwinError(f"per-mode FSI needs distinct target modes numbered from 1; the posterior has {list(modes)}")
     old = [e for e in updated.effects if isinstance(e, FluidAddedMassPerMode)]
     n = max(int(modes.max()), len(old[0].added_mass) if old else 0)
@@ -183,10 +198,66 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     if old:
         mass[: len(old[0].added_mass)], damping[: len(old[0].added_damping)] = old[0].added_mass, old[0].added_damping
     for m in modes:
-        mass[m - 1], damping[m - 1] = values[f"FSI.added_mass_{m}"], values[f"FSI.added_damping_{m}"]
+        mass[m - 1] = _within_bounds(f"FSI.added_mass_{m}", values[f"FSI.added_mass_{m}"], (0.0, np.inf))
+        damping[m - 1] = _within_bounds(f"FSI.added_damping_{m}", values[f"FSI.added_damping_{m}"], (0.0, np.inf))
     effect = FluidAddedMassPerMode(tuple(map(float, mass)), tuple(map(float, damping)))
     others = tuple(e for e in updated.effects if not isinstance(e, FluidAddedMassPerMode))
     return dataclasses.replace(updated, effects=(*others, effect))
+
+
+def _within_bounds(name: str, value: float, bounds: tuple[float, float]) -> float:
+    low, high = bounds
+    if low <= value <= high:
+        return value
+    bound = low if value < low else high
+    warnings.warn(f"the posterior estimate of {name}, {value:.4g}, lies outside its physical bounds "
+                  f"[{low:.4g}, {high:.4g}] (the data hardly determine it): {bound:.4g} is used", TwinWarning,
+                  stacklevel=3)  # fmt: skip
+    return float(bound)
+
+
+def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0) -> xr.DataTree:
+    """A Laplace posterior (:func:`twin.loop.fit.laplace_update`) in the ``posterior.nc`` layout.
+
+    ``posterior`` holds ``draws`` draws of the Gaussian (MAP, covariance)
+    kept inside the parameters' physical bounds (rejection), in one chain;
+    per-mode FSI parameters (``FSI.added_mass_<i>``) go to ``added_mass`` and
+    ``added_damping`` over ``mode``, the others to ``theta``. The exact MAP
+    is the posterior group's attr ``laplace_map`` (used by :func:`estimates`).
+    """
+    names = [str(n) for n in post["parameter"].values]
+    mean, cov = post["map"].values, post["covariance"].values
+    low, high = post["low"].values, post["high"].values
+    rng = np.random.default_rng(seed)
+    kept, tries = [], 0
+    while sum(len(k) for k in kept) < draws and tries < 50:
+        x = rng.multivariate_normal(mean, cov, size=2 * draws, method="eigh")
+        kept.append(x[np.all((x >= low) & (x <= high), axis=1)])
+        tries += 1
+    x = np.concatenate(kept)[:draws] if kept else np.zeros((0, len(names)))
+    if len(x) < draws:  # the bounds cut away almost all of the Gaussian: the draws sit on them
+        x = np.clip(rng.multivariate_normal(mean, cov, size=draws, method="eigh"), low, high)
+    coords = {"chain": [0], "draw": np.arange(draws)}
+    per_mode = [n for n in names if PER_MODE.match(n)]
+    shared = [n for n in names if n not in per_mode]
+    out = xr.Dataset(coords=coords, attrs={"laplace_map": json.dumps(dict(zip(names, map(float, mean))))})
+    if shared:
+        idx = [names.index(n) for n in shared]
+        out["theta"] = xr.DataArray(x[None, :, idx], dims=("chain", "draw", "parameter"), coords={"parameter": shared},
+                                    attrs={"long_name": "updated model parameters (SI units of each parameter)"})  # fmt: skip
+    labels = sorted({int(n.rsplit("_", 1)[1]) for n in per_mode})
+    for kind, unit in (("added_mass", "kg"), ("added_damping", "N s/m")):
+        cols = [names.index(f"FSI.{kind}_{m}") for m in labels if f"FSI.{kind}_{m}" in names]
+        if cols and len(cols) == len(labels):
+            out[kind] = xr.DataArray(x[None, :, cols], dims=("chain", "draw", "mode"), coords={"mode": labels},
+                                     attrs={"units": unit, "long_name": f"per-mode FSI {kind.replace('_', ' ')}"})  # fmt: skip
+    stats = xr.Dataset({"lp": (("chain", "draw"), np.zeros((1, draws)), {"long_name": "not recorded (Laplace)"})},
+                       coords=coords)  # fmt: skip
+    observed = split_complex(modes[["pole", "shape"]].drop_vars([c for c in modes.coords if c not in
+                                                                 ("mode", "sample", "channel")]))  # fmt: skip
+    constant = post[["map", "std", "prior_scale", "low", "high"]].drop_vars("unit", errors="ignore")
+    return xr.DataTree.from_dict({"/": xr.Dataset(attrs=attrs), "posterior": out, "sample_stats": stats,
+                                  "observed_data": observed, "constant_data": constant})  # fmt: skip
 
 
 def diagnostics_json(table: xr.Dataset) -> str:
