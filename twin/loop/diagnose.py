@@ -9,11 +9,15 @@
    freedom as data.
 2. **Which effects**, by evidence (:mod:`twin.loop.fit`: Laplace
    approximation, priors at the effects' plausible scales inside their
-   physical bounds). Stepwise: each round fits every remaining library
-   candidate (:func:`twin.loop.candidates.library`) *jointly* with the effects
-   already chosen and with those the model has, and adds the one of the
-   largest log Bayes factor while it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
-   odds above 20:1 on the Kass-Raftery scale); after each addition, an effect
+   physical bounds). Stepwise, until nothing is missing: while the residuals
+   are not consistent with the uncertainty, each round fits every remaining
+   library candidate (:func:`twin.loop.candidates.library`) *jointly* with the
+   effects already chosen and with those the model has, and adds the one of
+   the largest log Bayes factor if it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
+   odds above 20:1 on the Kass-Raftery scale). A model that agrees with the
+   data gets no effect, however well one fits the noise: with nothing hidden,
+   one of seven candidates reached ln B = 3.4 on one of the FMU records by
+   taking up a 3.6-sigma scatter. After each addition, an effect
    chosen earlier that the others now make unnecessary (its own ``ln B``
    below the threshold) is dropped. So two effects at once are named
    together, and a first choice that only mimicked them is undone. We chose
@@ -268,14 +272,18 @@ def diagnose(
     path: list[tuple[str, str, float]] = []
     remaining = list(chosen)
     while remaining and len(included) < max_effects:
+        chi2_now = current.chi2_after if current is not None else float(table.attrs["chi2"])
+        dof_now = current.residual_dof if current is not None else int(table.attrs["n_data"])
+        if first is not None and consistent(chi2_now, dof_now):
+            break  # nothing is missing any more
         start = current.value_of() if current is not None else {}
         fits = run(_fit_with, remaining, model=model, meas=meas, own=own, included=tuple(included), start=start,
                    reference=current_lnz)  # fmt: skip
         if first is None:
             first = fits
         k = int(np.argmax([f.log_bayes_factor for f in fits]))
-        if not fits[k].log_bayes_factor > STRONG_EVIDENCE:
-            break
+        if not fits[k].log_bayes_factor > STRONG_EVIDENCE or consistent(chi2_now, dof_now):
+            break  # the first round is fitted for its ranking even when the model already agrees
         added = remaining[k]
         included.append(added)
         path.append(("add", added.label, fits[k].log_bayes_factor))
