@@ -80,7 +80,8 @@ def main() -> None:
         path = Path(args.from_table)
     table = xr.load_dataset(path)
     lines = ["# The twin loop on scenarios it was not tuned to (issue 17)", "",
-             f"Command: `{' '.join(command)}` (twin {table.attrs.get('producer', '')}); "
+             f"Command: `python benchmarks/loop_suite.py --workers {args.workers}`, i.e. `twin sweep --scenarios "
+             f"benchmarks/loop_suite.txt --workers {args.workers}` ({table.attrs.get('producer', 'twin')}); "
              f"{time.perf_counter() - t0:.0f} s here, sweep {table.attrs.get('elapsed_s', float('nan')):.0f} s.", ""]  # fmt: skip
     lines += summary(table)
     RESULTS.parent.mkdir(exist_ok=True)

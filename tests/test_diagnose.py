@@ -89,6 +89,15 @@ def test_two_effects_at_once_are_named_together_and_fitted_jointly(hydro_unit):
     assert [a for a, _, _ in d.path].count("add") >= 2
 
 
+def test_per_mode_fsi_does_not_stand_in_for_simpler_effects(hydro_unit):
+    """Two parameters per mode fit every pole alone: magnetic pull with mode-independent FSI is named as such."""
+    truth = [MagneticPull(-1e8), FluidAddedMass(6e4, 2e6)]
+    meas = measured_modes(_modes(hydro_unit, truth))
+    d = diagnose(hydro_unit, meas)
+    assert d.verdict == "missing effect" and set(d.missing) == {"magnetic_pull", "fsi"}, d.summary
+    assert d.final.value_of()["MAG.stiffness"] == pytest.approx(-1e8, rel=0.05)
+
+
 def test_fits_stay_inside_the_physical_bounds(hydro_unit):
     """A magnetic pull fitted to data that want a positive stiffness stops at zero, said so."""
     from twin.loop.fit import fit

@@ -108,6 +108,6 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     assert table["verdict"].values.tolist() == ["missing effect", "nothing missing"]
     assert (out / "magnetic_pull_x2_seed1" / "report.md").is_file() and (out / "none_seed1" / "report.md").is_file()
     assert "Nothing is hidden" in (out / "none_seed1" / "report.md").read_text()
-    assert "calibration: chi2 / n of the final model" in printed
+    assert "calibration: chi2 / (n - p) after the update" in printed
     mag = table.sel(parameter="MAG.stiffness")
     assert abs(float(mag["relative_error"][0])) < 0.10 and np.isnan(float(mag["map"][1]))

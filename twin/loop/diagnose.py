@@ -203,11 +203,13 @@ def _fit_set(extra: Sequence[Candidate], model: RotorModel, meas: Measured, own:
 
 def _fit_with(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
               included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
-    """One candidate fitted jointly with the effects already chosen; labelled by the candidate."""
-    return _fit_set([*included, candidate], model, meas, own, start, reference, label=candidate.label)
+    """One candidate fitted jointly with the effects already chosen (less any it replaces); labelled by it."""
+    rest = [c for c in included if not _exclusive(c, candidate)]
+    return _fit_set([*rest, candidate], model, meas, own, start, reference, label=candidate.label)
 
 
 def _exclusive(a: Candidate, b: Candidate) -> bool:
+    """Whether one candidate replaces the other (per-mode FSI holds the mode-independent FSI as a special case)."""
     return {a.effect.key, b.effect.key} == {"fsi", "fsi_per_mode"}
 
 
@@ -220,6 +222,7 @@ def diagnose(
     tolerance: float = TOLERANCE,
     max_effects: int = MAX_EFFECTS,
     tasks: Any = None,
+    progress: bool = False,
 ) -> Diagnosis:
     """Where the model fails against the measured modes, and which library effects are missing.
 
@@ -239,6 +242,8 @@ def diagnose(
     tasks : distributed.Client or mapper, optional
         Where the candidate fits run, one task each (:func:`twin.tasks.mapper`):
         in this process by default.
+    progress : bool
+        A bar over each step's candidate fits (on a terminal).
 
     Returns
     -------
@@ -246,11 +251,12 @@ def diagnose(
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin.loop import diagnose
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
     >>> data = synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01))
     >>> d = diagnose(model, data, candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB"])
@@ -260,7 +266,7 @@ def diagnose(
     meas = modes if isinstance(modes, Measured) else measured_modes(modes, tolerance)
     table = compare(model, meas)
     chosen = [sized(c, meas.mode) for c in select(model, candidates)]
-    run = mapper(tasks, desc="candidate fits")
+    run = mapper(tasks, progress=progress, desc="candidate fits")
     own = [n for e in model.effects for n in free_names(model, e, meas.mode)]
     lnz_as_is, _ = log_evidence_as_is(model, meas)
     base = _fit_set([], model, meas, own, {}, lnz_as_is) if own else None
@@ -271,24 +277,44 @@ def diagnose(
     first: list[Fit] | None = None
     path: list[tuple[str, str, float]] = []
     remaining = list(chosen)
-    while remaining and len(included) < max_effects:
+    while remaining:
         chi2_now = current.chi2_after if current is not None else float(table.attrs["chi2"])
         dof_now = current.residual_dof if current is not None else int(table.attrs["n_data"])
         if first is not None and consistent(chi2_now, dof_now):
             break  # nothing is missing any more
         start = current.value_of() if current is not None else {}
-        fits = run(_fit_with, remaining, model=model, meas=meas, own=own, included=tuple(included), start=start,
-                   reference=current_lnz)  # fmt: skip
-        if first is None:
-            first = fits
-        k = int(np.argmax([f.log_bayes_factor for f in fits]))
-        if not fits[k].log_bayes_factor > STRONG_EVIDENCE or consistent(chi2_now, dof_now):
+        shared = {"model": model, "meas": meas, "own": own, "included": tuple(included), "start": start,
+                  "reference": current_lnz}  # fmt: skip
+        # Effects with a few parameters first; a per-mode effect (two parameters per mode: it can fit every pole
+        # alone) only when none of them is strongly supported any more, so it never stands in for simpler ones
+        # once max_effects are chosen, only a candidate that replaces one of them may still come in
+        eligible = [c for c in remaining if len(included) < max_effects or any(_exclusive(c, i) for i in included)]
+        tiers = [[c for c in eligible if not c.per_mode], [c for c in eligible if c.per_mode]]
+        fitted: dict[str, Fit] = {}
+        if first is None:  # every candidate alone, for the ranking
+            first = run(_fit_with, remaining, **shared)
+            fitted = {f.label: f for f in first}
+        if consistent(chi2_now, dof_now) or not eligible:
             break  # the first round is fitted for its ranking even when the model already agrees
-        added = remaining[k]
+        pick = None
+        for tier in (t for t in tiers if t):
+            missing_fits = [c for c in tier if c.label not in fitted]
+            fitted.update({f.label: f for f in run(_fit_with, missing_fits, **shared)} if missing_fits else {})
+            best = max(tier, key=lambda c: fitted[c.label].log_bayes_factor)
+            if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE:
+                pick = best
+                break
+        if pick is None:
+            break
+        added, fit_added = pick, fitted[pick.label]
+        for replaced in [c for c in included if _exclusive(c, added)]:
+            included.remove(replaced)
+            path.append(("replace", replaced.label, fit_added.log_bayes_factor))
         included.append(added)
-        path.append(("add", added.label, fits[k].log_bayes_factor))
-        current, current_lnz = fits[k], fits[k].log_evidence
-        remaining = [c for j, c in enumerate(remaining) if j != k and not _exclusive(c, added)]
+        path.append(("add", added.label, fit_added.log_bayes_factor))
+        current, current_lnz = fit_added, fit_added.log_evidence
+        # per-mode FSI stays a candidate after the mode-independent one (it may replace it), not the other way
+        remaining = [c for c in remaining if c is not added and not (_exclusive(c, added) and not c.per_mode)]
         current, current_lnz = _drop_unneeded(included, path, current, model, meas, own, run)
     first = first or []
     by_label = {c.label: c for c in chosen}

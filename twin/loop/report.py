@@ -15,10 +15,10 @@ def comparison_text(table: xr.Dataset) -> str:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.loop.compare import compare
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> print(comparison_text(compare(model, synthesize_modes(model, samples=20, seed=1))).splitlines()[-1])
     ... # doctest: +NORMALIZE_WHITESPACE
     error E = 1.91% (15 measured modes; RMS over the measured modes of |model pole - measured pole| / |measured pole|,
@@ -102,10 +102,14 @@ def sweep_text(table: xr.Dataset) -> str:
                  f"{MIN_FALL:.0%}, parameters within {MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of the truth) in "
                  f"{table.attrs.get('elapsed_s', np.nan):.0f} s; {int(table['passed_strict'].sum())} strictly "
                  f"(every parameter within {MAX_PARAMETER_ERROR:.0%})")  # fmt: skip
-    if "chi2_after" in table:
-        right = table["found"].values.astype(bool)
-        if right.any():
-            ratio = float(table["chi2_after"].values[right].sum() / table["n_data"].values[right].sum())
-            lines.append(f"calibration: chi2 / n of the final model = {ratio:.2f} over the {int(right.sum())} scenarios "
-                         "diagnosed right (about 1 when the measured-pole uncertainty is honest)")  # fmt: skip
+    if "chi2_after" in table and "map" in table:
+        # after a right update the residual has n - p degrees of freedom (p fitted parameters)
+        fitted = np.isfinite(table["map"].values).sum(axis=-1)
+        updated = table["found"].values.astype(bool) & (fitted > 0)
+        dof = table["n_data"].values[updated] - fitted[updated]
+        if updated.any() and dof.sum() > 0:
+            ratio = float(table["chi2_after"].values[updated].sum() / dof.sum())
+            lines.append(f"calibration: chi2 / (n - p) after the update = {ratio:.2f} over the {int(updated.sum())} "
+                         "scenarios diagnosed right and updated (about 1 when the measured-pole uncertainty is "
+                         "honest)")  # fmt: skip
     return "\n".join(lines)
