@@ -35,8 +35,71 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
     assert main(["modal", str(tmp_path / "none.toml")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("twin: error: ") and "no such file" in err and "Traceback" not in err
-    assert main(["campbell", "models/ross_reference.toml", "-o", str(tmp_path / "no" / "c.png")]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    # an output in a missing folder: the folder is made (as --plot and --out do)
+    assert main(["campbell", "ross_reference", "--points", "2", "--modes", "2", "-o", str(tmp_path / "no" / "c.png")]) == 0
+    assert (tmp_path / "no" / "c.png").is_file()
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["campbell", "ross_reference", "-o", "{tmp}"], "it is a folder; give a file name inside it"),
+        (["campbell", "ross_reference", "-o", "{tmp}/c"], "name a .png, .pdf, .svg file"),
+        (["synthesize-modes", "hydro_unit", "-o", "{tmp}"], "it is a folder"),
+        (["compare", "hydro_unit", "{tmp}"], "is a folder, not a modes file"),
+        (["compare", "hydro_unit", "{tmp}/text.nc"], "text.nc: not a NetCDF file"),
+        (["update", "hydro_unit", "{tmp}/m.nc", "--params", "MAG.stiffness", "-o", "{tmp}/p.nc"],
+         "'MAG.stiffness'; it comes with the effect 'magnetic_pull': add it first"),
+        (["demo", "--out", "{tmp}/text.nc"], "--out {tmp}/text.nc is a file, not a folder"),
+    ],
+)  # fmt: skip
+def test_bad_paths_and_names_fail_early_on_one_line(tmp_path, capsys, argv, message):
+    from twin import load_model
+    from twin.extract import write_modes
+    from twin.update import synthesize_modes
+
+    (tmp_path / "text.nc").write_text("step,error\n")
+    write_modes(synthesize_modes(load_model("hydro_unit"), samples=5, seed=1), tmp_path / "m.nc")
+    assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("twin: error: ") and message.replace("{tmp}", str(tmp_path)) in err, err
+    assert "Traceback" not in err and err.count("\n") == 1
+
+
+def test_help_of_every_command_has_a_description_an_example_and_its_defaults(capsys):
+    from twin.cli.parser import build_parser
+
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices
+    for name, sub in commands.items():
+        text = sub.format_help()
+        assert "examples:\n  twin " + name in text, name
+        assert len(sub.description) > 60, name
+        for action in sub._actions:
+            if action.option_strings and action.default not in (None, False, "==SUPPRESS==") and action.help:
+                assert "default" in sub._get_formatter()._get_help_string(action), (name, action.dest)
+    def flat(name):
+        return " ".join(commands[name].format_help().split())
+
+    assert "(default: full)" in flat("export-fmu") and "required with --basis modal" in flat("simulate")
+    assert "fresh entropy" in flat("update")
+
+
+def test_verbose_and_quiet_go_after_the_command(capsys):
+    assert main(["modal", "hydro_unit", "--modes", "1", "-v", "-q"]) == 0
+    assert "1.113" in capsys.readouterr().out
+
+
+def test_params_lists_names_bounds_and_the_effects_that_bring_more(capsys):
+    assert main(["params", "hydro_unit"]) == 0
+    out = capsys.readouterr().out
+    assert "UGB.kxx" in out and ">= 0" in out and "magnetic_pull: " in out and "MAG.stiffness [N/m]: <= 0" in out
+    assert main(["params", "hydro_unit", "--effect", "magnetic_pull", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    mag = next(p for p in data["parameters"] if p["name"] == "MAG.stiffness")
+    assert mag["high"] == 0.0 and mag["low"] is None and data["effects"] == ["magnetic_pull"]
+    assert "magnetic_pull" not in data["library"] and "bearings" in data["groups"]
 
 
 def test_output_into_a_closed_pipe_is_not_an_error():

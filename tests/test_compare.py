@@ -131,3 +131,11 @@ def test_per_mode_effect_with_fewer_values_than_measured_modes(hydro_unit):
     model = add_effects(hydro_unit, ["fsi_per_mode"], data["mode"].values)
     table = compare(model, data)
     assert table.attrs["error"] == pytest.approx(compare(hydro_unit, data).attrs["error"], rel=1e-9)
+
+
+def test_z_scores_have_the_sign_of_their_errors(hydro_unit):
+    """z_f follows df and z_zeta follows dzeta (the real part of a pole is -zeta omega: its sign is flipped)."""
+    table = compare(hydro_unit, _data(hydro_unit, Truth((MagneticPull(-1e8),))))
+    for z, d in (("z_frequency", "frequency_error"), ("z_damping", "damping_error")):
+        big = np.abs(table[z].values) > 3
+        assert big.any() and np.all(np.sign(table[z].values[big]) == np.sign(table[d].values[big])), z

@@ -99,6 +99,28 @@ def test_bad_requests_are_clear_errors(make_record):
         extract("nowhere.nc", progress=False)
 
 
+def test_poor_records_warn_before_the_work(make_record, tmp_path):
+    """Two channels, or 20 Hz sampling without fmax: extraction runs but says what it cannot see."""
+    from twin.errors import TwinWarning
+
+    ds = make_record(np.array([-0.1 + 2j * np.pi * 2.0]), np.array([[1.0, 1j]]), fs_hz=20.0, duration_s=200.0, seed=0)
+    with pytest.warns(TwinWarning) as caught:
+        extract(ds, samples=10, max_order=16, progress=False)
+    text = " ".join(str(w.message) for w in caught)
+    assert "2 channel(s)" in text and "use at least 4" in text
+    assert "sampled at 20 Hz and no fmax given: modes are extracted up to 8 Hz only" in text
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        extract(ds, samples=10, max_order=16, fmax_hz=8.0, progress=False)
+    assert not any("no fmax given" in str(w.message) for w in caught)
+    # a folder or a text file given as signals is named as such
+    with pytest.raises(SignalError, match="is a folder, not a signals file"):
+        extract(tmp_path, progress=False)
+    (tmp_path / "a.nc").write_text("time,x\n0,1\n")
+    with pytest.raises(SignalError, match="a.nc: not a NetCDF file"):
+        extract(tmp_path / "a.nc", progress=False)
+
+
 def test_files_and_command_line(make_record, tmp_path, capsys):
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0, -0.01 * 2 * np.pi * 5.0 + 2j * np.pi * 5.0])
     ds = make_record(poles, np.array([[1.0, 1j], [1.0, -0.5]]), fs_hz=20.0, duration_s=1000.0, seed=1,

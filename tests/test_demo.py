@@ -21,7 +21,7 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
     for name in ("report.md", "signals.nc", "modes.nc", "diagnosis.json", "history.csv", "history.png",
-                 "stabilisation.png", "before_errors.png", "after_spectra.png", "hydro_unit.fmu"):  # fmt: skip
+                 "stabilisation.png", "errors.png", "mac.png", "spectra.png", "hydro_unit.fmu"):  # fmt: skip
         assert (out / name).stat().st_size > 100, name
     report = (out / "report.md").read_text()
     assert "Round 1: **missing effect** (magnetic_pull)" in report and "![history](history.png)" in report

@@ -10,7 +10,17 @@ from twin.loop.history import append_step, history_dataset, plot_history, read_h
 def test_round_trip_keeps_actions_errors_and_the_modes(tmp_path):
     h = history_dataset(["start", "add a, b", 'update "x"'], [0.0851, 0.0851, 0.00226], [912.5, 912.5, 14.0], "m.nc")
     back = read_history(write_history(h, tmp_path / "h.csv"))
-    xr.testing.assert_identical(back, h)
+    xr.testing.assert_allclose(back, h, rtol=1e-14)
+    assert back.attrs == h.attrs and back["action"].values.tolist() == h["action"].values.tolist()
+
+
+def test_file_is_a_plain_csv_with_the_error_in_percent(tmp_path):
+    import pandas as pd
+
+    h = history_dataset(["start", "add a, b"], [0.0851, 0.00226], [912.5, 14.0], "m.nc")
+    frame = pd.read_csv(write_history(h, tmp_path / "h.csv"))
+    assert frame.columns.tolist() == ["step", "action", "error_percent", "chi2", "modes"]
+    assert frame["error_percent"].tolist() == pytest.approx([8.51, 0.226]) and frame["action"][1] == "add a, b"
 
 
 def test_append_refuses_other_modes_and_leaves_the_file(tmp_path):
@@ -26,8 +36,9 @@ def test_append_refuses_other_modes_and_leaves_the_file(tmp_path):
 
 @pytest.mark.parametrize(
     "text, message",
-    [("a,b\n1,2\n", "not a twin history"), ("step,action,error,chi2\n0,start,lots,1\n", "row 2 is not"),
-     ("step,action,error,chi2\n0,start\n", "row 2 is not")],
+    [("a,b\n1,2\n", "not a twin history"), ("step,action,error_percent,chi2,modes\n0,start,lots,1,m.nc\n", "row 2 is not"),
+     ("step,action,error_percent,chi2,modes\n0,start\n", "row 2 is not"),
+     ("step,action,error_percent,chi2,modes\n0,start,1,1,a.nc\n1,x,1,1,b.nc\n", "different measured modes")],
 )  # fmt: skip
 def test_malformed_history_is_named(tmp_path, text, message):
     path = tmp_path / "h.csv"

@@ -2,7 +2,7 @@
 
 import pytest
 
-from twin import ModelFileError, load_model
+from twin import ModelFileError, load_model, shipped_model
 
 from conftest import ROOT
 
@@ -26,6 +26,11 @@ def test_shipped_models_load():
     for name in ("hydro_unit", "ross_reference"):
         model = load_model(ROOT / "models" / f"{name}.toml")
         assert model.name == name and model.source.endswith(f"{name}.toml")
+        assert load_model(name).source == str(shipped_model(name)) and shipped_model(name).is_file()
+    with pytest.raises(ModelFileError, match="no shipped model 'hydro'.*hydro_unit"):
+        shipped_model("hydro")
+    with pytest.raises(ModelFileError, match="no such file"):
+        load_model("hydro")
 
 
 @pytest.mark.parametrize(
@@ -50,6 +55,8 @@ def test_shipped_models_load():
         ("name = \"D4\"", "name = \"D.4\"", "[[disk]] #2", "name", "not a valid name"),
         ("G = 81.2e9", "G = 81.2e9\npoisson = 0.3", "[materials.steel]", "G", "exactly one"),
         ("[[bearing]]", "[[bearings]]", "(top level)", "bearings", "did you mean 'bearing'"),
+        ("kxx = 1.0e6\n", "kxx = 0.0\n", "[[bearing]] 'B0'", "kxx", "must be positive"),
+        ("kyy = 8.0e5", "kyy = -8.0e5", "[[bearing]] 'B0'", "kyy", "must be positive"),
     ],
 )
 def test_errors_name_file_table_and_key(tmp_path, old, new, table, key, problem):

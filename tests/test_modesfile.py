@@ -28,7 +28,7 @@ def test_read_errors(tmp_path):
     with pytest.raises(SignalError, match="no such modes file"):
         read_modes(tmp_path / "none.nc")
     (tmp_path / "junk.nc").write_text("not netcdf")
-    with pytest.raises(SignalError, match="not a readable NetCDF modes file"):
+    with pytest.raises(SignalError, match="junk.nc: not a NetCDF file"):
         read_modes(tmp_path / "junk.nc")
     xr.Dataset({"a": ("x", [1.0])}).to_netcdf(tmp_path / "other.nc")
     with pytest.raises(SignalError, match="not a modes file: no variable pole_real"):

@@ -23,5 +23,5 @@ def test_failed_write_leaves_nothing(tmp_path):
     with pytest.raises(Exception):
         write_netcdf(bad, tmp_path / "b.nc")
     assert not list(tmp_path.iterdir())
-    with pytest.raises(TwinError, match="does not exist"):
-        write_netcdf(bad, tmp_path / "missing" / "b.nc")
+    with pytest.raises(TwinError, match="it is a folder"):
+        write_netcdf(bad, tmp_path)

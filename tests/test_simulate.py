@@ -40,6 +40,8 @@ def test_signal_file_round_trip(tmp_path, hydro_unit):
     assert back.displacement.attrs["units"] == "m" and back.attrs["sampling_rate"] == 256.0
     assert list(back.channel.values) == hydro_unit.channels
     assert list(back.location.values[:2]) == ["runner seals", "runner seals"]
+    assert back.attrs["sampling_rate_units"] == "Hz" and back.time.attrs["units"] == "s"
+    assert all("long_name" in back[c].attrs for c in ("channel", "node", "direction", "location"))
     assert [p.name for p in tmp_path.iterdir()] == ["signals.nc"]  # no temporary file left
 
 
@@ -55,8 +57,8 @@ def test_bad_input(tmp_path, hydro_unit):
         simulate(hydro_unit, duration_s=0.0, progress=False)
     with pytest.raises(ModelError, match="sampling rate must be positive"):
         simulate(hydro_unit, duration_s=1.0, fs_hz=-1.0, progress=False)
-    with pytest.raises(TwinError, match="does not exist"):
-        simulate(hydro_unit, duration_s=1.0, output=tmp_path / "no" / "s.nc", progress=False)
+    with pytest.raises(TwinError, match="it is a folder"):
+        simulate(hydro_unit, duration_s=1.0, output=tmp_path, progress=False)
     unstable = hydro_unit.with_values({"LGB.cxx": 1e3, "LGB.cyy": 1e3})
     with pytest.raises(ModelError, match="unstable at 134 rpm: modes at"):
         simulate(unstable, duration_s=1.0, output=tmp_path / "s.nc", progress=False)

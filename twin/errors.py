@@ -18,6 +18,7 @@ class ModelFileError(TwinError, ValueError):
 
     Examples
     --------
+    >>> from twin import ModelFileError
     >>> err = ModelFileError("unit.toml", "[[bearing]] 'UGB'", "kxx", "missing key")
     >>> str(err)
     "unit.toml: [[bearing]] 'UGB': key 'kxx': missing key"

@@ -21,6 +21,11 @@ from twin.errors import TwinError
 
 log = logging.getLogger(__name__)
 
+#: First bytes of a NetCDF-4 (HDF5) and a classic NetCDF file.
+NETCDF_MAGIC = (b"\x89HDF", b"CDF")
+#: Figure files the command line writes.
+FIGURE_TYPES = (".png", ".pdf", ".svg")
+
 
 def load_netcdf(path: str | Path, kind: str, error: type[TwinError] = TwinError) -> xr.Dataset:
     """Load a NetCDF file of the loop into memory, or raise ``error`` saying what is wrong with it.
@@ -28,19 +33,45 @@ def load_netcdf(path: str | Path, kind: str, error: type[TwinError] = TwinError)
     ``kind`` names the file in messages (``"signals"``, ``"modes"``).
     """
     path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a folder, not a {kind} file")
     if not path.is_file():
         raise error(f"{path}: no such {kind} file")
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(4)
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {kind} file ({exc.strerror})") from None
+    if not magic.startswith(NETCDF_MAGIC):
+        raise error(f"{path}: not a NetCDF file (a {kind} file is NetCDF-4 or classic NetCDF, as twin writes it)")
     try:
         return xr.load_dataset(path)
     except (OSError, ValueError) as exc:
         raise error(f"{path}: not a readable NetCDF {kind} file ({exc})") from None
 
 
-def check_writable(path: str | Path) -> Path:
-    """Fail early, before any long computation, when ``path``'s folder is missing or read-only."""
+def check_writable(path: str | Path, figure: bool = False) -> Path:
+    """Fail early, before any long computation, when ``path`` cannot be written; create its missing folders.
+
+    A folder is no file name; a read-only folder is refused. ``figure``
+    also asks for a file type matplotlib writes (``.png``, ``.pdf``, ``.svg``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_writable(Path(tmp) / "new" / "a.nc").parent.is_dir()
+    True
+    """
     path = Path(path)
-    if not path.parent.is_dir():
-        raise TwinError(f"cannot write {path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise TwinError(f"cannot write {path}: it is a folder; give a file name inside it")
+    if figure and path.suffix.lower() not in FIGURE_TYPES:
+        raise TwinError(f"cannot write the figure {path}: name a {', '.join(FIGURE_TYPES)} file")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise TwinError(f"cannot write {path}: cannot create folder {path.parent} ({exc.strerror})") from None
     if not os.access(path.parent, os.W_OK):
         raise TwinError(f"cannot write {path}: folder {path.parent} is not writable")
     return path

@@ -31,7 +31,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
-from tqdm.auto import tqdm
+from twin.progress import bar
 
 from twin.errors import TwinError
 
@@ -105,9 +105,9 @@ def dask_mapper(client: Any, *, progress: bool = False, desc: str = "tasks") -> 
         scattered = {k: v if isinstance(v, (dict, list, tuple, set, str, int, float, type(None)))
                      else client.scatter(v, broadcast=True, hash=False) for k, v in shared.items()}  # fmt: skip
         futures = client.map(function, items, pure=False, **scattered)
-        with tqdm(total=len(futures), desc=desc, disable=not progress, leave=False) as bar:
+        with bar(total=len(futures), desc=desc, progress=progress, leave=False) as finished:
             for _ in as_completed(futures):
-                bar.update()
+                finished.update()
         return client.gather(futures)
 
     return run
@@ -122,7 +122,13 @@ def mapper(tasks: Any = None, *, progress: bool = False, desc: str = "tasks") ->
     [1, 2]
     """
     if tasks is None:
-        return in_process
+        if not progress:
+            return in_process
+
+        def in_process_with_bar(function: Callable[..., R], items: Sequence[T], **shared: Any) -> list[R]:
+            return [function(item, **shared) for item in bar(list(items), desc=desc, progress=True, leave=False)]
+
+        return in_process_with_bar
     if _is_client(tasks):
         return dask_mapper(tasks, progress=progress, desc=desc)
     if callable(tasks):
@@ -186,7 +192,9 @@ def dask_client(
         # slower under it (measured). The local workers keep glibc's default and one BLAS thread each.
         environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}  # fmt: skip
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        from twin.progress import stage
+
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}), stage(f"start {workers} Dask workers"):
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                    dashboard_address=":0", silence_logs=logging.ERROR)  # fmt: skip
         client = Client(cluster)

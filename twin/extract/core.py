@@ -36,6 +36,10 @@ log = logging.getLogger(__name__)
 
 #: Default upper frequency: this fraction of the sampling rate (80% of Nyquist).
 DEFAULT_FMAX_FRACTION = 0.4
+#: Fewest channels for shapes that tell modes apart (two x-y proximeter pairs).
+MIN_CHANNELS = 4
+#: Below this sampling rate [Hz] an extraction without ``fmax_hz`` warns that its band is narrow.
+LOW_RATE_HZ = 50.0
 #: Decimate when the sampling rate exceeds this many times ``fmax``.
 SAMPLES_PER_PERIOD = 2.5
 #: Default lowest frequency for the Hankel size, as a fraction of ``fmax``.
@@ -126,16 +130,18 @@ def extract(
 
     Examples
     --------
+    >>> import numpy as np, scipy.signal as sig, xarray as xr
+    >>> from twin.extract import extract
     >>> rng = np.random.default_rng(0)
     >>> fs, n = 20.0, 20_000
     >>> lam = -0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0  # one mode: 2 Hz, 2% damping
     >>> q = sig.lfilter([1.0], [1.0, -np.exp(lam / fs)], rng.standard_normal(n) + 1j * rng.standard_normal(n))
-    >>> y = 2 * np.real(q[:, None] * np.array([1.0, 0.6j])) + 0.1 * rng.standard_normal((n, 2))
-    >>> ds = xr.Dataset({"displacement": (("time", "channel"), y)}, coords={"channel": ["A_x", "A_y"]},
+    >>> y = 2 * np.real(q[:, None] * np.array([1.0, 0.6j, 0.8, 0.5j])) + 0.1 * rng.standard_normal((n, 4))
+    >>> ds = xr.Dataset({"displacement": (("time", "channel"), y)}, coords={"channel": ["A_x", "A_y", "B_x", "B_y"]},
     ...                 attrs={"sampling_rate": fs})
-    >>> modes = extract(ds, samples=20, max_order=16, progress=False)
+    >>> modes = extract(ds, samples=20, max_order=16, fmax_hz=8.0, progress=False)
     >>> modes.frequency.values.round(2), modes.damping_ratio.values.round(2), modes.MPC.values.round(2)
-    (array([2.]), array([0.02]), array([0.22]))
+    (array([2.]), array([0.02]), array([0.21]))
     """
     crit = criteria or Criteria()
     if output is not None:
@@ -155,6 +161,7 @@ def extract(
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
         raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
+    _warn_about_layout(source, len(rec.channels), rec.fs_hz, fmax_hz)
     y, fs, q = _decimate(rec, fmax)
     n_ch = y.shape[1]
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
@@ -249,6 +256,19 @@ def _orders_used(diag, cluster) -> np.ndarray:
     """
     m = cluster.members
     return m[np.argsort(diag.order[m], kind="stable")][:ORDERS_PER_MODE]
+
+
+def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: float | None) -> None:
+    """Warn about a record that can only give a poor extraction: few channels, or a low rate and no fmax."""
+    if n_channels < MIN_CHANNELS:
+        warnings.warn(f"{source}: {n_channels} channel(s): shapes known at so few points cannot tell modes apart "
+                      f"(MAC), and a mode with a node there is missed; use at least {MIN_CHANNELS} (two x-y "
+                      "proximeter pairs)", TwinWarning, stacklevel=3)  # fmt: skip
+    if fmax_hz is None and fs_hz < LOW_RATE_HZ:
+        warnings.warn(f"{source}: sampled at {fs_hz:g} Hz and no fmax given: modes are extracted up to "
+                      f"{DEFAULT_FMAX_FRACTION * fs_hz:g} Hz only ({DEFAULT_FMAX_FRACTION:.0%} of the rate); "
+                      "sample faster to see a rotor's higher modes, or give fmax to say that is the band you want",
+                      TwinWarning, stacklevel=3)  # fmt: skip
 
 
 def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float, n_blocks: int) -> None:

@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from tqdm.auto import tqdm
+from twin.progress import bar
 
 from twin.extract.ssi import BlockCovariances, realise
 from twin.extract.stabilisation import pole_distance
@@ -121,7 +121,7 @@ def jackknife(
     missing = np.zeros((n_modes, J), dtype=int)
     all_orders = np.unique(np.concatenate([m[0] for m in members]))
     max_order = int(all_orders.max())
-    for j in tqdm(range(J), desc="jackknife", unit="block", disable=not progress, mininterval=0.5):
+    for j in bar(range(J), desc="jackknife", unit="block", progress=progress, mininterval=0.5):
         real = realise(blocks.covariance(leave_out=j), block_rows, max_order, fs_hz)
         at = {}
         for n in all_orders:

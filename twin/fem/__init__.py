@@ -3,10 +3,10 @@
 from twin.fem.effects import EFFECTS
 from twin.fem.elements import Bearing, Disk, Material, ShaftElement, ThrustBearing
 from twin.fem.model import RotorModel, Sensor
-from twin.fem.modelfile import load_model
+from twin.fem.modelfile import load_model, shipped_model
 from twin.fem.parameters import Parameter, Term
 
 __all__ = [
     "EFFECTS", "Bearing", "Disk", "Material", "Parameter", "RotorModel", "Sensor", "ShaftElement",
-    "Term", "ThrustBearing", "load_model",
+    "Term", "ThrustBearing", "load_model", "shipped_model",
 ]  # fmt: skip

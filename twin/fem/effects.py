@@ -33,6 +33,7 @@ Fits and priors stay inside them; :func:`describe` states them.
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -306,6 +307,40 @@ EFFECTS: dict[str, type] = {
 }
 
 
+def library_effects(model) -> list:
+    """Every library effect that ``model``'s regions and elements admit, zero-valued (present ones included).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> [effect_label(e) for e in library_effects(load_model(shipped_model("hydro_unit")))][:3]
+    ['fsi', 'fsi_per_mode', 'magnetic_pull']
+    """
+    effects: list = [cls() for cls in (FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling)
+                     if cls.region in model.regions]  # fmt: skip
+    effects += [BearingChange(b.name) for b in model.bearings]
+    effects += [ThrustTilt(t.name) for t in model.thrusts]
+    return effects
+
+
+def effect_providing(model, name: str) -> str | None:
+    """The label of the library effect that brings parameter ``name`` (``None`` if none does).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> effect_providing(model, "MAG.stiffness"), effect_providing(model, "FSI.added_mass_3")
+    ('magnetic_pull', 'fsi_per_mode')
+    """
+    if re.fullmatch(r"FSI\.added_(mass|damping)_\d+", name):
+        return "fsi_per_mode"
+    for effect in library_effects(model):
+        if not effect.per_mode and name in {p.name for p in effect.parameters(model)}:
+            return effect_label(effect)
+    return None
+
+
 def with_shared_fsi(model):
     """The model with a mode-independent FSI effect (zero-valued if it had none).
 
@@ -336,8 +371,8 @@ def describe(effect, model) -> str:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> print(describe(MagneticPull(), load_model("models/hydro_unit.toml")))  # doctest: +NORMALIZE_WHITESPACE
+    >>> from twin import load_model, shipped_model
+    >>> print(describe(MagneticPull(), load_model(shipped_model("hydro_unit"))))  # doctest: +NORMALIZE_WHITESPACE
     magnetic_pull: an off-centre generator rotor is pulled further off centre by the magnetic field: a negative
     stiffness. MAG.stiffness [N/m]: <= 0, plausible scale 8.91e+07.
     """

@@ -96,6 +96,8 @@ class ShaftElement:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.fem import ShaftElement
     >>> steel = Material("steel", 211e9, 81.2e9, 7810.0)
     >>> el = ShaftElement(0, 0.25, 0.05, 0.0, steel)
     >>> K = el.K()
@@ -232,6 +234,7 @@ class Disk:
 
     Examples
     --------
+    >>> from twin.fem import Disk
     >>> [p.name for p in Disk("runner", 3, 85e3, 2e4, 4e4).parameters()]
     ['runner.m', 'runner.Id', 'runner.Ip']
     """
@@ -277,6 +280,7 @@ class Bearing:
 
     Examples
     --------
+    >>> from twin.fem import Bearing
     >>> b = Bearing("UGB", 1, dict(kxx=1., kxy=2., kyx=3., kyy=4., cxx=0., cxy=0., cyx=0., cyy=0.))
     >>> [p.name for p in b.parameters()][:2]
     ['UGB.kxx', 'UGB.kxy']
@@ -313,6 +317,7 @@ class ThrustBearing:
 
     Examples
     --------
+    >>> from twin.fem import ThrustBearing
     >>> [p.unit for p in ThrustBearing("thrust", 2, 5e9, 1e7).parameters()]
     ['N m/rad', 'N m s/rad']
     """

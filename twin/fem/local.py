@@ -71,8 +71,8 @@ class ShaftStiffnessChange(_RelativeChange):
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> weak = model.with_effects(ShaftStiffnessChange(18, -0.5))
     >>> dK = weak.matrices()["K"] - model.matrices()["K"]
     >>> bool(np.allclose(dK, -0.5 * model.shaft[18].terms()[2].to_dense(model.n_dof)))
@@ -114,8 +114,8 @@ class DiskMassChange(_RelativeChange):
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> heavier = model.with_effects(DiskMassChange("generator", 0.1))
     >>> float(np.trace(heavier.matrices()["M"] - model.matrices()["M"])) / 2  # kg on x and on y
     60000.0
@@ -148,8 +148,8 @@ class DiskInertiaChange(_RelativeChange):
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> [p.name for p in DiskInertiaChange("runner", 0.2).parameters(model)]
     ['runner.inertia_change']
     """
@@ -187,8 +187,8 @@ def local_changes(model) -> list:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> changes = local_changes(load_model("models/hydro_unit.toml"))
+    >>> from twin import load_model, shipped_model
+    >>> changes = local_changes(load_model(shipped_model("hydro_unit")))
     >>> len(changes), changes[-1]
     (36, DiskInertiaChange(disk='runner', change=0.0))
     """

@@ -76,6 +76,7 @@ class RotorModel:
 
     Examples
     --------
+    >>> from twin import RotorModel
     >>> from twin.fem.elements import Material
     >>> steel = Material("steel", 211e9, 81.2e9, 7810.0)
     >>> shaft = [ShaftElement(i, 0.25, 0.05, 0.0, steel) for i in range(4)]
@@ -207,8 +208,14 @@ class RotorModel:
         for p in self.parameters:
             if p.name == name:
                 return p
+        from twin.fem.effects import effect_providing
+
         close = difflib.get_close_matches(name, self.parameter_names, n=3)
-        hint = f"; did you mean {close}?" if close else ""
+        effect = effect_providing(self, name)
+        if effect is not None:
+            hint = f"; it comes with the effect '{effect}': add it first (twin ... --effect {effect})"
+        else:
+            hint = f"; did you mean {close}?" if close else "; twin params MODEL lists them"
         raise ModelError(f"model '{self.name}' has no parameter '{name}'{hint}")
 
     def with_values(self, values: Mapping[str, float]) -> RotorModel:
@@ -216,8 +223,8 @@ class RotorModel:
 
         Examples
         --------
-        >>> from twin import load_model
-        >>> m = load_model("models/ross_reference.toml")
+        >>> from twin import load_model, shipped_model
+        >>> m = load_model(shipped_model("ross_reference"))
         >>> m.with_values({"B0.kxx": 2e6}).parameter("B0.kxx").nominal
         2000000.0
         """
@@ -230,9 +237,9 @@ class RotorModel:
 
         Examples
         --------
-        >>> from twin import load_model
+        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import MagneticPull
-        >>> m = load_model("models/hydro_unit.toml").with_effects(MagneticPull(-1e8))
+        >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull(-1e8))
         >>> m.parameter("MAG.stiffness").nominal
         -100000000.0
         """

@@ -145,13 +145,33 @@ def _label(table: _Table, name: str) -> None:
     table.where = f"{table.where.split(' ')[0]} '{name}'"
 
 
+MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+
+
+def shipped_model(name: str = "hydro_unit") -> Path:
+    """The path of a model file shipped with twin (``hydro_unit``, ``ross_reference``), wherever twin is installed.
+
+    Examples
+    --------
+    >>> from twin import shipped_model
+    >>> shipped_model().name, shipped_model("ross_reference").exists()
+    ('hydro_unit.toml', True)
+    """
+    path = MODELS_DIR / f"{name}.toml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in MODELS_DIR.glob("*.toml")))
+        raise ModelFileError(str(path), "(file)", None, f"no shipped model '{name}' (shipped: {known})")
+    return path
+
+
 def load_model(path: str | Path) -> RotorModel:
     """Read a TOML model file and build the rotor model.
 
     Parameters
     ----------
     path : str or Path
-        The model file.
+        The model file, or the name of a shipped model (``"hydro_unit"``,
+        :func:`shipped_model`) when no such file exists.
 
     Returns
     -------
@@ -165,10 +185,13 @@ def load_model(path: str | Path) -> RotorModel:
 
     Examples
     --------
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> m.n_nodes, m.n_dof, m.channels[:2]
     (29, 116, ['SEAL_x', 'SEAL_y'])
     """
+    if not Path(path).exists() and re.fullmatch(r"[A-Za-z_]\w*", str(path)) and (MODELS_DIR / f"{path}.toml").is_file():
+        path = MODELS_DIR / f"{path}.toml"
     return model_from_dict(read_toml(path), source=str(path))
 
 
@@ -229,7 +252,10 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     for t in _array_of_tables(top, "bearing"):
         nm = unique(t, "bearing")
         node = t.node("node", n_nodes)
-        bearings.append(Bearing(nm, node, {k: t.number(k) for k in BEARING_COEFFICIENTS}))
+        # a guide bearing holds the shaft: positive direct stiffness, non-negative direct damping
+        rules = {"kxx": {"positive": True}, "kyy": {"positive": True}, "cxx": {"nonnegative": True},
+                 "cyy": {"nonnegative": True}}  # fmt: skip
+        bearings.append(Bearing(nm, node, {k: t.number(k, **rules.get(k, {})) for k in BEARING_COEFFICIENTS}))
         t.finish()
     thrusts = []
     for t in _array_of_tables(top, "thrust"):

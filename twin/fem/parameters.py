@@ -28,6 +28,7 @@ class Term:
 
     Examples
     --------
+    >>> from twin.fem import Term
     >>> t = Term("K", (0, 1), [[2.0, 0.5], [-0.5, 3.0]])
     >>> t.to_dense(3)
     array([[ 2. ,  0.5,  0. ],
@@ -89,6 +90,8 @@ class Parameter:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.fem import Parameter
     >>> p = Parameter("B.kxx", 1e6, "N/m", (Term("K", (0,), [[1.0]]),), bounds=(0.0, np.inf))
     >>> p.dofs, p.kinds, p.within(-1.0)
     ((0,), ('K',), False)

@@ -68,8 +68,8 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> t = load_truth("paper", load_model("models/hydro_unit.toml"))
+    >>> from twin import load_model, shipped_model
+    >>> t = load_truth("paper", load_model(shipped_model("hydro_unit")))
     >>> t.per_mode.n_modes
     15
     """

@@ -61,8 +61,8 @@ def resolve_inputs(model: RotorModel, inputs: Sequence[str] | None) -> list[Port
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> [p.name for p in resolve_inputs(load_model("models/hydro_unit.toml"), ["runner.x", "12.y"])]
+    >>> from twin import load_model, shipped_model
+    >>> [p.name for p in resolve_inputs(load_model(shipped_model("hydro_unit")), ["runner.x", "12.y"])]
     ['F_runner_x', 'F_12_y']
     """
     if inputs is None:
@@ -146,10 +146,11 @@ def export_fmu(
 
     Examples
     --------
+    >>> from twin.fmu import export_fmu
     >>> import tempfile, pathlib
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> out = pathlib.Path(tempfile.mkdtemp()) / "unit.fmu"
-    >>> export_fmu(load_model("models/hydro_unit.toml"), out, basis="modal", fmax_hz=50.0).name
+    >>> export_fmu(load_model(shipped_model("hydro_unit")), out, basis="modal", fmax_hz=50.0).name
     'unit.fmu'
     """
     path = Path(path)

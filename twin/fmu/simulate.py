@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg as sla
 import xarray as xr
-from tqdm.auto import tqdm
 
 from twin import __version__
 from twin.errors import ModelError, TwinError
@@ -28,6 +27,7 @@ from twin.fmu.statespace import StateSpace, check_stable, discretize, model_stat
 from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
 from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, write_netcdf
+from twin.progress import bar
 
 log = logging.getLogger(__name__)
 
@@ -111,8 +111,8 @@ def simulate(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ds = simulate(load_model("models/hydro_unit.toml"), duration_s=1.0, fs_hz=256.0, progress=False)
+    >>> from twin import load_model, shipped_model
+    >>> ds = simulate(load_model(shipped_model("hydro_unit")), duration_s=1.0, fs_hz=256.0, progress=False)
     >>> ds.displacement.dims, ds.sizes["time"], ds.attrs["sampling_rate"]
     (('time', 'channel'), 256, 256.0)
     """
@@ -155,14 +155,13 @@ def simulate(
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[])
         n_total = n_warm + n_rec
-        bar = tqdm(total=n_total, desc=f"simulate {model.name}", unit="step", disable=not progress,
-                   mininterval=0.5)  # fmt: skip
+        steps = bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress, mininterval=0.5)
         done = [0]
 
         def step_finished(time, recorder):
             done[0] += 1
             if done[0] % 4096 == 0:
-                bar.update(4096)
+                steps.update(4096)
             return True
 
         try:
@@ -170,8 +169,8 @@ def simulate(
                                     output_interval=h, start_values=start_values, output=ss.outputs,
                                     step_finished=step_finished if progress else None)  # fmt: skip
         finally:
-            bar.update(done[0] - bar.n)
-            bar.close()
+            steps.update(done[0] - steps.n)
+            steps.close()
     time = res["time"][n_warm:]
     data = np.column_stack([res[c] for c in ss.outputs])[n_warm:]
     if len(time) != n_rec:
@@ -188,6 +187,7 @@ def simulate(
     attrs = {
         "title": f"simulated proximeter signals of {model.name}",
         "sampling_rate": float(fs_hz),
+        "sampling_rate_units": "Hz",
         "speed_rpm": float(ss.speed_rpm),
         "model": model.name,
         "model_source": model.source,
@@ -202,11 +202,14 @@ def simulate(
     ds = xr.Dataset(
         {"displacement": (("time", "channel"), data, {"units": "m", "long_name": "proximeter displacement"})},
         coords={
-            "time": ("time", time, {"units": "s"}),
-            "channel": ("channel", list(ss.outputs)),
-            "node": ("channel", [sensors[c].node for c in ss.outputs]),
-            "direction": ("channel", [sensors[c].direction for c in ss.outputs]),
-            "location": ("channel", [sensors[c].location for c in ss.outputs]),
+            "time": ("time", time, {"units": "s", "long_name": "time from the end of the warm-up"}),
+            "channel": ("channel", list(ss.outputs), {"long_name": "proximeter (sensor name)"}),
+            "node": ("channel", [sensors[c].node for c in ss.outputs],
+                     {"units": "1", "long_name": "FEM node the proximeter faces (0 at the shaft's first node)"}),
+            "direction": ("channel", [sensors[c].direction for c in ss.outputs],
+                          {"units": "1", "long_name": "measuring direction in the plane of the node (x or y)"}),
+            "location": ("channel", [sensors[c].location for c in ss.outputs],
+                         {"units": "1", "long_name": "what the proximeter faces (bearing, disk or region)"}),
         },
         attrs=attrs,
     )

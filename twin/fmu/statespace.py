@@ -99,8 +99,9 @@ def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=N
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ss = full_state_space(load_model("models/hydro_unit.toml"))
+    >>> from twin.fmu import full_state_space
+    >>> from twin import load_model, shipped_model
+    >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
     >>> ss.A.shape, ss.B.shape, ss.C.shape
     ((232, 232), (232, 58), (8, 232))
     """
@@ -182,8 +183,9 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ss = truncated_state_space(full_state_space(load_model("models/hydro_unit.toml")), 100.0)
+    >>> from twin.fmu import truncated_state_space
+    >>> from twin import load_model, shipped_model
+    >>> ss = truncated_state_space(full_state_space(load_model(shipped_model("hydro_unit"))), 100.0)
     >>> ss.n_states
     34
     """
@@ -203,8 +205,8 @@ def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | N
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> model_state_space(load_model("models/hydro_unit.toml"), "modal", 50.0).n_states  # modes 1-11
+    >>> from twin import load_model, shipped_model
+    >>> model_state_space(load_model(shipped_model("hydro_unit")), "modal", 50.0).n_states  # modes 1-11
     22
     """
     if basis not in ("full", "modal"):
@@ -242,6 +244,8 @@ def discretize(ss: StateSpace, h: float) -> Discrete:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.fmu import discretize
     >>> ss = StateSpace(np.array([[-1.0]]), np.array([[1.0]]), np.array([[1.0]]), ["0.x"], ["y"], 0.0)
     >>> d = discretize(ss, 0.5)
     >>> bool(np.isclose(d.phi[0, 0], np.exp(-0.5))), bool(np.isclose(d.gamma0[0, 0], 1 - np.exp(-0.5)))
@@ -282,6 +286,8 @@ def simulate_reference(
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.fmu import simulate_reference
     >>> ss = StateSpace(np.array([[-1.0]]), np.array([[1.0]]), np.array([[1.0]]), ["0.x"], ["y"], 0.0)
     >>> y = simulate_reference(discretize(ss, 0.1), ss.C, zoh=np.ones((200, 1)))
     >>> round(float(y[-1, 0]), 6)  # step response settles at the static gain 1

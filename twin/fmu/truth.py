@@ -84,9 +84,9 @@ def truth_state_space(
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.truthfile import paper_truth
-    >>> ss = truth_state_space(load_model("models/hydro_unit.toml"), paper_truth())
+    >>> ss = truth_state_space(load_model(shipped_model("hydro_unit")), paper_truth())
     >>> ss.n_states, ss.basis
     (30, 'modal')
     """
@@ -144,9 +144,9 @@ def truth_modes(model: RotorModel, truth: Truth, n_modes: int | None = None) -> 
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.truthfile import paper_truth
-    >>> tm = truth_modes(load_model("models/hydro_unit.toml"), paper_truth())
+    >>> tm = truth_modes(load_model(shipped_model("hydro_unit")), paper_truth())
     >>> tm.shapes.shape
     (15, 116)
     """

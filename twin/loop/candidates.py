@@ -21,16 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from twin.errors import ModelError
-from twin.fem.effects import (
-    EFFECTS,
-    BearingChange,
-    FluidAddedMass,
-    FluidAddedMassPerMode,
-    MagneticPull,
-    SealCrossCoupling,
-    ThrustTilt,
-    effect_label,
-)
+from twin.fem.effects import EFFECTS, FluidAddedMass, FluidAddedMassPerMode, effect_label, library_effects
 from twin.fem.model import RotorModel
 
 
@@ -57,17 +48,13 @@ def library(model: RotorModel) -> list[Candidate]:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> [c.label for c in library(load_model("models/hydro_unit.toml"))]  # doctest: +NORMALIZE_WHITESPACE
+    >>> from twin.loop import library
+    >>> from twin import load_model, shipped_model
+    >>> [c.label for c in library(load_model(shipped_model("hydro_unit")))]  # doctest: +NORMALIZE_WHITESPACE
     ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB',
      'bearing_change:LGB', 'thrust_tilt:thrust']
     """
-    effects: list = []
-    for cls in (FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling):
-        if cls.region in model.regions:
-            effects.append(cls())
-    effects += [BearingChange(b.name) for b in model.bearings]
-    effects += [ThrustTilt(t.name) for t in model.thrusts]
+    effects = library_effects(model)
     present = {effect_label(e) for e in model.effects}
     has_fsi = any(isinstance(e, (FluidAddedMass, FluidAddedMassPerMode)) for e in model.effects)
     out = []
@@ -107,8 +94,8 @@ def sized(candidate: Candidate, labels: Sequence[int]) -> Candidate:
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> c = select(load_model("models/hydro_unit.toml"), ["fsi_per_mode"])[0]
+    >>> from twin import load_model, shipped_model
+    >>> c = select(load_model(shipped_model("hydro_unit")), ["fsi_per_mode"])[0]
     >>> sized(c, [1, 2, 4]).effect.n_modes
     4
     """
@@ -123,9 +110,9 @@ def free_names(model: RotorModel, effect, labels: Sequence[int]) -> list[str]:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import FluidAddedMassPerMode
-    >>> free_names(load_model("models/hydro_unit.toml"), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
+    >>> free_names(load_model(shipped_model("hydro_unit")), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
     ['FSI.added_mass_1', 'FSI.added_damping_1', 'FSI.added_mass_3', 'FSI.added_damping_3']
     """
     names = [p.name for p in effect.parameters(model)]
@@ -142,8 +129,9 @@ def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> m = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull", "bearing_change:LGB"])
+    >>> from twin.loop import add_effects
+    >>> from twin import load_model, shipped_model
+    >>> m = add_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull", "bearing_change:LGB"])
     >>> m.parameter_names[-3:]
     ['MAG.stiffness', 'LGB.stiffness_change', 'LGB.damping_change']
     """

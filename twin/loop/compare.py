@@ -126,9 +126,10 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin.loop import measured_modes
+    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> meas = measured_modes(synthesize_modes(load_model("models/hydro_unit.toml"), samples=20))
+    >>> meas = measured_modes(synthesize_modes(load_model(shipped_model("hydro_unit")), samples=20))
     >>> meas.pole.shape, meas.shape.shape
     ((15,), (15, 8))
     """
@@ -188,6 +189,7 @@ class ModelModes:
     mac: np.ndarray
     mac_matrix: np.ndarray  # measured x model, for plots (single-FEM modes)
     model_frequency: np.ndarray  # Hz, the single-FEM modes of the matrix
+    partner: np.ndarray  # column of mac_matrix paired with each measured mode (the nearest for a per-mode model)
 
 
 def pairing_cost(meas: Measured, poles: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -233,7 +235,7 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
     rows = np.arange(len(meas.mode))
     per_mode = _per_mode_effect(model)
     if per_mode is None:
-        return ModelModes(rows, sol.poles[cols], sol.right[cols], m[rows, cols], m, sol.poles.imag / (2 * np.pi))
+        return ModelModes(rows, sol.poles[cols], sol.right[cols], m[rows, cols], m, sol.poles.imag / (2 * np.pi), cols)
     poles, shapes, macs = [], [], []
     base = with_shared_fsi(model)
     all_values = {**model.values, **dict(values or {})}
@@ -248,7 +250,7 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
         k = int(np.argmin(cost[0]))
         poles.append(s.poles[k]), shapes.append(s.right[k]), macs.append(mm[0, k])
     return ModelModes(rows, np.array(poles, dtype=complex), np.array(shapes), np.array(macs), m,
-                      sol.poles.imag / (2 * np.pi))  # fmt: skip
+                      sol.poles.imag / (2 * np.pi), cols)  # fmt: skip
 
 
 def _shared_values(values: Mapping[str, float] | None) -> dict[str, float]:
@@ -346,9 +348,10 @@ def compare(
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin.loop import compare
+    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> table = compare(model, synthesize_modes(model, samples=20, seed=1))
     >>> round(100 * table.attrs["error"], 2)  # the model lacks the water's added mass: E in %
     1.91
@@ -375,9 +378,12 @@ def compare(
             "damping_error": ("mode", z_mod - z_meas, {**pct, "long_name": "damping ratio error (model - measured)"}),
             "relative_damping_error": ("mode", z_mod / z_meas - 1, {**pct, "long_name": "relative damping ratio error"}),
             "pole_error": ("mode", relative_pole_error(mm.poles, m.pole), {**pct, "long_name": "|model pole - measured pole| / |measured pole|"}),
-            "z_frequency": ("mode", z_im, {**pct, "long_name": "imaginary-part error in measurement sigmas"}),
-            "z_damping": ("mode", z_re, {**pct, "long_name": "real-part error in measurement sigmas"}),
+            "z_frequency": ("mode", z_im, {**pct, "long_name": "imaginary-part error in measurement sigmas (sign of the frequency error)"}),
+            "z_damping": ("mode", -z_re, {**pct, "long_name": "minus the real-part error in measurement sigmas (sign of the damping error: the real part is -zeta omega)"}),
+            "frequency_sigma": ("mode", m.sigma[:, 1] / np.abs(m.pole.imag), {**pct, "long_name": "relative standard uncertainty of the measured frequency"}),
+            "damping_sigma": ("mode", m.sigma[:, 0] / np.abs(m.pole), {**pct, "long_name": "standard uncertainty of the measured damping ratio"}),
             "mac": ("mode", mm.mac, pct),
+            "partner": ("mode", mm.partner + 1, {"long_name": "model mode (column of mac_matrix) paired with the measured mode"}),
             "measured_pole": ("mode", m.pole, {"units": "1/s", "long_name": "measured mean pole"}),
             "model_pole": ("mode", mm.poles, {"units": "1/s", "long_name": "model pole"}),
             "measured_shape": (("mode", "channel"), m.shape, {**pct, "long_name": "measured mean shape"}),
@@ -417,9 +423,9 @@ def error_text(table: xr.Dataset) -> str:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> print(error_text(compare(model, synthesize_modes(model, samples=20, seed=1))))  # doctest: +NORMALIZE_WHITESPACE
     E = 1.91% (15 measured modes; RMS over the measured modes of |model pole - measured pole| / |measured pole|,
     real and imaginary parts weighed by the inverse variance of the measured pole; unweighted RMS 6.61%)

@@ -75,10 +75,10 @@ def coverage(model: RotorModel, meas: Measured) -> Coverage | None:
     Examples
     --------
     >>> import dataclasses
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.loop.compare import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> meas = measured_modes(synthesize_modes(model, samples=5, seed=1).isel(mode=[0, 3]))  # 2 modes
     >>> c = coverage(model, dataclasses.replace(meas, band_hz=(0.0, 60.0), duration_s=5.0, zeta_max=0.25))
     >>> len(c.in_band_hz), c.n_measured, c.enough

@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import time
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +29,7 @@ from twin.fem.model import RotorModel
 from twin.loop.compare import PER_MODE_NAME, Measured, error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
+from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.netcdf import atomic_output
@@ -42,8 +42,10 @@ DEMO_SAMPLES = 15
 
 
 def default_model_path() -> Path:
-    """The hydro unit model file of the source tree (``models/hydro_unit.toml``)."""
-    return Path(__file__).resolve().parents[2] / "models" / "hydro_unit.toml"
+    """The hydro unit model file shipped with twin (:func:`twin.fem.shipped_model`)."""
+    from twin.fem import shipped_model
+
+    return shipped_model("hydro_unit")
 
 
 def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: list[dict]) -> dict[str, float]:
@@ -173,6 +175,7 @@ def run_demo(
     from twin.fmu import export_fmu
     from twin.fmu.simulate import simulate
     from twin.loop.plots import _pyplot, comparison_figures
+    from twin.progress import stage
 
     scenario = parse_scenario(hidden)
     if model is None:
@@ -185,35 +188,27 @@ def run_demo(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
-
-    def stage(name: str, t0: float) -> None:
-        timings[name] = time.perf_counter() - t0
-        log.info("%s: %.1f s", name, timings[name])
-
-    t0 = time.perf_counter()
-    export_fmu(model, out / f"{model.name}.fmu", step_s=1.0 / fs_hz)
-    stage("export FMU", t0)
-    t0 = time.perf_counter()
-    signals = simulate(model, duration_s=duration_s, fs_hz=fs_hz, seed=seed, truth=scenario.truth(),
-                       output=out / "signals.nc", progress=progress, command="twin demo")  # fmt: skip
-    stage("simulate truth (FMU through FMPy)", t0)
-    t0 = time.perf_counter()
-    modes = extract(signals, samples=samples, fmax_hz=fmax_hz, output=out / "modes.nc", progress=progress,
-                    command="twin demo")  # fmt: skip
-    fig = plot_stabilisation(modes)
-    fig.savefig(out / "stabilisation.png", dpi=110)
-    _pyplot().close(fig)
-    stage("extract modes", t0)
-    t0 = time.perf_counter()
-    tw = Twin(model, modes)
-    comparison_figures(tw.compare(), out, prefix="before_")
-    tw.run(method="laplace", tasks=tasks)
-    stage("diagnose, add, update (loop rounds)", t0)
+    with stage("export FMU", timings):
+        export_fmu(model, out / f"{model.name}.fmu", step_s=1.0 / fs_hz)
+    with stage("simulate truth (FMU through FMPy)", timings):
+        signals = simulate(model, duration_s=duration_s, fs_hz=fs_hz, seed=seed, truth=scenario.truth(),
+                           output=out / "signals.nc", progress=progress, command="twin demo")  # fmt: skip
+    with stage("extract modes", timings):
+        modes = extract(signals, samples=samples, fmax_hz=fmax_hz, output=out / "modes.nc", progress=progress,
+                        command="twin demo")  # fmt: skip
+        fig = plot_stabilisation(modes)
+        fig.savefig(out / "stabilisation.png", dpi=110)
+        _pyplot().close(fig)
+    with stage("diagnose, add, update (loop rounds)", timings):
+        tw = Twin(model, modes)
+        tw.run(method="laplace", tasks=tasks, progress=progress)
     meas = tw.measured
     with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
         tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
     if tw.added:
-        comparison_figures(tw.compare(), out, prefix="after_")
+        comparison_figures([tw.history[0].table, tw.compare()], out, labels=["before", "after"])
+    else:
+        comparison_figures(tw.history[0].table, out, labels=["model"])
     tw.plot_history(out / "history.png")
     write_history(tw.history_table(), out / "history.csv")
     truth = truth_for_measured(scenario.truth_values(model), meas, json.loads(modes.attrs.get("truth_modes", "[]")))
@@ -227,7 +222,7 @@ def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
-    """Write ``report.md`` of a demo run (figures are already in the folder)."""
+    """Write ``report.md`` of a demo run and ``report.html``, the same with the figures embedded."""
     tw, d, meas = result.twin, result.diagnosis, result.twin.measured
     name = tw.history[0].model.name
     if result.scenario.nothing:
@@ -252,8 +247,13 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
              f"{100 * float(r.model_damping_ratio):.3f}", f"{float(r.mac):.3f}"]
             for r in (before.isel(mode=k) for k in range(before.sizes["mode"]))]  # fmt: skip
     lines += _md_table(["mode", "f meas [Hz]", "f model [Hz]", "df [%]", "zeta meas [%]", "zeta model [%]", "MAC"], rows)
-    lines += ["", "![errors](before_errors.png) ![MAC](before_mac.png)", "", "![spectra](before_spectra.png)", "",
-              "## Diagnosis", ""]  # fmt: skip
+    lines += ["", "The model's errors per measured mode" + (" before and after the update, on one scale" if tw.added else "")
+              + "; the bars at zero are the measurement's own standard uncertainty:", "", "![errors](errors.png)", "",
+              "The MAC of each measured mode against the model modes near the band (red: the model mode paired "
+              "with it):", "", "![MAC](mac.png)", "",
+              "Modal spectra per channel: each set of poles and unit-norm shapes with equal unit forcing (the "
+              "measured curve is rebuilt from the identified modes, not from the signals):", "",
+              "![spectra](spectra.png)", "", "## Diagnosis", ""]  # fmt: skip
     for k, dk in enumerate(tw.diagnoses, start=1):
         lines += [f"Round {k}: **{dk.verdict}**" + (f" ({', '.join(dk.missing)})" if dk.missing else "") + ".", "",
                   dk.summary, ""]  # fmt: skip
@@ -269,7 +269,7 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
                  f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
                 for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip
         lines += _md_table(["parameter", "truth", "MAP", "std", "error [%]", "unit"], rows)
-        lines += ["", "![errors after](after_errors.png)", "", "![spectra after](after_spectra.png)", ""]
+        lines += [""]
     lines += ["## History", ""]
     rows = [[str(k), s.action, f"{100 * s.error:.3f}", f"{float(s.table.attrs['chi2']):.1f}"]
             for k, s in enumerate(tw.history)]  # fmt: skip
@@ -280,4 +280,5 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     path = result.out / "report.md"
     with atomic_output(path, ".md.part") as tmp:
         tmp.write_text("\n".join(lines))
+    write_html_report(path, title=f"twin demo: {result.scenario.spec}")
     return path

@@ -127,9 +127,9 @@ def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.loop.candidates import add_effects
-    >>> model = add_effects(load_model("models/hydro_unit.toml"), ["magnetic_pull"])
+    >>> model = add_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull"])
     >>> p = prior_for(model, ["MAG.stiffness", "UGB.kxx"])
     >>> float(p.mean[0]), bool(p.scale[1] == 0.5 * model.parameter("UGB.kxx").nominal), float(p.high[0]), float(p.low[1])
     (0.0, True, 0.0, 0.0)
@@ -164,10 +164,10 @@ class PoleModel:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.loop.compare import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> at = PoleModel(model, measured_modes(synthesize_modes(model, samples=5, seed=1))).at({}, ["runner.m"])
     >>> at.poles.shape, at.jacobian.shape
     ((15,), (15, 1))
@@ -352,12 +352,12 @@ def fit(
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.loop.compare import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> base = load_model("models/hydro_unit.toml")
+    >>> base = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(base, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
     >>> f = fit(base.with_effects(MagneticPull()), measured_modes(data), ["MAG.stiffness"], "magnetic_pull")
@@ -457,13 +457,13 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.loop.candidates import add_effects
     >>> from twin.loop.compare import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> base = load_model("models/hydro_unit.toml")
+    >>> base = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
     >>> model = add_effects(base, ["magnetic_pull"])

@@ -118,13 +118,13 @@ def locate(
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.local import DiskMassChange
     >>> from twin.fem.truthfile import Truth
     >>> from twin.loop.compare import measured_modes
     >>> from twin.loop.fit import log_evidence_as_is
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(model, Truth((DiskMassChange("generator", 0.1),)), n_modes=13, samples=50,
     ...                         seed=2, pole_variance=(0.01, 0.01))
     >>> meas = measured_modes(data)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,55 +36,143 @@ def modal_spectrum(poles: np.ndarray, shapes: np.ndarray, frequency_hz: np.ndarr
     return (np.abs(np.asarray(shapes)) ** 2).T @ resp
 
 
-def comparison_figures(table: xr.Dataset, directory: str | Path, prefix: str = "") -> list[Path]:
-    """Write ``errors.png``, ``mac.png`` and ``spectra.png`` of a comparison into ``directory``."""
-    plt = _pyplot()
+def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str | Path, prefix: str = "",
+                       labels: Sequence[str] | None = None) -> list[Path]:  # fmt: skip
+    """Write ``errors.png``, ``mac.png`` and ``spectra.png`` of one comparison or several side by side.
+
+    Parameters
+    ----------
+    tables : Dataset or sequence of Dataset
+        Comparisons (:func:`twin.loop.compare.compare`) against the same
+        measured modes, e.g. before and after an update: drawn on one scale.
+    directory : path
+        Created if missing.
+    prefix : str
+        Put before each file name.
+    labels : sequence of str, optional
+        One per table (default ``model``, or ``model 1, 2, ...``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from twin import load_model, shipped_model
+    >>> from twin.loop.compare import compare
+    >>> from twin.update import synthesize_modes
+    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> table = compare(model, synthesize_modes(model, samples=10, seed=1))
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     [p.name for p in comparison_figures(table, tmp)]
+    ['errors.png', 'mac.png', 'spectra.png']
+    """
+    tables = [tables] if isinstance(tables, xr.Dataset) else list(tables)
+    if labels is None:
+        labels = ["model"] if len(tables) == 1 else [f"model {k}" for k in range(1, len(tables) + 1)]
     out_dir = Path(directory)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    modes = table["mode"].values
-    x = np.arange(len(modes))
-    fig, ax = plt.subplots(figsize=(8, 3.5))
-    ax.bar(x - 0.2, 100 * table["frequency_error"].values, 0.4, label="frequency error [%]")
-    ax.bar(x + 0.2, 100 * table["damping_error"].values, 0.4, label="damping ratio error [pp]")
-    ax.axhline(0, color="k", lw=0.5)
-    ax.set_xticks(x, [str(m) for m in modes])
-    ax.set_xlabel("measured mode")
-    ax.set_title(f"model - measured; E = {100 * table.attrs['error']:.2f}%")
-    ax.legend(fontsize=8)
-    paths.append(_save(fig, out_dir / f"{prefix}errors.png"))
-    fig, ax = plt.subplots(figsize=(5, 4.5))
-    im = ax.imshow(table["mac_matrix"].values, vmin=0, vmax=1, cmap="viridis", aspect="auto", origin="lower")
-    ax.set_xlabel("model mode")
-    ax.set_ylabel("measured mode")
-    ax.set_xticks(np.arange(table.sizes["mode_model"])[::2], table["mode_model"].values[::2])
-    ax.set_yticks(np.arange(table.sizes["mode_measured"]), table["mode_measured"].values)
-    fig.colorbar(im, ax=ax, label="MAC")
-    paths.append(_save(fig, out_dir / f"{prefix}mac.png"))
-    f_max = 1.1 * float(max(table["measured_frequency"].max(), table["model_frequency"].max()))
+    return [error_figure(tables, labels, out_dir / f"{prefix}errors.png"),
+            mac_figure(tables, labels, out_dir / f"{prefix}mac.png"),
+            spectra_figure(tables, labels, out_dir / f"{prefix}spectra.png")]  # fmt: skip
+
+
+def _mode_ticks(table: xr.Dataset) -> list[str]:
+    return [f"{int(m)}\n{f:.3g} Hz" for m, f in zip(table["mode"].values, table["measured_frequency"].values)]
+
+
+def error_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
+    """Frequency error [%] and damping ratio error [pp] per measured mode, ±1 measurement std as bars."""
+    plt = _pyplot()
+    first = tables[0]
+    x = np.arange(first.sizes["mode"])
+    fig, (ax_f, ax_z) = plt.subplots(2, 1, figsize=(max(7.0, 0.55 * len(x) + 2), 5.6), sharex=True)
+    width = 0.8 / len(tables)
+    for k, (table, label) in enumerate(zip(tables, labels)):
+        dx = (k - (len(tables) - 1) / 2) * width
+        name = f"{label}: E = {100 * table.attrs['error']:.3g}%"
+        ax_f.bar(x + dx, 100 * table["frequency_error"].values, width, label=name, color=f"C{k}")
+        ax_z.bar(x + dx, 100 * table["damping_error"].values, width, label=name, color=f"C{k}")
+    for ax, sigma in ((ax_f, "frequency_sigma"), (ax_z, "damping_sigma")):
+        if sigma in first:  # the measurement's own uncertainty, around zero
+            ax.errorbar(x, np.zeros_like(x, dtype=float), yerr=100 * first[sigma].values, fmt="none", ecolor="k",
+                        capsize=3, lw=1, label="±1 std of the measured value")  # fmt: skip
+        ax.axhline(0, color="k", lw=0.5)
+        ax.grid(True, axis="y", alpha=0.3)
+    ax_f.set_ylabel("frequency error\nmodel / measured − 1 [%]")
+    ax_z.set_ylabel("damping ratio error\nmodel − measured [pp]")
+    ax_z.set_xticks(x, _mode_ticks(first), fontsize=7)
+    ax_z.set_xlabel("measured mode")
+    ax_f.legend(fontsize=7, loc="best")
+    ax_f.set_title("model against measured modes, " + " and ".join(labels), fontsize=10)
+    return _save(fig, path)
+
+
+def mac_columns(table: xr.Dataset) -> np.ndarray:
+    """The columns of a comparison's MAC matrix worth drawing: the paired model modes and those in the band.
+
+    The band runs up to 10% above the highest measured mode; the model's
+    modes far above it (up to kHz) carry nothing the measurement can show.
+    """
+    f_model = table["model_mode_frequency"].values
+    f_top = 1.1 * float(table["measured_frequency"].max())
+    return np.union1d(np.flatnonzero((f_model >= 0) & (f_model <= f_top)), table["partner"].values - 1)
+
+
+def mac_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
+    """MAC of each measured mode against the model modes near the measured band, the pairing boxed."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(tables), figsize=(4.6 * len(tables) + 1.6, 4.6), squeeze=False,
+                             layout="constrained")  # fmt: skip
+    im = None
+    for k, (ax, table, label) in enumerate(zip(axes[0], tables, labels)):
+        f_model = table["model_mode_frequency"].values
+        partner = table["partner"].values - 1
+        keep = mac_columns(table)
+        matrix = table["mac_matrix"].values[:, keep]
+        im = ax.imshow(matrix, vmin=0, vmax=1, cmap="viridis", aspect="auto", origin="lower")
+        column = {c: j for j, c in enumerate(keep)}
+        for r, c in enumerate(partner):
+            ax.add_patch(plt.Rectangle((column[c] - 0.5, r - 0.5), 1, 1, fill=False, ec="red", lw=1.5))
+        step = max(1, len(keep) // 24)
+        ax.set_xticks(np.arange(len(keep))[::step], [f"{f_model[c]:.3g}" for c in keep[::step]], rotation=90, fontsize=7)
+        ax.set_yticks(np.arange(table.sizes["mode"]), _mode_ticks(table) if k == 0 else [], fontsize=7)
+        ax.set_xlabel("model mode frequency [Hz]")
+        if k == 0:
+            ax.set_ylabel("measured mode")
+        ax.set_title(f"{label}: MAC (red: paired)", fontsize=10)
+    fig.colorbar(im, ax=axes[0].tolist(), label="MAC [1]")
+    return _save(fig, path, tight=False)
+
+
+def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
+    """Modal spectra per channel: the measured modes' against each model's."""
+    plt = _pyplot()
+    first = tables[0]
+    f_max = 1.1 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
     freq = np.linspace(0.05, f_max, 4000)
-    s_meas = modal_spectrum(table["measured_pole"].values, table["measured_shape"].values, freq)
-    s_mod = modal_spectrum(table["model_pole"].values, table["model_shape"].values, freq)
-    channels = table["channel"].values
+    channels = first["channel"].values
     ncol = 2
     nrow = int(np.ceil(len(channels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(9, 1.8 * nrow + 0.5), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(9, 1.8 * nrow + 1.0), sharex=True, squeeze=False)
+    s_meas = modal_spectrum(first["measured_pole"].values, first["measured_shape"].values, freq)
+    s_mod = [modal_spectrum(t["model_pole"].values, t["model_shape"].values, freq) for t in tables]
     for k, c in enumerate(channels):
         ax = axes.flat[k]
-        ax.semilogy(freq, s_meas[k], label="measured", lw=1)
-        ax.semilogy(freq, s_mod[k], label="model", lw=1, ls="--")
+        ax.semilogy(freq, s_meas[k], label="measured modes", lw=1.2, color="k")
+        for j, (s, label) in enumerate(zip(s_mod, labels)):
+            ax.semilogy(freq, s[k], label=label, lw=1, ls=("--", ":", "-.")[j % 3], color=f"C{j}")
         ax.set_title(str(c), fontsize=8)
     for ax in axes.flat[len(channels):]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
     fig.supxlabel("frequency [Hz]")
-    fig.supylabel("modal spectrum [1]")
-    paths.append(_save(fig, out_dir / f"{prefix}spectra.png"))
-    return paths
+    fig.supylabel("Σ|ψ|² / |i2πf − λ|² [s²]")
+    fig.suptitle("modal spectra: each set of poles and unit-norm shapes with equal unit forcing\n"
+                 "(the measured curve is rebuilt from the identified modes, not the signals' spectrum)", fontsize=9)  # fmt: skip
+    return _save(fig, path)
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
+def _save(fig, path: Path, tight: bool = True) -> Path:
+    if tight:
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     _pyplot().close(fig)
     return path

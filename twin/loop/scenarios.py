@@ -125,8 +125,8 @@ class Scenario:
 
         Examples
         --------
-        >>> from twin import load_model
-        >>> parse_scenario("magnetic_pull").truth_values(load_model("models/hydro_unit.toml"))
+        >>> from twin import load_model, shipped_model
+        >>> parse_scenario("magnetic_pull").truth_values(load_model(shipped_model("hydro_unit")))
         {'MAG.stiffness': -100000000.0}
         """
         return {p.name: p.nominal for e in self.effects for p in e.parameters(model.with_effects(e))}

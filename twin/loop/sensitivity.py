@@ -52,8 +52,8 @@ def solve_modes(model: RotorModel, values: Mapping[str, float] | None = None) ->
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> sol = solve_modes(load_model("models/hydro_unit.toml"))
+    >>> from twin import load_model, shipped_model
+    >>> sol = solve_modes(load_model(shipped_model("hydro_unit")))
     >>> sol.right.shape == sol.left.shape
     True
     """
@@ -92,8 +92,8 @@ def pole_jacobian(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> jac = pole_jacobian(m, solve_modes(m), ["runner.m"], modes=[0])
     >>> jac.shape
     (1, 1)
@@ -137,8 +137,8 @@ def follow_mode(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> sol = solve_modes(m)
     >>> near = follow_mode(m, {"runner.m": 9e4}, sol.poles[4], sol.right[4])
     >>> exact = solve_modes(m, {"runner.m": 9e4})

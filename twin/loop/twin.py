@@ -58,11 +58,12 @@ class Twin:
 
     Examples
     --------
-    >>> from twin import load_model
+    >>> from twin.loop import Twin
+    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
-    >>> model = load_model("models/hydro_unit.toml")
+    >>> model = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(model, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3,
     ...                         pole_variance=(0.01, 0.01))
     >>> tw = Twin(model, data)
@@ -114,6 +115,19 @@ class Twin:
         self.added.append(label)
         return step
 
+    def _drop_replaced(self, label: str) -> None:
+        """Before per-mode FSI comes in, the mode-independent FSI the loop added goes (the one holds the other)."""
+        if label != "fsi_per_mode" or "fsi" not in self.added:
+            return
+        import dataclasses
+
+        gone = [e for e in self.model.effects if effect_label(e) == "fsi"]
+        names = {p.name for e in gone for p in e.parameters(self.model)}
+        model = dataclasses.replace(self.model, effects=tuple(e for e in self.model.effects if e not in gone),
+                                    values={k: v for k, v in self.model.values.items() if k not in names})
+        self._record("drop fsi (per-mode FSI holds it)", model)
+        self.added.remove("fsi")
+
     def added_parameters(self) -> list[str]:
         """The parameters of every effect the loop added (a per-mode effect's for the measured modes)."""
         labels = set(self.added)
@@ -122,7 +136,7 @@ class Twin:
 
     def run(
         self, *, method: str = "laplace", max_rounds: int = MAX_ROUNDS, candidates: Sequence[str] | None = None,
-        tasks: Any = None, **kwargs,
+        tasks: Any = None, progress: bool = False, **kwargs,
     ) -> Diagnosis:  # fmt: skip
         """Go round the loop to the end; returns the last diagnosis.
 
@@ -131,15 +145,17 @@ class Twin:
         has added is updated jointly (``method`` and ``kwargs`` as
         :meth:`update`). The loop stops when a diagnosis names nothing new
         ("nothing missing", "unexplained", "not enough data", or the same
-        effects again), or after ``max_rounds`` rounds.
+        effects again), or after ``max_rounds`` rounds. ``progress`` draws
+        bars over the candidate fits (and the chains) on a terminal; each
+        round's stages are logged on ``twin.progress`` (:mod:`twin.progress`).
 
         Examples
         --------
-        >>> from twin import load_model
+        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
         >>> from twin.fem.truthfile import Truth
         >>> from twin.update import synthesize_modes
-        >>> model = load_model("models/hydro_unit.toml")
+        >>> model = load_model(shipped_model("hydro_unit"))
         >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
         >>> tw = Twin(model, synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01)))
         >>> tw.run(candidates=["magnetic_pull", "seal_cross_coupling", "thrust_tilt:thrust"]).verdict
@@ -149,15 +165,25 @@ class Twin:
         >>> abs(tw.model.parameter("MAG.stiffness").nominal / -1.5e8 - 1) < 0.10
         True
         """
+        from twin.progress import log as progress_log
+        from twin.progress import stage
+
         d = None
-        for _ in range(max_rounds):
-            d = self.diagnose(candidates=candidates, tasks=tasks)
+        for k in range(1, max_rounds + 1):
+            with stage(f"round {k}: diagnose"):
+                d = self.diagnose(candidates=candidates, tasks=tasks, progress=progress)
             new = [label for label in d.missing if label not in self.added]
+            progress_log.info("round %d: %s%s", k, d.verdict, f" ({', '.join(d.missing)})" if d.missing else "")
             if not new:
                 break
             for label in new:
+                self._drop_replaced(label)
                 self.add_effect(label)
-            self.update(self.added_parameters(), method=method, **kwargs)
+            with stage(f"round {k}: update {', '.join(self.added)} ({method})"):
+                extra = {"progress": progress} if method == "gibbs" and "progress" not in kwargs else {}
+                self.update(self.added_parameters(), method=method, **kwargs, **extra)
+            progress_log.info("round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error,
+                              100 * self.history[-1].error)  # fmt: skip
         return d
 
     def update(

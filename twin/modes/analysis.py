@@ -36,6 +36,8 @@ def state_matrix(M: np.ndarray, C: np.ndarray, G: np.ndarray, K: np.ndarray, spe
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.modes import state_matrix
     >>> one = np.eye(1)
     >>> state_matrix(one, 0 * one, 0 * one, 4 * one, 0.0)
     array([[ 0.,  1.],
@@ -88,6 +90,8 @@ def whirl_direction(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.modes import whirl_direction
     >>> fwd = np.array([[1, -1j, 0, 0, 2, -2j, 0, 0]])  # x = cos, y = sin at both nodes
     >>> whirl_direction(fwd)
     (array(['forward'], dtype='<U8'), array([1.]))
@@ -136,8 +140,8 @@ def modal(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ds = modal(load_model("models/ross_reference.toml"), speed_rpm=0.0, n_modes=4)
+    >>> from twin import load_model, modal, shipped_model
+    >>> ds = modal(load_model(shipped_model("ross_reference")), speed_rpm=0.0, n_modes=4)
     >>> ds.sizes["mode"], [round(float(f), 2) for f in ds.frequency.values]
     (4, [16.26, 16.35, 49.0, 49.94])
     >>> bool(ds.stable[0])  # cross-coupled bearings destabilise the first forward mode

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
-from tqdm.auto import tqdm
+from twin.progress import bar
 
 from twin.errors import ModelError
 from twin.fem.model import RotorModel
@@ -45,8 +45,9 @@ def campbell(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ds = campbell(load_model("models/ross_reference.toml"), [0, 1000, 2000], n_modes=4)
+    >>> from twin import campbell
+    >>> from twin import load_model, shipped_model
+    >>> ds = campbell(load_model(shipped_model("ross_reference")), [0, 1000, 2000], n_modes=4)
     >>> ds.frequency.dims, ds.sizes["speed"]
     (('speed', 'mode'), 3)
     """
@@ -56,7 +57,7 @@ def campbell(
     previous = modal(model, speeds[0], n_modes=n_modes)
     n_modes = previous.sizes["mode"]
     rows = [{k: previous[k].values for k in _TRACKED}]
-    for speed in tqdm(speeds[1:], desc="Campbell", disable=not progress):
+    for speed in bar(speeds[1:], desc="Campbell", progress=progress):
         current = modal(model, speed, n_modes=n_modes + 4)
         pairs = pair_modes(previous, current, shape_var="shape")
         order = np.empty(n_modes, dtype=int)
@@ -87,10 +88,11 @@ def plot_campbell(ds: xr.Dataset, ax=None, harmonics: Sequence[int] = (1,)):
 
     Examples
     --------
+    >>> from twin.modes import plot_campbell
     >>> import matplotlib
     >>> matplotlib.use("Agg")
-    >>> from twin import load_model
-    >>> fig = plot_campbell(campbell(load_model("models/ross_reference.toml"), [0, 2000, 4000], n_modes=4))
+    >>> from twin import load_model, shipped_model
+    >>> fig = plot_campbell(campbell(load_model(shipped_model("ross_reference")), [0, 2000, 4000], n_modes=4))
     >>> fig.axes[0].get_xlabel()
     'speed [rpm]'
     """

@@ -83,8 +83,9 @@ def pair_modes(
 
     Examples
     --------
-    >>> from twin import load_model, modal
-    >>> air = modal(load_model("models/hydro_unit.toml"), n_modes=6)
+    >>> from twin import pair_modes
+    >>> from twin import load_model, shipped_model, modal
+    >>> air = modal(load_model(shipped_model("hydro_unit")), n_modes=6)
     >>> pairs = pair_modes(air, air)
     >>> bool((pairs.mac > 0.999).all()), float(pairs.frequency_ratio[0])
     (True, 1.0)
@@ -125,8 +126,9 @@ def frequency_ratio(air: xr.Dataset, water: xr.Dataset, **kwargs) -> xr.DataArra
 
     Examples
     --------
-    >>> from twin import load_model, modal
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin.modes import frequency_ratio
+    >>> from twin import load_model, shipped_model, modal
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> air = modal(m, n_modes=4)
     >>> water = modal(m, n_modes=4, values={"runner.m": 1.3 * m.parameter("runner.m").nominal})
     >>> frequency_ratio(air, water).values.round(3)  # heavier runner: lower frequencies

@@ -25,6 +25,8 @@ def normalise_shapes(shapes: np.ndarray) -> np.ndarray:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin.modes import normalise_shapes
     >>> normalise_shapes(np.array([1j, 2j])).round(6)
     array([0.447214+0.j, 0.894427+0.j])
     """
@@ -55,6 +57,8 @@ def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from twin import mac
     >>> v = np.array([1.0, 1j, 0.5])
     >>> round(float(mac(v, (2 - 3j) * v)), 12)
     1.0

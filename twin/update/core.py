@@ -198,9 +198,9 @@ def update(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> from twin.update import synthesize_modes
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes, update
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(m, samples=20, seed=0, shape_cov=1e-4, pole_variance=(1e-6, 1e-6))
     >>> post = update(m, data.isel(mode=[2, 3, 9]), fsi=True, draws=50, chains=1, seed=1, progress=False)
     >>> mass = post["posterior"]["added_mass"].mean(("chain", "draw")).values

@@ -63,7 +63,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from tqdm.auto import tqdm
+from twin.progress import bar
 
 from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import coefficients, combined, design, joint_parameters, shape_system, weigh
@@ -433,7 +433,7 @@ def run_chain(
     out_eta = np.empty((draws, I, problem.n_per_mode))
     out_psi = np.empty((draws, I, len(problem.data_index)))
     noise, lps, accepted = np.empty((draws, I)), np.empty(draws), np.zeros(draws, bool)
-    for n in tqdm(range(burn_in + draws), desc=label, disable=not progress, leave=False):
+    for n in bar(range(burn_in + draws), desc=label, progress=progress, leave=False):
         if warm and n == warm:
             state.w = full_precision(state.w)
         lp = sweep(problem, state, warm_prior if n < warm else prior, rng, collapsed)

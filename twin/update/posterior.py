@@ -172,9 +172,11 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
 
     Examples
     --------
+    >>> import xarray as xr
+    >>> from twin.update import apply_posterior
     >>> import numpy as np, xarray as xr
-    >>> from twin import load_model
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> post = xr.Dataset({"theta": (("chain", "draw", "parameter"), np.full((1, 3, 1), 7e8))},
     ...                   coords={"parameter": ["UGB.kxx"]})
     >>> apply_posterior(m, post, "mean").parameter("UGB.kxx").nominal

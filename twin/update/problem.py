@@ -171,8 +171,8 @@ def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> li
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> m = load_model("models/hydro_unit.toml")
+    >>> from twin import load_model, shipped_model
+    >>> m = load_model(shipped_model("hydro_unit"))
     >>> select_parameters(m, "LGB.c*")
     ['LGB.cxx', 'LGB.cxy', 'LGB.cyx', 'LGB.cyy']
     >>> len(select_parameters(m, "bearings,thrust.k_tilt"))

@@ -72,8 +72,9 @@ def synthesize_modes(
 
     Examples
     --------
-    >>> from twin import load_model
-    >>> ds = synthesize_modes(load_model("models/hydro_unit.toml"), samples=10, seed=1)
+    >>> from twin.update import synthesize_modes
+    >>> from twin import load_model, shipped_model
+    >>> ds = synthesize_modes(load_model(shipped_model("hydro_unit")), samples=10, seed=1)
     >>> dict(ds.sizes)
     {'mode': 15, 'sample': 10, 'channel': 8}
     """

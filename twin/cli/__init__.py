@@ -1,0 +1,88 @@
+"""The ``twin`` command: one sub-command per stage of the loop.
+
+    twin modal MODEL.toml [--speed RPM] [--modes N] [--json]
+    twin campbell MODEL.toml [--max-speed RPM] [--points N] [--modes N] -o campbell.png
+    twin export-fmu MODEL.toml -o unit.fmu [--fs HZ] [--basis full|modal] [--fmax HZ] [--inputs runner.x,...]
+    twin simulate MODEL.toml --duration S --fs HZ --seed N [--truth truth.toml|paper] -o signals.nc
+    twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
+    twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
+    twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
+                [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear] [--effect LABEL]
+    twin compare MODEL.toml modes.nc [--posterior posterior.nc] [--effect LABEL] [--json] [--plot DIR]
+    twin diagnose MODEL.toml modes.nc [--posterior posterior.nc] [--candidates LABEL,...] [--json]
+    twin loop MODEL.toml modes.nc [--out DIR] [--method laplace|gibbs]
+    twin demo [--out DIR] [--hidden SPEC] [--duration S] [--seed N] [--model MODEL.toml]
+    twin sweep [--hidden SPEC,...] [--seeds N,...] [--scenarios FILE] [--out DIR]
+    twin params MODEL.toml [--effect LABEL] [--json]
+
+The parser is :mod:`twin.cli.parser`; the stages' commands are in
+:mod:`twin.cli.stages` (1-3) and :mod:`twin.cli.loop` (4-5). Progress (a
+line per stage, bars for the long ones) goes to stderr when it is a
+terminal, unless ``--quiet``. Errors in the input are reported on one line (``twin: error: ...``) with exit
+status 2, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+from twin.errors import TwinError, TwinWarning
+
+log = logging.getLogger("twin")
+
+__all__ = ["main"]
+
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings of the loop on one line (``twin: warning: ...``), others as Python prints them."""
+    if issubclass(category, TwinWarning):
+        print(f"twin: warning: {message}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr, end="")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``twin`` command; returns the exit status."""
+    from twin.cli.parser import build_parser
+
+    args = build_parser().parse_args(argv)
+    level = logging.INFO if args.verbose else logging.WARNING
+    if not logging.getLogger().handlers:  # (a host such as pytest may have its own)
+        logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+        handler = logging.getLogger().handlers[0]
+        # Dask's scheduler runs here and logs its own life at INFO: only its warnings are shown
+        handler.setLevel(level)
+        handler.addFilter(lambda r: r.levelno >= logging.WARNING or not r.name.startswith("distributed"))
+    warnings.showwarning = _show_warning
+    from twin.progress import show_stages
+
+    show_stages(not args.quiet)
+    try:
+        if getattr(args, "output", None) is not None:  # before any work: a folder or read-only place fails now
+            from twin.netcdf import check_writable
+
+            check_writable(args.output, figure=args.command == "campbell")
+        for flag in ("out", "plot"):
+            folder = getattr(args, flag, None) if not (flag == "plot" and args.command == "extract") else None
+            if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
+                raise TwinError(f"--{flag} {folder} is a file, not a folder")
+        return args.func(args)
+    except TwinError as exc:
+        print(f"twin: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into e.g. `head`, which stopped reading
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    finally:
+        show_stages(None)  # a host process (a notebook, a test) gets the library's default back
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,292 @@
+"""The ``twin`` sub-commands of updating and the loop: update, compare, diagnose, loop, demo, sweep (stages 4-5)."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from twin.errors import TwinError
+
+log = logging.getLogger("twin")
+
+
+#: Defaults of the options that only the Gibbs sampler takes (``twin update``).
+GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "diagonal", "collapsed": False,
+                  "pole_model": "samples"}  # fmt: skip
+
+
+def _update(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.update import summary, update
+
+    if args.params is None and not args.fsi:
+        raise TwinError("nothing to update: give --params and/or --fsi")
+    modes = read_modes(args.modes)  # a bad modes file fails before a cluster starts
+    model = _model_with_effects(args.model, args.effect, modes)
+    if args.method == "laplace":
+        return _update_laplace(args, model, modes)
+    from twin.progress import stage
+    from twin.update.problem import select_parameters
+
+    if args.params is not None:
+        select_parameters(model, args.params)  # unknown names fail before a cluster starts
+
+    with _tasks(args) as client, stage(f"APerCEM Gibbs sampler: {args.chains} chains x {args.draws} draws"):
+        tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
+                      burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
+                      pole_model=args.pole_model, output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
+    table = summary(tree["posterior"].to_dataset())
+    print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
+          f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
+    print(f"{'parameter':<22} {'MAP':>11} {'mean':>11} {'std':>10} {'5%':>11} {'95%':>11} {'R-hat':>6} {'ESS':>6}")
+    has_diag = "r_hat" in table
+    for k, p in enumerate(table["parameter"].values):
+        row = table.isel(parameter=k)
+        r_hat = f"{float(row.r_hat):>6.3f}" if has_diag else f"{'-':>6}"
+        diag = f"{r_hat} {float(row.ess_bulk):>6.0f}" if "ess_bulk" in table else f"{r_hat} {'-':>6}"
+        print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
+              f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}")  # fmt: skip
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _update_laplace(args: argparse.Namespace, model, modes) -> int:
+    """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
+    from twin.fem.effects import effect_label
+    from twin.loop.candidates import free_names
+    from twin.loop.compare import measured_modes
+    from twin.loop.fit import laplace_update
+    from twin.netcdf import check_writable, write_netcdf
+    from twin.update.posterior import laplace_tree
+    from twin.update.problem import select_parameters
+
+    check_writable(args.output)
+    sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default]
+    if sampler:
+        raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in sampler)})")
+    meas = measured_modes(modes)
+    names = select_parameters(model, args.params)
+    if args.fsi:
+        per_mode = [e for e in model.effects if e.per_mode]
+        if not per_mode:
+            model = _model_with_effects(args.model, [*(args.effect or []), "fsi_per_mode"], modes)
+            per_mode = [e for e in model.effects if e.per_mode]
+        names += free_names(model, per_mode[0], meas.mode)
+    updated, post = laplace_update(model, meas, names)
+    attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
+             "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
+             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
+    write_netcdf(laplace_tree(post, modes, attrs, seed=args.seed if args.seed is not None else 0), args.output)
+    print(f"Laplace update of {len(names)} parameters: chi2 {post.attrs['chi2_before']:.1f} -> {post.attrs['chi2_after']:.1f}")
+    print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
+    for k, n in enumerate(names):
+        bound = " (on its physical bound)" if n in post.attrs["at_bound"].split(", ") else ""
+        print(f"{n:<22} {float(post['map'][k]):>11.4g} {float(post['std'][k]):>10.3g} {str(post['unit'].values[k]):<8}{bound}")
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _model_with_effects(path: str, labels: list[str] | None, modes=None, posterior=None):
+    """The model file's model with library effects added: ``--effect`` labels and those a posterior was made
+    with (its ``effects`` attr); a per-mode effect takes one value per measured mode."""
+    from twin.fem import load_model
+    from twin.fem.effects import effect_label
+    from twin.loop.candidates import add_effects
+
+    model = load_model(path)
+    wanted = list(labels or [])
+    if posterior is not None:
+        wanted += json.loads(posterior.attrs.get("effects", "[]"))
+    present = {effect_label(e) for e in model.effects}
+    wanted = [w for i, w in enumerate(wanted) if w not in present and w not in wanted[:i]]
+    if not wanted:
+        return model
+    mode_labels = None if modes is None else [int(m) for m in modes["mode"].values]
+    return add_effects(model, wanted, mode_labels)
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.compare import compare
+    from twin.loop.report import comparison_text
+
+    modes = read_modes(args.modes)
+    model = _posterior_model(args, modes)
+    table = compare(model, modes, tolerance=args.tolerance)
+    if args.history:
+        from twin.loop.history import append_step, plot_history
+
+        done = [f"add {', '.join(args.effect)}"] if args.effect else []
+        done += [f"posterior {Path(args.posterior).name} ({args.estimate})"] if args.posterior else []
+        history = append_step(args.history, args.step or "; ".join(done) or "start", table, Path(args.modes).name)
+        plot_history(history, Path(args.history).with_suffix(".png"))
+        log.info("history: %d steps in %s", history.sizes["step"], args.history)
+    if args.plot:
+        from twin.loop.plots import comparison_figures
+
+        for path in comparison_figures(table, args.plot):
+            log.info("wrote %s", path)
+    if args.json:
+        keep = ["measured_frequency", "model_frequency", "frequency_error", "measured_damping_ratio",
+                "model_damping_ratio", "damping_error", "pole_error", "z_frequency", "z_damping", "mac"]  # fmt: skip
+        rows = [{"mode": int(m), **{k: float(table[k].sel(mode=m)) for k in keep}} for m in table["mode"].values]
+        shape = {str(c): float(v) for c, v in zip(table["channel"].values, table["channel_shape_error"].values)}
+        print(json.dumps({"error": table.attrs["error"], "error_definition": table.attrs["error_definition"],
+                          "error_rms": table.attrs["error_rms"], "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
+                          "channel_shape_error": shape,
+                          "poorly_paired": [int(m) for m in np.atleast_1d(table.attrs["poorly_paired"])]}, indent=2))  # fmt: skip
+    else:
+        print(comparison_text(table))
+    return 0
+
+
+def _posterior_model(args: argparse.Namespace, modes):
+    """The model of ``--effect`` and ``--posterior`` (the effects the posterior needs are added)."""
+    tree = None
+    if args.posterior:
+        from twin.update import read_posterior
+
+        tree = read_posterior(args.posterior)
+    model = _model_with_effects(args.model, args.effect, modes, tree)
+    if tree is not None:
+        from twin.update import apply_posterior
+
+        model = apply_posterior(model, tree, args.estimate)
+    return model
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.compare import measured_modes
+    from twin.loop.candidates import select
+    from twin.loop.diagnose import diagnose
+    from twin.loop.report import diagnosis_text
+
+    modes = read_modes(args.modes)
+    model = _posterior_model(args, modes)
+    meas = measured_modes(modes, args.tolerance)
+    labels = args.candidates.split(",") if args.candidates else None
+    select(model, labels)  # unknown candidates fail before a cluster starts
+    from twin.progress import stage
+
+    with _tasks(args) as client, stage("diagnose: the library's effects, then local changes"):
+        d = diagnose(model, meas, candidates=labels, tolerance=args.tolerance, tasks=client, progress=True)
+    print(d.to_json(meas) if args.json else diagnosis_text(d, meas))
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.loop.demo import run_demo
+
+    model = load_model(args.model) if args.model else None
+    with _tasks(args) as client:
+        r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
+                     samples=args.samples, tasks=client)  # fmt: skip
+    print(f"hidden in the truth: {r.hidden_text()}")
+    for k, d in enumerate(r.twin.diagnoses, start=1):
+        print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
+              + (f"; at {d.locations[0].label}" if d.locations and d.verdict == "unexplained" else ""))  # fmt: skip
+    if r.posterior is not None:
+        ident = r.identified()
+        for k, name in enumerate(ident["parameter"].values):
+            err = float(ident["relative_error"][k])
+            print(f"updated {name} = {float(ident['map'][k]):.4g} ± {float(ident['std'][k]):.2g} {ident['unit'].values[k]}"
+                  + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
+    _print_history(r.twin)
+    print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
+    return 0
+
+
+def _print_history(tw) -> None:
+    print(f"{'step':>4}  {'action':<44} {'error E':>9} {'chi2':>9}")
+    for k, step in enumerate(tw.history):
+        print(f"{k:>4}  {step.action:<44} {100 * step.error:>8.3f}% {float(step.table.attrs['chi2']):>9.1f}")
+
+
+def _loop(args: argparse.Namespace) -> int:
+    from twin.extract import read_modes
+    from twin.loop.history import write_history
+    from twin.loop.twin import Twin
+    from twin.netcdf import atomic_output, write_netcdf
+    from twin.update.posterior import laplace_tree
+
+    out = Path(args.out)
+    modes = read_modes(args.modes)
+    model = _model_with_effects(args.model, args.effect, modes)
+    labels = args.candidates.split(",") if args.candidates else None
+    if labels:
+        from twin.loop.candidates import select
+
+        select(model, labels)  # unknown candidates fail before any work
+    tw = Twin(model, modes, tolerance=args.tolerance)
+    kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed}
+    with _tasks(args) as client:
+        tw.run(method=args.method, max_rounds=args.rounds, candidates=labels, tasks=client, progress=True, **kwargs)
+    out.mkdir(parents=True, exist_ok=True)
+    meas = tw.measured
+    with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
+        tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
+    write_history(tw.history_table(), out / "history.csv")
+    tw.plot_history(out / "history.png")
+    if tw.posterior is not None:
+        if args.method == "laplace":
+            from twin.fem.effects import effect_label
+
+            attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
+                     "method": tw.posterior.attrs["method"],
+                     "effects": json.dumps([effect_label(e) for e in tw.model.effects])}  # fmt: skip
+            write_netcdf(laplace_tree(tw.posterior, modes, attrs), out / "posterior.nc")
+        else:
+            write_netcdf(tw.posterior, out / "posterior.nc")
+    for k, d in enumerate(tw.diagnoses, start=1):
+        print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else ""))
+        print(f"  {d.summary}")
+    _print_history(tw)
+    wrote = ["diagnosis.json", "history.csv", "history.png"] + (["posterior.nc"] if tw.posterior is not None else [])
+    print(f"wrote {', '.join(str(out / w) for w in wrote)}")
+    if tw.added:
+        print(f"go on with: twin compare {args.model} {args.modes} --posterior {out / 'posterior.nc'}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from twin.fem import load_model
+    from twin.loop.report import sweep_text
+    from twin.loop.scenarios import REFERENCE_EFFECTS
+    from twin.loop.sweep import Settings, read_scenarios, scenario_grid, sweep
+
+    model = load_model(args.model) if args.model else None
+    if args.scenarios:
+        scenarios = read_scenarios(args.scenarios)
+    else:
+        hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
+        scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
+    settings = Settings(duration_s=args.duration, samples=args.samples)
+    with _tasks(args) as client:
+        table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
+    print(sweep_text(table))
+    print(f"wrote {Path(args.out) / 'sweep.nc'} and one report folder per scenario")
+    return 0 if bool(table["passed"].all()) else 1
+
+
+def _int_list(text: str, flag: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",")]
+    except ValueError:
+        raise TwinError(f"{flag} takes comma-separated integers, got '{text}'") from None
+
+
+@contextlib.contextmanager
+def _tasks(args: argparse.Namespace):
+    """The Dask client of ``--scheduler``/``--workers`` (None for ``sync``), closed afterwards."""
+    from twin.tasks import dask_client
+
+    with dask_client(args.scheduler, n_workers=args.workers) as client:
+        yield client

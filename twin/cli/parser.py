@@ -1,0 +1,322 @@
+"""The argument parser of the ``twin`` command: one sub-command per stage, each with a description and an example.
+
+Every option's help states its default; ``-v``/``--quiet`` go before or
+after the sub-command.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from twin import __version__
+from twin.cli import loop, stages
+from twin.cli.loop import GIBBS_DEFAULTS
+
+MODEL_HELP = "model file (TOML), or the name of a shipped model (hydro_unit, ross_reference)"
+MODES_HELP = "modes file (NetCDF: mode x sample x channel, from twin extract or twin synthesize-modes)"
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions as written; every option's default appended unless its help states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or not action.option_strings or action.default in (None, False, argparse.SUPPRESS):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def _common() -> argparse.ArgumentParser:
+    """Options every sub-command takes as well (so ``twin demo -v`` works like ``twin -v demo``)."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                   help="log each stage and its details")  # fmt: skip
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress display (bars and stage lines); results and errors are still printed")
+    return p
+
+
+def _command(sub, name: str, summary: str, description: str, examples: list[str], func) -> argparse.ArgumentParser:
+    """A sub-command with its one-line summary, a description, and examples in its help."""
+    p = sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}.\n\n{description}",
+                       epilog="examples:\n" + "\n".join(f"  {e}" for e in examples), formatter_class=_Formatter,
+                       parents=[_common()])  # fmt: skip
+    p.set_defaults(func=func)
+    return p
+
+
+def _add_scheduler(p: argparse.ArgumentParser, what: str, default: str = "local") -> None:
+    p.add_argument("--scheduler", default=default, metavar="ADDRESS",
+                   help=f"where the {what} run as Dask tasks: 'local' (a local cluster of worker processes), "
+                        f"a scheduler address such as tcp://host:8786, or 'sync' (in this process)")  # fmt: skip
+    p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
+
+
+def _add_tolerance(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tolerance", type=float, default=0.0,
+                   help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
+                        "error")  # fmt: skip
+
+
+def _add_model_and_posterior(p: argparse.ArgumentParser) -> None:
+    """The model, the measured modes, and what to do to the model first (compare, diagnose)."""
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect to the model first (e.g. magnetic_pull); repeatable")
+    p.add_argument("--posterior", default=None,
+                   help="apply this posterior (posterior.nc of twin update or twin loop) first, with the effects it "
+                        "was made with: the next round of the loop")  # fmt: skip
+    p.add_argument("--estimate", choices=("map", "mean"), default="map", help="posterior point estimate")
+    _add_tolerance(p)
+
+
+def _add_loop_settings(p: argparse.ArgumentParser) -> None:
+    """The demo's record and model options, shared by ``demo`` and ``sweep``."""
+    from twin.loop.demo import DEMO_SAMPLES
+
+    p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
+    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="jackknife samples per mode")
+    p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
+
+
+def _add_stages(sub) -> None:
+    from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+
+    p = _command(sub, "modal", "complex modes of a model at a speed",
+                 "Frequency, damping ratio, log decrement and whirl of every under-damped mode (the state-space\n"
+                 "eigenproblem of M, C + Omega G, K).",
+                 ["twin modal hydro_unit", "twin modal models/ross_reference.toml --speed 0 --modes 4 --json"],
+                 stages._modal)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--speed", type=float, default=None, help="speed [rpm] (default: the model's running speed)")
+    p.add_argument("--modes", type=int, default=None, help="number of modes to list (default: all)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    p = _command(sub, "campbell", "Campbell diagram of a model over a speed range",
+                 "Frequencies of the first modes against speed, forward and backward whirl, with the 1X line.",
+                 ["twin campbell hydro_unit -o campbell.png --max-speed 300"], stages._campbell)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--max-speed", type=float, default=None, help="highest speed [rpm] (default: 2x running speed)")
+    p.add_argument("--points", type=int, default=41, help="number of speeds")
+    p.add_argument("--modes", type=int, default=12, help="number of modes followed")
+    p.add_argument("-o", "--output", default="campbell.png", help="figure file (.png, .pdf or .svg)")
+
+    p = _command(sub, "params", "the parameters and effects of a model",
+                 "Every parameter (name, nominal value, unit, physical bounds, what it is), the effects the model\n"
+                 "has, and the library effects it can take with the parameters each brings: the names that\n"
+                 "twin update --params and --effect take.",
+                 ["twin params hydro_unit", "twin params hydro_unit --effect magnetic_pull --json"], stages._params)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull); repeatable")
+    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+
+    p = _command(sub, "export-fmu", "export the model as an FMI 2.0 co-simulation FMU",
+                 "Compiles the model's state-space matrices into an FMU (needs a C compiler, gcc or cc); forces\n"
+                 "at the disks are its inputs, the proximeter displacements its outputs.",
+                 ["twin export-fmu hydro_unit -o unit.fmu", "twin export-fmu hydro_unit -o unit.fmu --basis modal --fmax 120"],
+                 stages._export_fmu)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate = 1 / communication step [Hz]")
+    p.add_argument("--basis", choices=("full", "modal"), default="full",
+                   help="the full FEM, or a truncated basis of its modes below --fmax")
+    p.add_argument("--fmax", type=float, default=None,
+                   help="highest mode kept by the modal basis [Hz] (required with --basis modal)")
+    p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
+
+    p = _command(sub, "simulate", "simulate proximeter signals through the model's FMU",
+                 "Turbulence on the runner, unbalance at the generator and sensor noise drive the FMU (through\n"
+                 "FMPy); the proximeter displacements are written as signals.nc (time x channel, metres).",
+                 ["twin simulate hydro_unit --duration 1200 -o signals.nc",
+                  "twin simulate hydro_unit --duration 600 --truth paper --seed 3 -o signals.nc"], stages._simulate)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
+    p.add_argument("--duration", type=float, required=True, help="record length [s]")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
+    p.add_argument("--seed", type=int, default=1, help="random seed of turbulence and noise")
+    p.add_argument("--truth", default=None,
+                   help="truth file with hidden effects, or 'paper' (the paper's Table 2 FSI) (default: none, the "
+                        "model as it is)")  # fmt: skip
+    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
+                   help="runner turbulence force ASD [N/sqrt(Hz)]")
+    p.add_argument("--unbalance", type=float, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]")
+    p.add_argument("--noise", type=float, default=0.05,
+                   help="sensor noise, as a fraction of each channel's signal RMS (0.05: noise at 5%% of the signal)")
+    p.add_argument("--basis", choices=("full", "modal"), default="full",
+                   help="the full FEM, or a truncated basis of its modes below --fmax")
+    p.add_argument("--fmax", type=float, default=None,
+                   help="highest mode of the modal basis [Hz] (required with --basis modal)")
+
+    p = _command(sub, "extract", "automated modal extraction (SSI-cov) from signals to mode samples",
+                 "Covariance-driven stochastic subspace identification over model orders, a stabilisation\n"
+                 "diagram cleared automatically, harmonics of the running speed rejected; each mode's\n"
+                 "uncertainty from jackknife samples over blocks of the record (modes.nc).",
+                 ["twin extract signals.nc -o modes.nc --samples 15 --fmax 110 --plot stabilisation.png"],
+                 stages._extract)  # fmt: skip
+    p.add_argument("signals", help="signals file (NetCDF, time x channel, from twin simulate or a measurement)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--samples", type=int, default=100, help="samples per mode J")
+    p.add_argument("--fmax", type=float, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
+    p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz]")
+    p.add_argument("--block-rows", type=int, default=None, help="Hankel block rows (default: from fmax)")
+    p.add_argument("--max-order", type=int, default=100, help="largest model order")
+    p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
+    p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
+
+    p = _command(sub, "synthesize-modes", "paper-style synthetic modal data (noisy pole and shape samples)",
+                 "Samples of poles and partial mode shapes of a truth, with the reference paper's noise model:\n"
+                 "modal data without signals, for checking the updater.",
+                 ["twin synthesize-modes hydro_unit -o modes.nc --samples 100 --seed 7"], stages._synthesize_modes)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP + ", the calibrated FEM")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--truth", default="paper", help="truth file with hidden effects, or 'paper' (the paper's Table 2 FSI)")
+    p.add_argument("--samples", type=int, default=100, help="samples per mode J")
+    p.add_argument("--seed", type=int, default=1, help="random seed")
+    p.add_argument("--modes", type=int, default=None,
+                   help="number of modes, for a truth without per-mode effect (default: the truth's per-mode count, "
+                        "or every lightly damped mode of the model)")  # fmt: skip
+
+
+def _add_loop(sub) -> None:
+    p = _command(sub, "update", "Bayesian updating from mode samples (APerCEM Gibbs sampler, or Laplace)",
+                 "The posterior of the chosen parameters given the measured poles and shapes, written in the\n"
+                 "ArviZ layout (posterior.nc: posterior, sample_stats, observed_data groups).",
+                 ["twin update hydro_unit modes.nc --params bearings --fsi -o posterior.nc",
+                  "twin update hydro_unit modes.nc --effect magnetic_pull --params MAG.stiffness -o posterior.nc",
+                  "twin update hydro_unit modes.nc --method laplace --effect magnetic_pull --params MAG.stiffness "
+                  "-o posterior.nc"], loop._update)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (posterior.nc, ArviZ groups)")
+    p.add_argument("--params", default=None,
+                   help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks); twin params "
+                        "lists the names (default: none, then --fsi is needed)")  # fmt: skip
+    p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
+    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
+                   help="gibbs: the APerCEM sampler on pole and shape samples; laplace: the Gaussian posterior of "
+                        "the pole fit inside the physical bounds (fast, blind to shapes)")  # fmt: skip
+    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="draws kept per chain")
+    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="number of chains")
+    p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"], help="sweeps discarded per chain")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
+    # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
+    p.add_argument("--noise-model", choices=("diagonal", "full"), default=GIBBS_DEFAULTS["noise_model"],
+                   help="covariance of the residual realisations: diagonal (the paper's) or full (correlated rows, "
+                        "better calibrated on synthetic data)")  # fmt: skip
+    p.add_argument("--collapsed", action="store_true",
+                   help="add to every sweep a Metropolis step of the parameters with the shapes integrated "
+                        "out (4-5x the time per sweep; chains mix along the parameter-shape ridge)")
+    p.add_argument("--pole-model", choices=("samples", "linear"), default=GIBBS_DEFAULTS["pole_model"],
+                   help="how the pole samples enter the condensed model: at every sample (the paper's) or "
+                        "linearised about each mode's mean pole (no curvature bias near resonances of the "
+                        "unobserved DOFs)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
+    _add_scheduler(p, "chains")
+
+    p = _command(sub, "compare", "compare a model with measured modes: per-mode errors and the overall error",
+                 "Each measured mode against its model partner (one-to-one, by pole distance and MAC): frequency\n"
+                 "and damping errors with their z-scores, the MAC, the shape error per sensor, and the error E\n"
+                 "(the uncertainty-weighted RMS relative pole distance).",
+                 ["twin compare hydro_unit modes.nc --plot figures",
+                  "twin compare hydro_unit modes.nc --posterior posterior.nc --history history.csv"], loop._compare)  # fmt: skip
+    _add_model_and_posterior(p)
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="write the figures (errors, MAC, spectra) into the folder DIR (created if missing)")
+    p.add_argument("--history", default=None, metavar="FILE",
+                   help="append this comparison's error as one row of the CSV file FILE (created if missing), and "
+                        "redraw the error chart FILE.png beside it")  # fmt: skip
+    p.add_argument("--step", default=None, help="name of the step in the history (default: from --effect/--posterior)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    p = _command(sub, "diagnose", "where the model fails and which library effect is missing",
+                 "Fits the library's effects to the measured poles and compares them by evidence (Laplace\n"
+                 "approximation inside the physical bounds), stepwise; outside the library it locates shaft\n"
+                 "stiffness and disk mass or inertia changes. Verdicts: missing effect, partly explained,\n"
+                 "unexplained (with the place), nothing missing, not enough data.",
+                 ["twin diagnose hydro_unit modes.nc",
+                  "twin diagnose hydro_unit modes.nc --posterior posterior.nc --json"], loop._diagnose)  # fmt: skip
+    _add_model_and_posterior(p)
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    _add_scheduler(p, "candidate fits")
+
+    p = _command(sub, "loop", "the twin loop to the end: diagnose, add the missing effects, update them jointly, "
+                              "diagnose again",
+                 "Rounds of diagnose, add every effect found, update all added effects jointly, until nothing\n"
+                 "new is missing; writes diagnosis.json, history.csv/.png and posterior.nc into --out.",
+                 ["twin loop hydro_unit modes.nc --out twin-loop"], loop._loop)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
+    p.add_argument("--method", choices=("laplace", "gibbs"), default="laplace",
+                   help="how each round updates the added effects")
+    p.add_argument("--rounds", type=int, default=4, help="rounds at most")
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect to the model first; repeatable")
+    _add_tolerance(p)
+    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="Gibbs draws per chain")
+    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="Gibbs chains")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
+    _add_scheduler(p, "candidate fits", default="sync")
+
+    p = _command(sub, "demo", "the whole loop on a truth with hidden changes, with a report folder",
+                 "Exports the FMU, simulates a truth with a hidden change, extracts the modes, and runs the\n"
+                 "loop; report.md and report.html in --out say what was found and how the error fell.",
+                 ["twin demo", "twin demo --hidden 'magnetic_pull@1.5+seal_cross_coupling' --seed 4",
+                  "twin demo --hidden disk_mass:generator@1.1 --out heavier-generator"], loop._demo)  # fmt: skip
+    p.add_argument("--out", default="twin-demo", help="report folder")
+    p.add_argument("--hidden", default="magnetic_pull",
+                   help="what the truth hides: a library effect (magnetic_pull, fsi, fsi_per_mode, seal_cross_coupling, "
+                        "thrust_tilt:thrust, bearing_change:UGB, bearing_change:LGB) at its reference size or scaled "
+                        "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
+                        "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
+                        "or none")  # fmt: skip
+    p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise")
+    _add_loop_settings(p)
+    # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
+    _add_scheduler(p, "candidate fits", default="sync")
+
+    p = _command(sub, "sweep", "the demo's loop over hidden changes and seeds, one Dask task per scenario",
+                 "Runs the demo for every scenario and tabulates the verdict, the error's fall and the parameter\n"
+                 "errors (sweep.nc); exit status 1 when a scenario fails.",
+                 ["twin sweep --hidden all,none --seeds 1,2", "twin sweep --scenarios benchmarks/loop_suite.txt --workers 2"],
+                 loop._sweep)  # fmt: skip
+    p.add_argument("--hidden", default="all",
+                   help="what the truths hide, comma-separated specs as for twin demo; 'all' for every library effect "
+                        "at its reference size ('all,none' adds the false-alarm check)")  # fmt: skip
+    p.add_argument("--scenarios", default=None, metavar="FILE",
+                   help="scenarios from a file, one 'SPEC SEED[,SEED...]' per line (instead of --hidden and --seeds), "
+                        "e.g. benchmarks/loop_suite.txt")
+    p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated")
+    p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders")
+    _add_loop_settings(p)
+    _add_scheduler(p, "scenarios")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``twin`` command.
+
+    Examples
+    --------
+    >>> args = build_parser().parse_args(["modal", "hydro_unit", "-v"])
+    >>> args.command, args.verbose, args.quiet
+    ('modal', True, False)
+    """
+    parser = argparse.ArgumentParser(
+        prog="twin", formatter_class=_Formatter,
+        description="Digital twin of a rotating machine in water: rotor FEM, FMU, modal extraction, Bayesian\n"
+                    "updating, and the loop that finds what the model is missing.",
+        epilog="start with:\n  twin demo                       the whole loop on a truth with a hidden magnetic pull\n"
+               "  twin params hydro_unit          the shipped model's parameters and effects\n"
+               "  twin COMMAND --help             each command's options and examples")  # fmt: skip
+    parser.add_argument("--version", action="version", version=f"twin {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log each stage and its details")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress display")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_stages(sub)
+    _add_loop(sub)
+    return parser
