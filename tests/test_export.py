@@ -1,6 +1,5 @@
 """FMU export: FMI validation, FMPy simulation against the numpy reference, errors."""
 
-import time
 import zipfile
 
 import fmpy
@@ -96,12 +95,12 @@ def test_wrong_communication_step_is_refused(unit_fmu):
         fmpy.simulate_fmu(str(unit_fmu), stop_time=0.1, step_size=H / 2, output_interval=H / 2)
 
 
-def test_re_export_needs_no_compiler_and_is_fast(tmp_path, monkeypatch, hydro_unit, unit_fmu):
-    monkeypatch.setenv("CC", "no-such-compiler")  # the runtime is cached
+def test_re_export_needs_no_compiler(tmp_path, monkeypatch, hydro_unit, unit_fmu):
+    """The compiled runtime is cached: a changed model exports without a compiler (its time is measured in
+    benchmarks/fmu_simulation.py)."""
+    monkeypatch.setenv("CC", "no-such-compiler")
     changed = hydro_unit.with_values({"UGB.kxx": 7e8})
-    start = time.perf_counter()
-    export_fmu(changed, tmp_path / "changed.fmu")
-    assert time.perf_counter() - start < 1.0
+    assert export_fmu(changed, tmp_path / "changed.fmu").stat().st_size > 1000
 
 
 def test_export_errors_leave_no_file(tmp_path, hydro_unit):

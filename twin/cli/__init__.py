@@ -46,6 +46,18 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
         print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr, end="")
 
 
+def _check_outputs(args) -> None:
+    """Before any work: every command's output file (``-o``) and output folder (``--out``, compare's ``--plot``)."""
+    if getattr(args, "output", None) is not None:
+        from twin.netcdf import check_writable
+
+        check_writable(args.output, figure=args.command == "campbell")
+    folders = {"out": getattr(args, "out", None), "plot": args.plot if args.command == "compare" else None}
+    for flag, folder in folders.items():
+        if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
+            raise TwinError(f"--{flag} {folder} is a file, not a folder")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``twin`` command; returns the exit status."""
     from twin.cli.parser import build_parser
@@ -63,14 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     show_stages(not args.quiet)
     try:
-        if getattr(args, "output", None) is not None:  # before any work: a folder or read-only place fails now
-            from twin.netcdf import check_writable
-
-            check_writable(args.output, figure=args.command == "campbell")
-        for flag in ("out", "plot"):
-            folder = getattr(args, flag, None) if not (flag == "plot" and args.command == "extract") else None
-            if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
-                raise TwinError(f"--{flag} {folder} is a file, not a folder")
+        _check_outputs(args)
         return args.func(args)
     except TwinError as exc:
         print(f"twin: error: {exc}", file=sys.stderr)

@@ -62,11 +62,10 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     from twin.loop.candidates import free_names
     from twin.loop.compare import measured_modes
     from twin.loop.fit import laplace_update
-    from twin.netcdf import check_writable, write_netcdf
+    from twin.netcdf import write_netcdf
     from twin.update.posterior import laplace_tree
     from twin.update.problem import select_parameters
 
-    check_writable(args.output)
     sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default]
     if sampler:
         raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in sampler)})")

@@ -59,9 +59,7 @@ def _campbell(args: argparse.Namespace) -> int:
         raise TwinError(f"--max-speed must be positive, got {max_speed:g}")
     if args.points < 2:
         raise TwinError(f"--points must be at least 2, got {args.points}")
-    from twin.netcdf import check_writable
-
-    out = check_writable(args.output, figure=True)
+    out = Path(args.output)  # checked by main, a figure type
     ds = campbell(model, np.linspace(0.0, max_speed, args.points), n_modes=args.modes, progress=True)
     fig = plot_campbell(ds)
     fig.savefig(out, dpi=120, bbox_inches="tight")
@@ -101,7 +99,6 @@ def _extract(args: argparse.Namespace) -> int:
     from twin.netcdf import check_writable
 
     plot = None if args.plot is None else check_writable(args.plot, figure=True)
-    check_writable(args.output)
     channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
     ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
                  max_order=args.max_order, channels=channels, output=args.output, command=" ".join(sys.argv))  # fmt: skip
@@ -129,10 +126,8 @@ def _synthesize_modes(args: argparse.Namespace) -> int:
     from twin.extract.modesfile import write_modes
     from twin.fem import load_model
     from twin.fem.truthfile import load_truth
-    from twin.netcdf import check_writable
     from twin.update import synthesize_modes
 
-    check_writable(args.output)
     model = load_model(args.model)
     truth = load_truth(args.truth, model)
     ds = synthesize_modes(model, truth, samples=args.samples, seed=args.seed, n_modes=args.modes,

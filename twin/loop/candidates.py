@@ -84,6 +84,21 @@ def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
     return [by_label[lab] for lab in labels if lab in by_label]
 
 
+#: Effects that hold another as a special case, by label: the one comes in, the other goes.
+REPLACES = {"fsi_per_mode": "fsi"}
+
+
+def replaces(new: str, old: str) -> bool:
+    """Whether the effect labelled ``new`` holds the one labelled ``old`` (per-mode FSI holds the mode-independent).
+
+    Examples
+    --------
+    >>> replaces("fsi_per_mode", "fsi"), replaces("fsi", "fsi_per_mode")
+    (True, False)
+    """
+    return REPLACES.get(new) == old
+
+
 def with_effect(model: RotorModel, effect) -> RotorModel:
     """The model with one more effect (zero-valued effects change nothing until their values are set)."""
     return dataclasses.replace(model, effects=(*model.effects, effect))

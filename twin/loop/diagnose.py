@@ -53,7 +53,7 @@ import xarray as xr
 
 from twin.fem.effects import describe
 from twin.fem.model import RotorModel
-from twin.loop.candidates import Candidate, free_names, select, sized
+from twin.loop.candidates import Candidate, free_names, replaces, select, sized
 from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
 from twin.loop.coverage import Coverage, coverage
 from twin.loop.fit import Fit, fit, log_evidence_as_is
@@ -204,13 +204,8 @@ def _fit_set(extra: Sequence[Candidate], model: RotorModel, meas: Measured, own:
 def _fit_with(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
               included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
     """One candidate fitted jointly with the effects already chosen (less any it replaces); labelled by it."""
-    rest = [c for c in included if not _exclusive(c, candidate)]
+    rest = [c for c in included if not replaces(candidate.label, c.label)]
     return _fit_set([*rest, candidate], model, meas, own, start, reference, label=candidate.label)
-
-
-def _exclusive(a: Candidate, b: Candidate) -> bool:
-    """Whether one candidate replaces the other (per-mode FSI holds the mode-independent FSI as a special case)."""
-    return {a.effect.key, b.effect.key} == {"fsi", "fsi_per_mode"}
 
 
 @one_blas_thread
@@ -280,26 +275,26 @@ def diagnose(
     while remaining:
         chi2_now = current.chi2_after if current is not None else float(table.attrs["chi2"])
         dof_now = current.residual_dof if current is not None else int(table.attrs["n_data"])
-        if first is not None and consistent(chi2_now, dof_now):
-            break  # nothing is missing any more
         start = current.value_of() if current is not None else {}
         shared = {"model": model, "meas": meas, "own": own, "included": tuple(included), "start": start,
                   "reference": current_lnz}  # fmt: skip
         # Effects with a few parameters first; a per-mode effect (two parameters per mode: it can fit every pole
-        # alone) only when none of them is strongly supported any more, so it never stands in for simpler ones
-        # once max_effects are chosen, only a candidate that replaces one of them may still come in
-        eligible = [c for c in remaining if len(included) < max_effects or any(_exclusive(c, i) for i in included)]
+        # alone) only when none of them is strongly supported any more, so it never stands in for simpler ones.
+        # Once max_effects are chosen, only a candidate that replaces one of them may still come in.
+        eligible = [c for c in remaining
+                    if len(included) < max_effects or any(replaces(c.label, i.label) for i in included)]  # fmt: skip
         tiers = [[c for c in eligible if not c.per_mode], [c for c in eligible if c.per_mode]]
         fitted: dict[str, Fit] = {}
         if first is None:  # every candidate alone, for the ranking
             first = run(_fit_with, remaining, **shared)
             fitted = {f.label: f for f in first}
         if consistent(chi2_now, dof_now) or not eligible:
-            break  # the first round is fitted for its ranking even when the model already agrees
+            break  # nothing is missing (any more); the first round is fitted for its ranking all the same
         pick = None
         for tier in (t for t in tiers if t):
-            missing_fits = [c for c in tier if c.label not in fitted]
-            fitted.update({f.label: f for f in run(_fit_with, missing_fits, **shared)} if missing_fits else {})
+            unfitted = [c for c in tier if c.label not in fitted]
+            if unfitted:
+                fitted.update({f.label: f for f in run(_fit_with, unfitted, **shared)})
             best = max(tier, key=lambda c: fitted[c.label].log_bayes_factor)
             if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE:
                 pick = best
@@ -307,14 +302,14 @@ def diagnose(
         if pick is None:
             break
         added, fit_added = pick, fitted[pick.label]
-        for replaced in [c for c in included if _exclusive(c, added)]:
+        for replaced in [c for c in included if replaces(added.label, c.label)]:
             included.remove(replaced)
             path.append(("replace", replaced.label, fit_added.log_bayes_factor))
         included.append(added)
         path.append(("add", added.label, fit_added.log_bayes_factor))
         current, current_lnz = fit_added, fit_added.log_evidence
         # per-mode FSI stays a candidate after the mode-independent one (it may replace it), not the other way
-        remaining = [c for c in remaining if c is not added and not (_exclusive(c, added) and not c.per_mode)]
+        remaining = [c for c in remaining if c is not added and not replaces(added.label, c.label)]
         current, current_lnz = _drop_unneeded(included, path, current, model, meas, own, run)
     first = first or []
     by_label = {c.label: c for c in chosen}

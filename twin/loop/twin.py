@@ -19,7 +19,7 @@ import xarray as xr
 
 from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
-from twin.loop.candidates import add_effects, free_names
+from twin.loop.candidates import add_effects, free_names, replaces
 from twin.loop.compare import PER_MODE_NAME, TOLERANCE, Measured, compare, measured_modes
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.fit import laplace_update
@@ -116,17 +116,17 @@ class Twin:
         return step
 
     def _drop_replaced(self, label: str) -> None:
-        """Before per-mode FSI comes in, the mode-independent FSI the loop added goes (the one holds the other)."""
-        if label != "fsi_per_mode" or "fsi" not in self.added:
-            return
+        """Before an effect comes in, the effects the loop added that it holds go (per-mode FSI holds the
+        mode-independent FSI: :func:`twin.loop.candidates.replaces`)."""
         import dataclasses
 
-        gone = [e for e in self.model.effects if effect_label(e) == "fsi"]
-        names = {p.name for e in gone for p in e.parameters(self.model)}
-        model = dataclasses.replace(self.model, effects=tuple(e for e in self.model.effects if e not in gone),
-                                    values={k: v for k, v in self.model.values.items() if k not in names})
-        self._record("drop fsi (per-mode FSI holds it)", model)
-        self.added.remove("fsi")
+        for old in [a for a in self.added if replaces(label, a)]:
+            gone = [e for e in self.model.effects if effect_label(e) == old]
+            names = {p.name for e in gone for p in e.parameters(self.model)}
+            model = dataclasses.replace(self.model, effects=tuple(e for e in self.model.effects if e not in gone),
+                                        values={k: v for k, v in self.model.values.items() if k not in names})
+            self._record(f"drop {old} ({label} holds it)", model)
+            self.added.remove(old)
 
     def added_parameters(self) -> list[str]:
         """The parameters of every effect the loop added (a per-mode effect's for the measured modes)."""
