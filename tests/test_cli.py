@@ -227,7 +227,8 @@ def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, 
     modes = _hidden_pull_modes(tmp_path)
     out = tmp_path / "loop"
     assert main(["loop", "models/hydro_unit.toml", modes, "--out", str(out),
-                 "--candidates", "magnetic_pull,seal_cross_coupling,thrust_tilt:thrust"]) == 0  # fmt: skip
+                 "--candidates", "magnetic_pull,seal_cross_coupling,thrust_tilt:thrust", "--draws", "200", "--chains", "2",
+                 "--seed", "1"]) == 0  # fmt: skip  (the default update: the Gibbs sampler)
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
     rounds = json.loads((out / "diagnosis.json").read_text())["rounds"]
@@ -236,3 +237,12 @@ def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, 
     assert steps["error"].values[-1] < 0.2 * steps["error"].values[0]
     assert main(["compare", "models/hydro_unit.toml", modes, "--posterior", str(out / "posterior.nc"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["error"] == pytest.approx(steps["error"].values[-1], rel=1e-6)
+
+
+def test_the_cli_sampler_defaults_are_the_library_defaults():
+    from twin.cli.loop import GIBBS_DEFAULTS, PAPER_SETTINGS
+    from twin.update import CALIBRATED, PAPER
+    from twin.update.core import BURN_IN
+
+    assert {k: GIBBS_DEFAULTS[k] for k in CALIBRATED} == CALIBRATED and GIBBS_DEFAULTS["burn_in"] == BURN_IN
+    assert PAPER_SETTINGS == PAPER

@@ -14,6 +14,11 @@ from twin.extract import extract, read_modes
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.modes.shapes import mac
 
+# the toy records here have 2-3 channels and low rates on purpose: extract's warnings about that are expected
+# (test_bad_requests_are_clear_errors checks them)
+pytestmark = [pytest.mark.filterwarnings("ignore:signals. \\d channel:twin.errors.TwinWarning"),
+              pytest.mark.filterwarnings("ignore:signals. sampled at:twin.errors.TwinWarning")]  # fmt: skip
+
 
 @pytest.fixture(scope="module")
 def gyro_record(make_record):

@@ -59,6 +59,7 @@ def test_no_hidden_effect_no_false_alarm(hydro_unit):
         assert all(f.log_bayes_factor < 3 for f in d.fits)
 
 
+@pytest.mark.slow
 def test_effect_outside_the_library_is_located(hydro_unit):
     """A local shaft stiffness loss (element 18 at half stiffness) is no library effect."""
     d = diagnose(hydro_unit, _modes(hydro_unit, [ShaftStiffnessChange(18, -0.5)]))
@@ -70,6 +71,7 @@ def test_effect_outside_the_library_is_located(hydro_unit):
     assert d.failing_modes["frequency"]
 
 
+@pytest.mark.slow
 def test_heavier_disk_is_located_not_taken_for_a_magnetic_pull(hydro_unit):
     """A 10% heavier generator lowers the generator modes like a negative stiffness would, but as λ²."""
     d = diagnose(hydro_unit, _modes(hydro_unit, [DiskMassChange("generator", 0.1)]))

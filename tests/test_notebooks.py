@@ -19,7 +19,11 @@ OVERRIDES = {
 }
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+# the end-to-end notebook simulates and extracts a record (about 25 s): slow
+PARAMS = [pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem == "end_to_end" else []) for p in NOTEBOOKS]
+
+
+@pytest.mark.parametrize("path", PARAMS)
 def test_notebook_runs(path, monkeypatch, tmp_path):
     import matplotlib.pyplot as plt
 

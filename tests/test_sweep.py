@@ -10,6 +10,7 @@ from twin.loop.sweep import Settings, scenario_grid, sweep, tabulate
 
 
 def _row(verdict, missing, before, after, params, location=""):
+    params = {n: dict(zip(("map", "std", "truth"), v)) for n, v in params.items()}  # a Laplace update: no R-hat
     return {"verdict": verdict, "missing": missing, "top_score": 40.0, "lead": 12.0, "error_before": before,
             "error_after": after, "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": [],
             "final_verdict": "nothing missing", "rounds": 2, "chi2_before": 900.0, "chi2_after": 18.0, "n_data": 20}  # fmt: skip
@@ -95,6 +96,7 @@ def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path, hydro_unit):
     assert len(scenario_grid(seeds=[1, 2])) == 14
 
 
+@pytest.mark.slow
 def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     out = tmp_path / "sweep"
     # 10-min records (the hidden-effect tests use 20 min), so twice the reference pull (the 80% fall needs the error
@@ -109,5 +111,6 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     assert (out / "magnetic_pull_x2_seed1" / "report.md").is_file() and (out / "none_seed1" / "report.md").is_file()
     assert "Nothing is hidden" in (out / "none_seed1" / "report.md").read_text()
     assert "calibration: chi2 / (n - p) after the update" in printed
+    assert "posteriors: the 90% interval covers the truth for" in printed and "R-hat <= 1.01 for 1 of 1" in printed
     mag = table.sel(parameter="MAG.stiffness")
     assert abs(float(mag["relative_error"][0])) < 0.10 and np.isnan(float(mag["map"][1]))

@@ -12,7 +12,7 @@ from twin.errors import ModelError, TwinWarning
 from twin.extract.modesfile import write_modes
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.truthfile import PAPER_TABLE2
-from twin.update import UpdateError, apply_posterior, read_posterior, summary, synthesize_modes, update
+from twin.update import CALIBRATED, PAPER, UpdateError, apply_posterior, read_posterior, summary, synthesize_modes, update
 from twin.update.problem import select_parameters
 
 
@@ -33,14 +33,15 @@ def _run(model, data, params, **kw):
 @pytest.mark.parametrize("pole_model", ["samples", "linear"])
 def test_gibbs_reduces_to_the_exact_answer_as_the_noise_goes_to_zero(hydro_unit, pole_model):
     data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
-    tree, _ = _run(hydro_unit, data, "bearings", draws=30, chains=1, seed=0, eps_std=1e-9, pole_model=pole_model)
+    tree, _ = _run(hydro_unit, data, "bearings", draws=30, chains=1, seed=0, eps_std=1e-9, pole_model=pole_model,
+                   noise_model="diagonal", collapsed=False)
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
     assert table.sizes["parameter"] == 46
     np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
 
 
 def test_case_b_regression_on_paper_data(hydro_unit, paper_modes):
-    tree, messages = _run(hydro_unit, paper_modes, "bearings", draws=200, chains=2, seed=1)
+    tree, messages = _run(hydro_unit, paper_modes, "bearings", draws=200, chains=2, seed=1, **PAPER)
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
     err = {str(p): float(e) for p, e in zip(table["parameter"].values, table["map_error"].values)}
     well_determined = ["UGB.kxx", "UGB.kyx", "UGB.kyy", "UGB.cxx", "UGB.cyy", "LGB.kxy", "LGB.kyx", "LGB.cxx",
@@ -59,7 +60,7 @@ def test_case_b_regression_on_paper_data(hydro_unit, paper_modes):
 
 
 def test_case_a_regression_and_burn_in_from_zero(hydro_unit, paper_modes):
-    tree, _ = _run(hydro_unit, paper_modes, None, draws=150, chains=1, seed=2, burn_in=0)
+    tree, _ = _run(hydro_unit, paper_modes, None, draws=150, chains=1, seed=2, burn_in=0, **PAPER)
     post = tree["posterior"]
     mass = post["added_mass"].isel(chain=0).values
     for mode in (3, 4, 10, 11):  # runner-dominated modes: ~1-3% as in the paper
@@ -78,7 +79,7 @@ def test_full_noise_and_linear_pole_models_give_calibrated_case_a_intervals(hydr
     # model's curvature puts into their residuals: with the bases at every pole sample, the added damping of
     # modes 13 and 15 sits at |z| = 49 and 12 on these data; linearised, every |z| is below 3.7.
     # benchmarks/update_cases.py --noise-model --pole-model measures them over 20 seeds.
-    tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full",
+    tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full", collapsed=False,
                    pole_model="linear")  # fmt: skip
     settings = json.loads(tree.attrs["settings"])
     assert settings["noise_model"] == "full" and settings["pole_model"] == "linear"
@@ -183,13 +184,22 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
     code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1", "--workers", "2", "--noise-model", "full", "--collapsed", "--pole-model", "linear"])  # fmt: skip  (chains on a local Dask cluster)
+                 "--chains", "2", "--seed", "1", "--workers", "2"])  # fmt: skip  (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
     back = read_posterior(post)
     settings = json.loads(back.attrs["settings"])
-    assert settings["noise_model"] == "full" and settings["collapsed"] and settings["pole_model"] == "linear"
+    assert {k: settings[k] for k in CALIBRATED} == CALIBRATED  # the calibrated sampler is the default
     assert back["sample_stats"]["accepted"].dims == ("chain", "draw") and bool(back["sample_stats"]["accepted"].any())
+    paper = tmp_path / "paper.nc"
+    assert main(["update", "hydro_unit", str(sub), "-o", str(paper), "--fsi", "--draws", "10", "--chains", "1",
+                 "--paper", "-q"]) == 0  # fmt: skip
+    settings = json.loads(read_posterior(paper).attrs["settings"])
+    assert {k: settings[k] for k in PAPER} == PAPER
+    assert not read_posterior(paper)["sample_stats"]["accepted"].any()
+    assert main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi", "--paper",
+                 "--noise-model", "diagonal"]) == 2  # fmt: skip
+    assert "--paper sets the sampler; leave out --noise-model" in capsys.readouterr().err
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
     assert "nothing to update" in capsys.readouterr().err
     assert main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"),

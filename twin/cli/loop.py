@@ -17,8 +17,10 @@ log = logging.getLogger("twin")
 
 
 #: Defaults of the options that only the Gibbs sampler takes (``twin update``).
-GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "diagonal", "collapsed": False,
-                  "pole_model": "samples"}  # fmt: skip
+#: Literal (importing twin.update here would slow every command's start-up); tests/test_cli.py checks that
+#: it matches twin.update.CALIBRATED and BURN_IN.
+GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "full", "collapsed": True,
+                  "pole_model": "linear"}  # fmt: skip
 
 
 def _update(args: argparse.Namespace) -> int:
@@ -31,6 +33,7 @@ def _update(args: argparse.Namespace) -> int:
     model = _model_with_effects(args.model, args.effect, modes)
     if args.method == "laplace":
         return _update_laplace(args, model, modes)
+    _paper_settings(args)
     from twin.progress import stage
     from twin.update.problem import select_parameters
 
@@ -56,6 +59,21 @@ def _update(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The reference paper's sampler (twin.update.PAPER), set by ``--paper``.
+PAPER_SETTINGS = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
+
+
+def _paper_settings(args: argparse.Namespace) -> None:
+    """With ``--paper``, the paper's sampler settings in ``args`` (an error if another was also given)."""
+    if not args.paper:
+        return
+    given = [f for f in PAPER_SETTINGS if getattr(args, f) != GIBBS_DEFAULTS[f]]
+    if given:
+        raise TwinError(f"--paper sets the sampler; leave out {', '.join('--' + f.replace('_', '-') for f in given)}")
+    for f, value in PAPER_SETTINGS.items():
+        setattr(args, f, value)
+
+
 def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
     from twin.fem.effects import effect_label
@@ -66,7 +84,7 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     from twin.update.posterior import laplace_tree
     from twin.update.problem import select_parameters
 
-    sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default]
+    sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default] + ["paper"] * args.paper
     if sampler:
         raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in sampler)})")
     meas = measured_modes(modes)
@@ -187,7 +205,7 @@ def _demo(args: argparse.Namespace) -> int:
     model = load_model(args.model) if args.model else None
     with _tasks(args) as client:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
-                     samples=args.samples, tasks=client)  # fmt: skip
+                     samples=args.samples, method=args.method, tasks=client)  # fmt: skip
     print(f"hidden in the truth: {r.hidden_text()}")
     for k, d in enumerate(r.twin.diagnoses, start=1):
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
@@ -196,7 +214,10 @@ def _demo(args: argparse.Namespace) -> int:
         ident = r.identified()
         for k, name in enumerate(ident["parameter"].values):
             err = float(ident["relative_error"][k])
+            rhat = float(ident["r_hat"][k])
             print(f"updated {name} = {float(ident['map'][k]):.4g} ± {float(ident['std'][k]):.2g} {ident['unit'].values[k]}"
+                  f", 90% in {float(ident['q05'][k]):.4g} to {float(ident['q95'][k]):.4g}"
+                  + ("" if np.isnan(rhat) else f", R-hat {rhat:.3f}, ESS {float(ident['ess_bulk'][k]):.0f}")
                   + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
     _print_history(r.twin)
     print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
@@ -267,7 +288,7 @@ def _sweep(args: argparse.Namespace) -> int:
     else:
         hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
         scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
-    settings = Settings(duration_s=args.duration, samples=args.samples)
+    settings = Settings(duration_s=args.duration, samples=args.samples, method=args.method)
     with _tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
     print(sweep_text(table))

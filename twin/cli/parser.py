@@ -78,6 +78,9 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
     p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="jackknife samples per mode")
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
+    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
+                   help="how each round updates the added effects: the APerCEM Gibbs sampler (4 chains x 500 draws) "
+                        "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
 
 
 def _add_stages(sub) -> None:
@@ -202,16 +205,19 @@ def _add_loop(sub) -> None:
     p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"], help="sweeps discarded per chain")
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
     # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
-    p.add_argument("--noise-model", choices=("diagonal", "full"), default=GIBBS_DEFAULTS["noise_model"],
-                   help="covariance of the residual realisations: diagonal (the paper's) or full (correlated rows, "
-                        "better calibrated on synthetic data)")  # fmt: skip
-    p.add_argument("--collapsed", action="store_true",
-                   help="add to every sweep a Metropolis step of the parameters with the shapes integrated "
-                        "out (4-5x the time per sweep; chains mix along the parameter-shape ridge)")
-    p.add_argument("--pole-model", choices=("samples", "linear"), default=GIBBS_DEFAULTS["pole_model"],
-                   help="how the pole samples enter the condensed model: at every sample (the paper's) or "
-                        "linearised about each mode's mean pole (no curvature bias near resonances of the "
-                        "unobserved DOFs)")
+    p.add_argument("--noise-model", choices=("full", "diagonal"), default=GIBBS_DEFAULTS["noise_model"],
+                   help="covariance of the residual realisations: full (correlated rows, calibrated intervals) or "
+                        "diagonal (the paper's)")  # fmt: skip
+    p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=GIBBS_DEFAULTS["collapsed"],
+                   help="a Metropolis step of the parameters with the shapes integrated out in every sweep "
+                        "(4-5x the time per sweep; chains mix along the parameter-shape ridge); --no-collapsed: "
+                        "plain Gibbs, the paper's")
+    p.add_argument("--pole-model", choices=("linear", "samples"), default=GIBBS_DEFAULTS["pole_model"],
+                   help="how the pole samples enter the condensed model: linearised about each mode's mean pole "
+                        "(no curvature bias near resonances of the unobserved DOFs) or at every sample (the "
+                        "paper's)")
+    p.add_argument("--paper", action="store_true",
+                   help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
     _add_scheduler(p, "chains")
@@ -251,8 +257,9 @@ def _add_loop(sub) -> None:
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("modes", help=MODES_HELP)
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
-    p.add_argument("--method", choices=("laplace", "gibbs"), default="laplace",
-                   help="how each round updates the added effects")
+    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
+                   help="how each round updates the added effects: the APerCEM Gibbs sampler or the Laplace "
+                        "approximation of the pole fit")
     p.add_argument("--rounds", type=int, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

@@ -77,6 +77,38 @@ def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: lis
     return out
 
 
+def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> xr.Dataset:
+    """``map``, ``std``, the 90% interval ``q05``-``q95``, ``r_hat``, ``ess_bulk`` and ``unit`` over ``parameter``.
+
+    From a Gibbs posterior (:func:`twin.update.update`'s DataTree: its
+    :func:`twin.update.summary`) or a Laplace one
+    (:func:`twin.loop.fit.laplace_update`'s Dataset: Gaussian quantiles, no
+    R-hat or ESS, which are NaN). The attr ``method`` says which.
+    """
+    from twin.update import summary
+
+    if isinstance(posterior, xr.DataTree):
+        table = summary(posterior["posterior"].to_dataset())
+        for key in ("r_hat", "ess_bulk"):
+            if key not in table:  # one chain has no R-hat
+                table[key] = ("parameter", np.full(table.sizes["parameter"], np.nan))
+        units = [model.parameter(str(n)).unit for n in table["parameter"].values]
+        settings = json.loads(posterior.attrs.get("settings", "{}"))
+        method = (f"APerCEM Gibbs sampler, {settings.get('chains', '?')} chains x {settings.get('draws', '?')} "
+                  f"draws ({settings.get('noise_model', '?')} noise model, {settings.get('pole_model', '?')} pole "
+                  f"model{', collapsed step' if settings.get('collapsed') else ''})")  # fmt: skip
+        return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(unit=("parameter", units)).assign_attrs(
+            method=method)
+    z = 1.6448536269514722  # the 95% point of the standard normal
+    nan = np.full(posterior.sizes["parameter"], np.nan)
+    return xr.Dataset(
+        {"map": posterior["map"], "std": posterior["std"], "q05": posterior["map"] - z * posterior["std"],
+         "q95": posterior["map"] + z * posterior["std"], "r_hat": ("parameter", nan), "ess_bulk": ("parameter", nan),
+         "unit": posterior["unit"]},
+        attrs={"method": posterior.attrs["method"]},
+    )  # fmt: skip
+
+
 @dataclasses.dataclass(frozen=True)
 class DemoResult:
     """What the demo did: the scenario, the twin (with its history and diagnoses), the update, where it went."""
@@ -104,8 +136,8 @@ class DemoResult:
         return tuple(self.twin.added)
 
     @property
-    def posterior(self) -> xr.Dataset | None:
-        """The Laplace posterior of the last update (None when nothing was added)."""
+    def posterior(self) -> xr.DataTree | xr.Dataset | None:
+        """The posterior of the last update: a Gibbs DataTree or a Laplace Dataset (None when nothing was added)."""
         return self.twin.posterior
 
     def hidden_text(self) -> str:
@@ -117,8 +149,8 @@ class DemoResult:
         return self.out / "report.md"
 
     def identified(self) -> xr.Dataset:
-        """The update's ``map``, ``std``, ``unit`` with the ``truth`` and the ``relative_error`` (NaN without a truth)."""
-        post = self.posterior
+        """The update's :func:`posterior_table` with the ``truth`` and the ``relative_error`` (NaN without a truth)."""
+        post = posterior_table(self.posterior, self.twin.model)
         truth = np.array([self.truth.get(str(n), np.nan) for n in post["parameter"].values])
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(truth != 0, post["map"].values / truth - 1.0, np.nan)
@@ -136,6 +168,7 @@ def run_demo(
     samples: int = DEMO_SAMPLES,
     fmax_hz: float = 60.0,
     seed: int = 1,
+    method: str = "gibbs",
     progress: bool = True,
     tasks: Any = None,
 ) -> DemoResult:
@@ -158,7 +191,11 @@ def run_demo(
     fmax_hz : float
         Highest frequency of the extraction [Hz].
     seed : int
-        Seed of the turbulence and the sensor noise.
+        Seed of the turbulence and the sensor noise (and of the Gibbs chains).
+    method : {"gibbs", "laplace"}
+        How each round updates the effects the loop added: the APerCEM Gibbs
+        sampler (:data:`twin.update.CALIBRATED`, 4 chains x 500 draws) or the
+        Laplace approximation of the pole fit (:func:`twin.loop.fit.laplace_update`).
     progress : bool
         Progress bars.
     tasks : distributed.Client or mapper, optional
@@ -201,7 +238,7 @@ def run_demo(
         _pyplot().close(fig)
     with stage("diagnose, add, update (loop rounds)", timings):
         tw = Twin(model, modes)
-        tw.run(method="laplace", tasks=tasks, progress=progress)
+        tw.run(method=method, tasks=tasks, progress=progress, **({"seed": seed} if method == "gibbs" else {}))
     meas = tw.measured
     with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
         tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
@@ -215,6 +252,10 @@ def run_demo(
     result = DemoResult(out, scenario, tw, truth, timings, model)
     write_report(result, modes)
     return result
+
+
+def _diag(value: float, fmt: str) -> str:
+    return "-" if not np.isfinite(value) else format(value, fmt)
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -265,11 +306,13 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     if result.posterior is not None:
         ident = result.identified()
         lines += ["## Update", "", f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.", ""]
-        rows = [[str(r["parameter"].values), f"{float(r.truth):.4g}", f"{float(r['map']):.4g}", f"{float(r['std']):.2g}",
-                 f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
+        rows = [[str(r["parameter"].values), f"{float(r.truth):.4g}", f"{float(r['map']):.4g}",
+                 f"{float(r.q05):.4g} to {float(r.q95):.4g}", f"{float(r['std']):.2g}", _diag(float(r.r_hat), ".3f"),
+                 _diag(float(r.ess_bulk), ".0f"), f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
                 for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip
-        lines += _md_table(["parameter", "truth", "MAP", "std", "error [%]", "unit"], rows)
-        lines += [""]
+        lines += _md_table(["parameter", "truth", "MAP", "90% interval", "std", "R-hat", "ESS", "error [%]", "unit"], rows)
+        lines += ["", "R-hat (at most 1.01 when the chains agree) and the bulk ESS over all chains are the "
+                  "sampler's own diagnostics (ArviZ); '-' where the method has none.", ""]
     lines += ["## History", ""]
     rows = [[str(k), s.action, f"{100 * s.error:.3f}", f"{float(s.table.attrs['chi2']):.1f}"]
             for k, s in enumerate(tw.history)]  # fmt: skip

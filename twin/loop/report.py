@@ -90,8 +90,10 @@ def sweep_text(table: xr.Dataset) -> str:
     names = table["parameter"].values
     for k in range(table.sizes["scenario"]):
         r = table.isel(scenario=k)
-        errs = ", ".join(f"{n} {100 * float(e):+.1f}% ({100 * float(s) / abs(float(t)):.1f}%)"
-                         for n, e, s, t in zip(names, r.relative_error.values, r["std"].values, r.truth.values)
+        rhat = r["r_hat"].values if "r_hat" in r else np.full(len(names), np.nan)
+        errs = ", ".join(f"{n} {100 * float(e):+.1f}% ({100 * float(s) / abs(float(t)):.1f}%"
+                         + (f", R-hat {h:.3f}" if np.isfinite(h) else "") + ")"
+                         for n, e, s, t, h in zip(names, r.relative_error.values, r["std"].values, r.truth.values, rhat)
                          if np.isfinite(e))  # fmt: skip
         lines.append(f"{str(r.hidden.values):<{width}} {int(r.seed):>4} {str(r.verdict.values):<17} "
                      f"{_named(r):<34} {float(r.lead):>8.1f} {100 * float(r.error_before):>8.3f}% "
@@ -102,6 +104,20 @@ def sweep_text(table: xr.Dataset) -> str:
                  f"{MIN_FALL:.0%}, parameters within {MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of the truth) in "
                  f"{table.attrs.get('elapsed_s', np.nan):.0f} s; {int(table['passed_strict'].sum())} strictly "
                  f"(every parameter within {MAX_PARAMETER_ERROR:.0%})")  # fmt: skip
+    if "q05" in table:
+        known = np.isfinite(table["truth"].values) & np.isfinite(table["q05"].values)
+        if known.any():
+            truth = table["truth"].values[known]
+            inside = (table["q05"].values[known] <= truth) & (truth <= table["q95"].values[known])
+            line = (f"posteriors: the 90% interval covers the truth for {int(inside.sum())} of {int(known.sum())} "
+                    "identified parameters")  # fmt: skip
+            rhat = table["r_hat"].values[known]
+            if np.isfinite(rhat).any():
+                ess = table["ess_bulk"].values[known]
+                line += (f"; R-hat <= 1.01 for {int((rhat[np.isfinite(rhat)] <= 1.01).sum())} of "
+                         f"{int(np.isfinite(rhat).sum())} sampled, bulk ESS median {np.nanmedian(ess):.0f}, "
+                         f"least {np.nanmin(ess):.0f}")  # fmt: skip
+            lines.append(line)
     if "chi2_after" in table and "map" in table:
         # after a right update the residual has n - p degrees of freedom (p fitted parameters)
         fitted = np.isfinite(table["map"].values).sum(axis=-1)

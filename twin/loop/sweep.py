@@ -61,6 +61,7 @@ class Settings:
     fs_hz: float = 256.0
     samples: int = DEMO_SAMPLES
     fmax_hz: float = 60.0
+    method: str = "gibbs"
 
 
 def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:
@@ -149,11 +150,11 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
                      **dataclasses.asdict(settings))  # fmt: skip
     d, final = r.diagnosis, r.final
     ranking = d.ranking
-    params: dict[str, tuple[float, float, float]] = {}
+    params: dict[str, dict[str, float]] = {}
     if r.posterior is not None:
         ident = r.identified()
         for k, name in enumerate(ident["parameter"].values):
-            params[str(name)] = (float(ident["map"][k]), float(ident["std"][k]), float(ident["truth"][k]))
+            params[str(name)] = {v: float(ident[v][k]) for v in PARAMETER_VARIABLES}
     located = final.locations or d.locations
     return {
         "verdict": d.verdict if not r.named else ("missing effect" if final.verdict == "nothing missing"
@@ -248,14 +249,19 @@ def sweep(
     return table
 
 
+#: What a scenario's summary keeps of each identified parameter (:meth:`twin.loop.demo.DemoResult.identified`);
+#: a summary may lack some (NaN in the table).
+PARAMETER_VARIABLES = ("map", "std", "q05", "q95", "r_hat", "ess_bulk", "truth")
+
+
 def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], settings: Settings) -> xr.Dataset:
     """The Dataset of a sweep from the scenarios and their summaries (see :func:`sweep`)."""
     names = sorted({n for r in rows for n in r["parameters"]})
-    par = {k: np.full((len(rows), len(names)), np.nan) for k in ("map", "std", "truth")}
+    par = {k: np.full((len(rows), len(names)), np.nan) for k in PARAMETER_VARIABLES}
     for i, r in enumerate(rows):
         for j, n in enumerate(names):
-            if n in r["parameters"]:
-                par["map"][i, j], par["std"][i, j], par["truth"][i, j] = r["parameters"][n]
+            for k, value in r["parameters"].get(n, {}).items():
+                par[k][i, j] = value
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = par["map"] / par["truth"] - 1.0
         z = (par["map"] - par["truth"]) / par["std"]
@@ -295,8 +301,12 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
             "location": (dims, [r["location"] for r in rows], {"long_name": "local change the diagnosis points to when "
                                                                              "the library does not explain the data ('' for none)"}),
             "elapsed_s": (dims, [r["elapsed_s"] for r in rows], {"units": "s"}),
-            "map": (pdims, par["map"], {"units": "SI", "long_name": "identified value (Laplace MAP)"}),
+            "map": (pdims, par["map"], {"units": "SI", "long_name": "identified value (posterior MAP)"}),
             "std": (pdims, par["std"], {"units": "SI", "long_name": "posterior standard deviation"}),
+            "q05": (pdims, par["q05"], {"units": "SI", "long_name": "5% posterior quantile"}),
+            "q95": (pdims, par["q95"], {"units": "SI", "long_name": "95% posterior quantile"}),
+            "r_hat": (pdims, par["r_hat"], {"units": "1", "long_name": "R-hat over the chains (NaN: Laplace)"}),
+            "ess_bulk": (pdims, par["ess_bulk"], {"units": "1", "long_name": "bulk ESS over the chains (NaN: Laplace)"}),
             "truth": (pdims, par["truth"], {"units": "SI"}),
             "relative_error": (pdims, rel, {"units": "1", "long_name": "MAP / truth - 1"}),
             "z": (pdims, z, {"units": "1", "long_name": "(MAP - truth) / std"}),
