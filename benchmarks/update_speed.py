@@ -5,11 +5,13 @@ latent shapes and perturbations, log residual variances), written as one flat
 vector for emcee (affine-invariant ensemble, the generic sampler), run for the
 same wall time. ESS is ArviZ's bulk ESS of the 16 bearing coefficients.
 
-    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--noise-model diagonal|full] [--collapsed]
-                                      [--pole-model samples|linear]
+    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--paper | [--noise-model full|diagonal]
+                                      [--collapsed|--no-collapsed] [--pole-model linear|samples]]
 
 The options time the Gibbs sampler in another configuration (default: the
-paper's); emcee always samples the paper's posterior.
+calibrated one, twin.update.CALIBRATED, as update() uses; --paper: the
+paper's); emcee (``pip install emcee``) always samples the paper's posterior.
+It also prints the bulk ESS of the slowest parameters of the Gibbs chain.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import time
 import numpy as np
 
 import twin
-from twin.update import synthesize_modes
+from twin.update import CALIBRATED, PAPER, synthesize_modes
 from twin.update.gibbs import NOISE_MODELS, Prior, State, initial_state, log_density, run_chain, sweep
 from twin.update.poles import POLE_MODELS
 from twin.update.posterior import _arviz
@@ -31,12 +33,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
-    ap.add_argument("--collapsed", action="store_true")
-    ap.add_argument("--pole-model", choices=POLE_MODELS, default="samples")
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default=CALIBRATED["noise_model"])
+    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=CALIBRATED["collapsed"])
+    ap.add_argument("--pole-model", choices=POLE_MODELS, default=CALIBRATED["pole_model"])
+    ap.add_argument("--paper", action="store_true", help="the paper's sampler (twin.update.PAPER)")
     args = ap.parse_args()
+    if args.paper:
+        args.noise_model, args.collapsed, args.pole_model = PAPER["noise_model"], PAPER["collapsed"], PAPER["pole_model"]
     az = _arviz()
-    model = twin.load_model("models/hydro_unit.toml")
+    model = twin.load_model(twin.shipped_model("hydro_unit"))
     data = synthesize_modes(model, samples=100, seed=args.seed)
     t0 = time.perf_counter()
     params = select_parameters(model, "bearings")
@@ -54,8 +59,18 @@ def main() -> None:
     print(f"Gibbs, Case B (46 parameters), 1 chain x {args.draws} draws (+20 burn-in): {gibbs_s:.1f} s "
           f"(+ {setup:.1f} s setup); bulk ESS of the bearings: median {np.median(ess_g):.0f}, min {ess_g.min():.0f}; "
           f"median ESS/s {np.median(ess_g) / gibbs_s:.1f}")  # fmt: skip
+    x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
+    ess_all = np.array([az.ess(x[None, :, k], method="bulk") for k in range(x.shape[1])])
+    names = problem.parameter_labels
+    print("slowest parameters (bulk ESS): " + ", ".join(f"{names[k]} {ess_all[k]:.0f}" for k in np.argsort(ess_all)[:6]))
+    if chain.accepted.any():
+        print(f"collapsed step accepted in {chain.accepted.mean():.0%} of the sweeps")
 
-    import emcee
+    try:
+        import emcee
+    except ImportError:
+        print("emcee is not installed (pip install emcee): no comparison")
+        return
 
     start = initial_state(problem)
     for _ in range(50):  # start emcee where Gibbs is after burn-in (in its favour)

@@ -114,3 +114,17 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     assert "posteriors: the 90% interval covers the truth for" in printed and "R-hat <= 1.01 for 1 of 1" in printed
     mag = table.sel(parameter="MAG.stiffness")
     assert abs(float(mag["relative_error"][0])) < 0.10 and np.isnan(float(mag["map"][1]))
+
+
+def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
+    import twin.loop.sweep as sw
+
+    def broken(*args, **kwargs):
+        raise ValueError("no such thing")
+
+    monkeypatch.setattr(sw, "run_demo", broken)
+    row = sw.run_scenario(("magnetic_pull", 1), hydro_unit, str(tmp_path), Settings())
+    assert row["verdict"] == "error" and "ValueError: no such thing" in row["warnings"][-1][1]
+    good = _row("missing effect", "magnetic_pull", 0.08, 0.002, {"MAG.stiffness": (-1.05e8, 5e6, -1e8)})
+    t = tabulate([("magnetic_pull", 1), ("magnetic_pull", 2)], [row, good], Settings())
+    assert t["passed"].values.tolist() == [False, True] and str(t["verdict"].values[0]) == "error"

@@ -79,3 +79,21 @@ def test_per_mode_effect_is_sized_to_the_measured_modes(hydro_unit):
     assert tw.history[-1].error < 0.2 * tw.history[0].error
     mass = post["map"].sel(parameter="FSI.added_mass_4")  # paper Table 2: 6.09e4 kg
     assert abs(float(mass) - 6.09e4) < 3 * float(post["std"].sel(parameter="FSI.added_mass_4"))
+
+
+def test_per_mode_effect_is_updated_by_the_gibbs_sampler(hydro_unit):
+    """The loop's default update of a per-mode effect: the sampler's per-mode FSI, applied to the twin's model."""
+    from twin.fem.truthfile import paper_truth
+
+    data = synthesize_modes(hydro_unit, paper_truth(), samples=50, seed=2).isel(mode=[0, 2, 3, 4, 9])
+    tw = Twin(hydro_unit, data)
+    tw.add_effect("fsi_per_mode")
+    names = tw.added_parameters()
+    with pytest.raises(ValueError, match="every measured mode at once"):
+        tw.update(names[:4], draws=10, chains=1)
+    tree = tw.update(names, draws=200, chains=2, seed=4, progress=False)
+    assert tw.history[-1].error < 0.2 * tw.history[0].error
+    mass = tree["posterior"]["added_mass"].sel(mode=4)  # paper Table 2: 6.09e4 kg
+    assert float(mass.mean()) == pytest.approx(6.09e4, rel=0.05)
+    applied = [e for e in tw.model.effects if e.key == "fsi_per_mode"]
+    assert len(applied) == 1 and applied[0].added_mass[3] == pytest.approx(6.09e4, rel=0.05)

@@ -36,7 +36,7 @@ import numpy as np
 import xarray as xr
 
 from twin import __version__
-from twin.errors import TwinError
+from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.loop.demo import DEMO_SAMPLES, run_demo
 from twin.loop.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
@@ -146,8 +146,12 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:  # sent back with the summary: a worker's stderr is not ours
         warnings.simplefilter("always")
-        r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
-                     **dataclasses.asdict(settings))  # fmt: skip
+        try:
+            r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
+                         **dataclasses.asdict(settings))  # fmt: skip
+        except Exception as exc:  # one scenario's failure fails that scenario, not the sweep  # noqa: BLE001
+            log.exception("scenario %s, seed %d failed", hidden, seed)
+            return _failed_row(f"{type(exc).__name__}: {exc}", time.perf_counter() - t0, caught)
     d, final = r.diagnosis, r.final
     ranking = d.ranking
     params: dict[str, dict[str, float]] = {}
@@ -174,6 +178,14 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
         "elapsed_s": time.perf_counter() - t0,
         "warnings": [(w.category, str(w.message)) for w in caught],
     }
+
+
+def _failed_row(message: str, elapsed_s: float, caught) -> dict:
+    """The summary of a scenario whose run raised: verdict ``error``, the message in ``location``'s place."""
+    return {"verdict": "error", "missing": "", "rounds": 0, "final_verdict": "error", "top_score": np.nan,
+            "lead": np.nan, "error_before": np.nan, "error_after": np.nan, "chi2_before": np.nan,
+            "chi2_after": np.nan, "n_data": 0, "parameters": {}, "location": "", "elapsed_s": elapsed_s,
+            "warnings": [(w.category, str(w.message)) for w in caught] + [(TwinWarning, f"the run failed: {message}")]}  # fmt: skip
 
 
 def sweep(

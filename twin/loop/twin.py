@@ -223,7 +223,13 @@ class Twin:
             raise ValueError(f"method must be 'gibbs' or 'laplace', got {method!r}")
         from twin.update import apply_posterior, update
 
-        tree = update(self.model, self.modes, names, **kwargs)
+        if per_mode:  # the sampler's per-mode FSI covers every mode of the data
+            every = [f"FSI.{k}_{int(m)}" for m in self.modes["mode"].values for k in ("added_mass", "added_damping")]
+            if sorted(per_mode) != sorted(every):
+                raise ValueError("the Gibbs sampler updates the per-mode FSI of every measured mode at once: give "
+                                 f"all of {', '.join(every)}, or use method='laplace'")  # fmt: skip
+        shared = [n for n in names if n not in per_mode]
+        tree = update(self.model, self.modes, shared, fsi=bool(per_mode), **kwargs)
         self._record(f"update {label}", apply_posterior(self.model, tree, estimate))
         self.posterior = tree
         return tree
