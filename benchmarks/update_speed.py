@@ -39,7 +39,7 @@ def main() -> None:
     ap.add_argument("--paper", action="store_true", help="the paper's sampler (twin.update.PAPER)")
     args = ap.parse_args()
     if args.paper:
-        args.noise_model, args.collapsed, args.pole_model = PAPER["noise_model"], PAPER["collapsed"], PAPER["pole_model"]
+        vars(args).update(PAPER)
     az = _arviz()
     model = twin.load_model(twin.shipped_model("hydro_unit"))
     data = synthesize_modes(model, samples=100, seed=args.seed)

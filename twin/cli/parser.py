@@ -206,7 +206,7 @@ def _add_loop(sub) -> None:
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
     # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
     p.add_argument("--noise-model", choices=("full", "diagonal"), default=GIBBS_DEFAULTS["noise_model"],
-                   help="covariance of the residual realisations: full (correlated rows, calibrated intervals) or "
+                   help="covariance of the residual realisations: full (correlated rows, better calibrated) or "
                         "diagonal (the paper's)")  # fmt: skip
     p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=GIBBS_DEFAULTS["collapsed"],
                    help="a Metropolis step of the parameters with the shapes integrated out in every sweep "

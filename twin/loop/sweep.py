@@ -181,7 +181,7 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
 
 
 def _failed_row(message: str, elapsed_s: float, caught) -> dict:
-    """The summary of a scenario whose run raised: verdict ``error``, the message in ``location``'s place."""
+    """A scenario whose run raised: verdict ``error``, nothing measured, the message as the last warning."""
     return {"verdict": "error", "missing": "", "rounds": 0, "final_verdict": "error", "top_score": np.nan,
             "lead": np.nan, "error_before": np.nan, "error_after": np.nan, "chi2_before": np.nan,
             "chi2_after": np.nan, "n_data": 0, "parameters": {}, "location": "", "elapsed_s": elapsed_s,

@@ -35,8 +35,10 @@ POORLY_DETERMINED = 0.5
 #: Sweeps discarded at the start of each chain by default (the chains start from zero).
 BURN_IN = 20
 #: The default sampler: full residual covariance, poles linearised about each mode's mean, and the
-#: collapsed Metropolis step. On the twin's own extracted modes it mixes (R-hat about 1.00) and its
-#: intervals are calibrated where the paper's configuration gives bimodal chains and biased values.
+#: collapsed Metropolis step. On the twin's own extracted modes it mixes for a hidden effect's few
+#: parameters (R-hat about 1.00) where the paper's configuration gives bimodal chains and biased values;
+#: its 90% intervals are wider than the paper's but still too narrow (60-85% coverage,
+#: benchmarks/results/update_coverage_fmu.md), and weakly determined parameters mix slowly (issue 18).
 CALIBRATED = {"noise_model": "full", "collapsed": True, "pole_model": "linear"}
 #: The reference paper's configuration (its Table 1): diagonal Δ, bases at every pole sample, plain Gibbs.
 PAPER = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
@@ -175,7 +177,7 @@ def update(
     noise_model : {"full", "diagonal"}
         Covariance of the residual realisations ``Δ_i``: a full matrix
         (inverse-Wishart; the default), which accounts for rows correlated by
-        the pole noise and gives calibrated intervals, or diagonal (the
+        the pole noise and gives better calibrated intervals, or diagonal (the
         paper's model; ``benchmarks/update_cases.py`` compares them).
     collapsed : bool
         Add to every sweep a Metropolis step of the parameters on their
