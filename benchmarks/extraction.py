@@ -12,7 +12,9 @@ unbalance, 5% sensor noise, simulated through the FMU):
    and accuracy;
 3. with ``--seeds N``: the spread ratio, i.e. the mean jackknife standard
    error of each mode's frequency and damping against their standard
-   deviation over N independent records (Monte Carlo over seeds).
+   deviation over N independent records (Monte Carlo over seeds), and that
+   Monte Carlo std against the Cramér-Rao bound of ``twin observe``
+   (:func:`twin.design.observability`, theory, no simulation).
 
 Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
@@ -31,6 +33,7 @@ import numpy as np
 import xarray as xr
 
 from twin import load_model
+from twin.design import Excitation, observability
 from twin.extract import extract
 from twin.fem.truthfile import paper_truth
 from twin.fmu.simulate import simulate
@@ -155,18 +158,22 @@ def spread(cache, seeds, lam_t, phi_t):
             sz.append(np.nan if k is None else float(m.damping_ratio_se[k]))
         f.append(fr), z.append(zr), sef.append(sf), sez.append(sz)
     f, z, sef, sez = map(np.array, (f, z, sef, sez))
-    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}): jackknife standard error / "
-          "Monte Carlo std")  # fmt: skip
-    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f [mHz]':>10} {'ratio':>6} | "
-          f"{'MC std zeta %':>13} {'SE zeta %':>9} {'ratio':>6}")  # fmt: skip
+    obs = observability(load_model(MODEL), Excitation(duration_s=3600.0), truth=paper_truth())
+    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}): jackknife standard error (SE) / "
+          "Monte Carlo std, and Monte Carlo std / Cramer-Rao bound (CRB, twin observe)")  # fmt: skip
+    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f':>7} {'ratio':>6} {'CRB f':>7} {'MC/CRB':>6} | "
+          f"{'MC std zeta %':>13} {'SE zeta':>7} {'ratio':>6} {'CRB':>7} {'MC/CRB':>6}")  # fmt: skip
     for j in range(len(lam_t)):
         ok = np.isfinite(f[:, j])
         if ok.sum() < 3:
             continue
         mf, mz = np.std(f[ok, j], ddof=1), np.std(z[ok, j], ddof=1)
-        print(f"{lam_t[j].imag / (2 * np.pi):12.3f} {ok.sum():5d} | {1e3 * mf:14.3f} {1e3 * np.mean(sef[ok, j]):10.3f} "
-              f"{np.mean(sef[ok, j]) / mf:6.2f} | {100 * mz:13.3f} {100 * np.mean(sez[ok, j]):9.3f} "
-              f"{np.mean(sez[ok, j]) / mz:6.2f}")  # fmt: skip
+        ft = lam_t[j].imag / (2 * np.pi)
+        o = int(np.argmin(np.abs(obs.frequency.values - ft)))
+        cf, cz = float(obs.frequency_std[o]), float(obs.damping_ratio_std[o])
+        print(f"{ft:12.3f} {ok.sum():5d} | {1e3 * mf:14.3f} {1e3 * np.mean(sef[ok, j]):7.3f} "
+              f"{np.mean(sef[ok, j]) / mf:6.2f} {1e3 * cf:7.3f} {mf / cf:6.2f} | {100 * mz:13.4f} "
+              f"{100 * np.mean(sez[ok, j]):7.4f} {np.mean(sez[ok, j]) / mz:6.2f} {100 * cz:7.4f} {mz / cz:6.2f}")  # fmt: skip
 
 
 def main() -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from twin import __version__
-from twin.cli import loop, stages
+from twin.cli import design, loop, stages
 from twin.cli.loop import GIBBS_DEFAULTS
 
 MODEL_HELP = "model file (TOML), or the name of a shipped model (hydro_unit, ross_reference)"
@@ -114,6 +114,29 @@ def _add_stages(sub) -> None:
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull); repeatable")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+
+    p = _command(sub, "observe", "which modes and parameters a sensor layout and record can determine",
+                 "Before any measurement: per target mode (damped less than 10%, up to --fmax) the peak response\n"
+                 "against the sensor noise on each channel, the expected standard error of its frequency and\n"
+                 "damping from SSI on such a record (theory: the Whittle likelihood of the output spectrum), and\n"
+                 "whether it is observable. With --params/--fsi, the expected posterior std of those parameters\n"
+                 "from the observable modes' poles and shapes (Fisher information), and whether each is determined.",
+                 ["twin observe hydro_unit", "twin observe hydro_unit --duration 3600 --params bearings --fsi --truth paper",
+                  "twin observe hydro_unit -o observability.nc"], design._observe)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
+    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
+                   help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
+    p.add_argument("--noise", type=float, default=0.05,
+                   help="sensor noise std as a fraction of the median channel RMS (as twin simulate)")
+    p.add_argument("--fmax", type=float, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
+    p.add_argument("--truth", default=None,
+                   help="judge a truth with hidden effects instead of the model: a truth file, or 'paper' (default: none)")
+    p.add_argument("--params", default=None,
+                   help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated")
+    p.add_argument("--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode")
+    p.add_argument("-o", "--output", default=None, help="write the observability table (NetCDF: mode x channel)")
 
     p = _command(sub, "export-fmu", "export the model as an FMI 2.0 co-simulation FMU",
                  "Compiles the model's state-space matrices into an FMU (needs a C compiler, gcc or cc); forces\n"

@@ -1,0 +1,72 @@
+"""Identifiability of parameters (twin.design.identify): the Fisher algebra, the undetermined bearing terms, the CLI."""
+
+import numpy as np
+import pytest
+
+from twin import load_model, shipped_model
+from twin.cli import main
+from twin.design import identifiability
+from twin.design.identify import fisher_covariance, modal_jacobian, sample_covariance
+from twin.errors import ModelError
+from twin.fmu.statespace import full_state_space, state_modes
+from twin.loop.sensitivity import pole_jacobian, solve_modes
+
+
+@pytest.fixture(scope="module")
+def unit():
+    return load_model(shipped_model("hydro_unit"))
+
+
+def test_the_jacobian_of_the_poles_matches_the_exact_derivative(unit):
+    names = ["UGB.kxx", "LGB.cyy", "generator.m"]
+    J, columns, scales, poles, _ = modal_jacobian(unit, names, [0, 4, 9])
+    exact = pole_jacobian(unit, solve_modes(unit), names, modes=[0, 4, 9])
+    assert columns == names
+    size = np.abs(exact).max(axis=0)  # forward differences: 1e-3 of each column's largest entry
+    assert (np.abs(J[:, 0, :] - exact.real) < 1e-3 * size).all()
+    assert (np.abs(J[:, 1, :] - exact.imag) < 1e-3 * size).all()
+
+
+def test_fisher_covariance_of_one_parameter_is_the_weighted_least_squares_variance():
+    J = np.array([[[2.0], [0.0], [1.0]], [[1.0], [3.0], [0.0]]])  # two modes, three data, one parameter
+    covs = [np.diag([0.5, 1.0, 2.0]), np.diag([1.0, 4.0, 1.0])]
+    expected = 1.0 / (4 / 0.5 + 1 / 2.0 + 1 / 1.0 + 9 / 4.0)
+    assert fisher_covariance(J, covs, np.array([1.0]))[0, 0] == pytest.approx(expected, rel=1e-9)
+    assert fisher_covariance(J, covs, np.array([7.0]))[0, 0] == pytest.approx(expected, rel=1e-9)  # scale-free
+
+
+def test_sample_covariance_is_the_synthetic_noise_over_the_samples():
+    shape = np.array([0.8, 0.6j])
+    cov = sample_covariance(shape, 100)
+    assert np.allclose(np.diag(cov), np.array([1.58, 1.1, 0.04**2, 0, 0, 0.03**2]) / 100)
+
+
+def test_the_lgb_direct_stiffnesses_are_undetermined_and_the_ugb_ones_determined(unit):
+    """Case B (16 bearings + per-mode FSI, paper truth, 100 samples): LGB.kxx and LGB.kyy are left undetermined."""
+    from twin.fem.truthfile import paper_truth
+    from twin.update.problem import select_parameters
+
+    ident = identifiability(unit, select_parameters(unit, "bearings"), fsi=True, samples=100, truth=paper_truth())
+    assert bool(ident.determined.sel(parameter="UGB.kxx")) and bool(ident.determined.sel(parameter="UGB.kyy"))
+    assert not ident.determined.sel(parameter="LGB.kxx") and not ident.determined.sel(parameter="LGB.kyy")
+    assert ident.relative_std.sel(parameter="UGB.kxx") < 0.01
+    assert ident.sizes["parameter"] == 16 + 2 * 15
+
+
+def test_more_samples_shrink_the_std_as_one_over_their_root(unit):
+    a = identifiability(unit, ["UGB.kxx", "LGB.cxx"], samples=25)
+    b = identifiability(unit, ["UGB.kxx", "LGB.cxx"], samples=100)
+    assert np.allclose(a["std"] / b["std"], 2.0, rtol=1e-6)
+
+
+def test_nothing_to_judge_is_refused(unit):
+    with pytest.raises(ModelError, match="nothing to judge"):
+        identifiability(unit, [])
+
+
+def test_observe_command_prints_both_tables(capsys):
+    assert main(["observe", "hydro_unit", "--params", "LGB.k*", "-q"]) == 0  # 20 min: LGB.kxx, kyy undetermined
+    out = capsys.readouterr().out
+    assert "target modes observable" in out
+    assert "LGB.kxx" in out and "NOT determined" in out
+    assert out.count("not observable") >= 4

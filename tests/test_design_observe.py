@@ -1,0 +1,71 @@
+"""Observability of modes (twin.design.observe): the spectrum model against a direct simulation, the bounds' scaling."""
+
+import numpy as np
+import pytest
+import scipy.signal as ss_signal
+
+from twin import load_model, shipped_model
+from twin.design import Excitation, observability
+from twin.design.observe import spectrum, target_modes
+from twin.errors import ModelError
+from twin.fmu.excitation import sensor_noise, turbulence_force
+from twin.fmu.export import default_turbulence_node
+from twin.fmu.statespace import discretize, model_state_space, simulate_reference
+
+
+@pytest.fixture(scope="module")
+def unit():
+    return load_model(shipped_model("hydro_unit"))
+
+
+@pytest.fixture(scope="module")
+def table(unit):
+    return observability(unit)
+
+
+def test_spectrum_matches_a_direct_simulation_at_the_modes(unit):
+    """Band power around four modes of a 10-min numpy simulation (the FMU's recursion) against the model."""
+    ss = model_state_space(unit, "modal", 60.0)
+    ex = Excitation(duration_s=600.0)
+    sp = spectrum(ss, unit, ex)
+    fs, n = ex.fs_hz, int(600 * ex.fs_hz)
+    node = default_turbulence_node(unit)
+    ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
+    zoh = np.zeros((n, len(ss.ports)))
+    zoh[:, ports] = turbulence_force(n, ex.turbulence_asd, seed=5, h=1 / fs)
+    y = simulate_reference(discretize(ss, 1 / fs), ss.C, zoh=zoh)
+    y += sensor_noise(n, y.shape[1], sp.noise_std_m, seed=6)
+    f, pxx = ss_signal.welch(y, fs=fs, nperseg=8192, axis=0)
+    model_psd = np.einsum("fcc->fc", sp.psd(f)).real
+    for k in target_modes(sp.poles, 60.0)[[1, 2, 5, 7]]:  # 2.9, 10.2, 41.5, 51.7 Hz
+        fk, half = sp.poles[k].imag / (2 * np.pi), -sp.poles[k].real / (2 * np.pi)
+        band = np.abs(f - fk) < max(4 * half, 0.2)
+        c = int(np.argmax(np.abs(sp.c[:, k])))
+        ratio = pxx[band, c].sum() / model_psd[band, c].sum()
+        assert abs(10 * np.log10(ratio)) < 1.0, (fk, ratio)  # 1 dB: Welch's scatter over ~140 averages is ~0.4 dB
+
+
+def test_the_high_modes_are_not_observable_and_the_bearing_modes_are(table):
+    f = table.frequency.values
+    assert table.sizes["mode"] == 15
+    assert not table.observable.values[f > 90].any()  # 94-97 Hz: exciter stub and turbine shaft, below the noise
+    assert (table.best_snr_db.values[f > 90] < -15).all()
+    assert table.observable.values[(f > 40) & (f < 55)].all()
+    assert all(r for r, ok in zip(table.reason.values, table.observable.values) if not ok)
+
+
+def test_noise_and_record_length_scale_as_they_must(unit, table):
+    """Twice the noise std: every SNR falls by 20 log10(2) dB; nine times the record: the stds fall 3x (high SNR)."""
+    noisy = observability(unit, Excitation(noise_ratio=0.10))
+    assert np.allclose(table.snr_db - noisy.snr_db, 20 * np.log10(2), atol=1e-9)
+    longer = observability(unit, Excitation(duration_s=9 * 1200.0))
+    loud = table.best_snr_db.values > 20
+    assert np.allclose(table.frequency_std.values[loud] / longer.frequency_std.values[loud], 3.0, rtol=1e-6)
+    assert np.allclose(table.damping_ratio_crb.values[loud] / longer.damping_ratio_crb.values[loud], 3.0, rtol=1e-6)
+
+
+def test_bad_settings_are_named(unit):
+    with pytest.raises(ModelError, match="duration_s must be positive"):
+        observability(unit, Excitation(duration_s=0.0))
+    with pytest.raises(ModelError, match="noise_ratio"):
+        observability(unit, Excitation(noise_ratio=-1.0))

@@ -1,0 +1,304 @@
+"""Which parameters the measured modes can determine, before any data: Fisher information.
+
+The data of an update are, per observable target mode ``k``, its pole and its
+shape on the sensors (normalised: unit norm, largest entry real positive),
+with an error covariance ``Σ_k`` over ``d_k = [Re λ, Im λ, Re ψ, Im ψ]``.
+Linearised at the model, ``d_k(θ) ≈ d_k(θ₀) + J_k (θ − θ₀)``, so the Fisher
+information of the parameters and the expected posterior covariance are
+
+    F = Σ_k J_kᵀ Σ_k⁺ J_k,        Cov(θ | data) ≈ (F + P₀)⁻¹
+
+(``P₀`` the prior precision; flat by default, as the updater's). ``J_k`` is
+taken by finite differences of the model's modes (a relative step of
+:data:`STEP`); ``Σ_k`` comes from either
+
+* the record (:func:`twin.design.observe.mode_covariance`, the Cramér-Rao
+  bound of the output spectrum for the sensor layout, excitation and record
+  length: what SSI can give at best), or
+* sample noise as :func:`twin.update.synthesize_modes` makes it (pole
+  variances and shape coefficient of variation, ``J`` samples averaged).
+
+With per-mode FSI (``fsi=True``) every target mode has its own added mass and
+damping, which move that mode only (the modal synthesis of DESIGN section 3).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import xarray as xr
+
+from twin import __version__
+from twin.design.observe import Excitation, band_top, mode_covariance, single_mode_covariance, spectrum, target_modes
+from twin.errors import ModelError
+from twin.fem.effects import with_shared_fsi
+from twin.fem.model import RotorModel
+from twin.fem.truthfile import Truth
+from twin.fmu.statespace import full_state_space, state_modes
+from twin.loop.fit import effect_priors
+from twin.modes.shapes import normalise_shapes
+
+#: Finite-difference step, as a fraction of each parameter's scale.
+STEP = 1e-6
+#: A parameter is determined when its expected posterior std is below this fraction of its scale.
+DETERMINED_LIMIT = 0.10
+#: Steps of the continuation from a dry mode to its FEM altered by per-mode FSI.
+CONTINUATION_STEPS = 6
+#: Per-mode FSI parameters (names of the shared effect's parameters) and their labels.
+FSI_NAMES = (("added_mass", "FSI.added_mass"), ("added_damping", "FSI.added_damping"))
+
+
+def parameter_scales(model: RotorModel, names: Sequence[str]) -> np.ndarray:
+    """Scale of each parameter [SI]: ``|nominal|``, or the effect's plausible size for a zero nominal."""
+    owned: dict[str, float] = {}
+    for effect in model.effects:
+        owned.update(effect_priors(model, effect))
+    out = []
+    for n in names:
+        nominal = model.parameter(n).nominal
+        s = abs(nominal) if nominal != 0 else owned.get(n, 0.0)
+        if not s > 0:
+            raise ModelError(f"parameter '{n}' is zero in the model and has no plausible size: add it through its effect")
+        out.append(float(s))
+    return np.array(out)
+
+
+def _modes(model: RotorModel, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    ss = full_state_space(model, values=values)
+    lam, right, _ = state_modes(ss.A)
+    return lam, (ss.C @ right.T).T
+
+
+def _data_vector(pole: complex, shape: np.ndarray, ref: int) -> np.ndarray:
+    shape = shape * abs(shape[ref]) / shape[ref]
+    shape = shape / np.linalg.norm(shape)
+    return np.concatenate([[pole.real, pole.imag], shape.real, shape.imag])
+
+
+def _nearest(poles: np.ndarray, shapes: np.ndarray, pole: complex, shape: np.ndarray) -> int:
+    from twin.modes.shapes import mac
+
+    cost = np.abs(poles - pole) / abs(pole) + (1 - mac(shapes, shape)[:, 0])
+    return int(np.argmin(cost))
+
+
+def modal_jacobian(
+    model: RotorModel,
+    names: Sequence[str],
+    modes: Sequence[int],
+    *,
+    fsi: bool = False,
+    values: Mapping[str, float] | None = None,
+    fsi_values: np.ndarray | None = None,
+) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """``∂d_k/∂θ`` for target modes ``modes`` (indices into the model's oscillating modes, by frequency).
+
+    With ``fsi_values`` (``(n_modes, 2)``: added mass [kg] and damping [N s/m]
+    per mode) mode ``k`` is linearised on its own FEM, altered by its values
+    and followed there from the dry mode by continuation.
+
+    Returns
+    -------
+    (J, columns, scales, poles, shapes)
+        ``J`` of shape ``(n_modes, 2 + 2m, n_columns)`` [data units per SI unit];
+        the columns are ``names`` then, with ``fsi``, ``FSI.added_mass_<i>`` and
+        ``FSI.added_damping_<i>`` per mode (1-based, as in the posterior); ``scales``
+        their sizes [SI]; ``poles`` and sensor ``shapes`` of the modes where linearised.
+    """
+    base = with_shared_fsi(model) if fsi or fsi_values is not None else model
+    values = dict(values or {})
+    lam_dry, shapes_dry = _modes(base, values)
+    modes = list(modes)
+    columns = list(names)
+    scales = list(parameter_scales(base, names))
+    fsi_full = [full for _, full in FSI_NAMES]
+    fsi_scales = parameter_scales(base, fsi_full) if fsi else np.zeros(0)
+    if fsi:
+        for i in range(len(modes)):
+            for (short, _), s in zip(FSI_NAMES, fsi_scales):
+                columns.append(f"FSI.{short}_{i + 1}")
+                scales.append(float(s))
+    m = shapes_dry.shape[1]
+    shared = list(names) + (fsi_full if fsi else [])
+    shared_scales = list(scales[: len(names)]) + list(fsi_scales)
+    J = np.zeros((len(modes), 2 + 2 * m, len(columns)))
+    at_poles, at_shapes = np.zeros(len(modes), dtype=complex), np.zeros((len(modes), m), dtype=complex)
+    for i, k in enumerate(modes):
+        here = dict(values)
+        pole, shape = lam_dry[k], shapes_dry[k]
+        if fsi_values is not None:
+            for step in range(1, CONTINUATION_STEPS + 1):  # follow the dry mode to its altered FEM
+                for full, v in zip(fsi_full, fsi_values[i]):
+                    here[full] = v * step / CONTINUATION_STEPS
+                lam, shapes = _modes(base, here)
+                j = _nearest(lam, shapes, pole, shape)
+                pole, shape = lam[j], shapes[j]
+        ref = int(np.argmax(np.abs(shape)))
+        d0 = _data_vector(pole, shape, ref)
+        at_poles[i], at_shapes[i] = pole, shape
+        for p, (name, s) in enumerate(zip(shared, shared_scales)):
+            step = STEP * s
+            lam, shapes = _modes(base, {**here, name: here.get(name, base.parameter(name).nominal) + step})
+            j = _nearest(lam, shapes, pole, shape)
+            column = p if p < len(names) else len(names) + 2 * i + (p - len(names))
+            J[i, :, column] = (_data_vector(lam[j], shapes[j], ref) - d0) / step
+    return J, columns, np.array(scales), at_poles, normalise_shapes(at_shapes)
+
+
+def record_covariance(sp, k: int, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance of mode ``k``'s pole and shape from a record, at the level SSI reaches.
+
+    The Cramér-Rao covariance of the pole and shape (:func:`~twin.design.observe.mode_covariance`)
+    scaled up by the ratio of the single-mode bound of the pole to its Cramér-Rao bound (the larger
+    of the two parts): SSI does not use the multichannel structure for the shape either.
+    """
+    cov, shape = mode_covariance(sp, k, duration_s)
+    single = single_mode_covariance(sp, k, duration_s)
+    ratio = float(np.max(np.diag(single) / np.maximum(np.diag(cov)[:2], 1e-300)))
+    return cov * max(ratio, 1.0), shape
+
+
+def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = (1.58, 1.1),
+                      shape_cov: float = 0.05) -> np.ndarray:
+    """Error covariance of a mode's mean pole and shape over ``samples`` synthetic samples (diagonal)."""
+    var = np.concatenate([pole_variance, (shape_cov * shape.real) ** 2, (shape_cov * shape.imag) ** 2])
+    return np.diag(var / samples)
+
+
+def fisher_covariance(J: np.ndarray, covariances: Sequence[np.ndarray], scales: np.ndarray,
+                      prior_std: np.ndarray | None = None) -> np.ndarray:
+    """``(Σ_k J_kᵀ Σ_k⁺ J_k + P₀)⁻¹`` [SI]; directions the data do not reach get a std of 10⁶ scales."""
+    Js = J * scales[None, None, :]
+    F = np.zeros((len(scales), len(scales)))
+    for Jk, cov in zip(Js, covariances):
+        F += Jk.T @ np.linalg.pinv(cov, rcond=1e-10, hermitian=True) @ Jk
+    if prior_std is not None:
+        F += np.diag((scales / prior_std) ** 2)
+    F += 1e-12 * np.eye(len(scales))
+    cov_u = np.linalg.inv(F)
+    return cov_u * np.outer(scales, scales)
+
+
+def identifiability(
+    model: RotorModel,
+    names: Sequence[str],
+    *,
+    fsi: bool = False,
+    excitation: Excitation | None = None,
+    samples: int | None = None,
+    truth: Truth | None = None,
+    observability: xr.Dataset | None = None,
+    fmax_hz: float | None = None,
+    command: str = "",
+) -> xr.Dataset:
+    """Expected posterior std of parameters from the modes the sensors see (see the module docstring).
+
+    Parameters
+    ----------
+    model : RotorModel
+    names : sequence of str
+        Shared parameters (any of the model's, effects included).
+    fsi : bool
+        Also per-mode added mass and damping of every mode used.
+    excitation : Excitation, optional
+        Record the data come from (default: 20 min, ``twin simulate``'s excitation); the
+        modes used are those :func:`~twin.design.observe.observability` marks observable.
+    samples : int, optional
+        Instead of a record: ``J`` synthetic samples per mode with the paper's noise
+        (:func:`twin.update.synthesize_modes`), all target modes used.
+    truth : Truth, optional
+        Linearise at the truth (its effects switched on; per-mode FSI: each mode on its own FEM).
+    observability : xarray.Dataset, optional
+        A table already computed for this model, truth and excitation (saves its cost).
+    fmax_hz : float, optional
+        Highest target frequency [Hz] (default 100 Hz, at most 0.4 fs).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``parameter``: ``scale`` [SI] (|nominal|, or the effect's plausible size),
+        ``std`` [SI], ``relative_std`` (std / scale), ``determined`` and ``correlation``;
+        attrs: the modes used and the method.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> ident = identifiability(load_model(shipped_model("hydro_unit")), ["UGB.kxx", "LGB.kxx"], samples=100)
+    >>> bool(ident.determined.sel(parameter="UGB.kxx"))
+    True
+    """
+    from twin.design.observe import observability as observe
+    from twin.fmu.simulate import system_for
+    from twin.fmu.truth import truth_model
+
+    if not names and not fsi:
+        raise ModelError("choose parameters (names) or per-mode FSI: nothing to judge")
+    for n in names:
+        model.parameter(n)  # an unknown name is named
+    excitation = excitation or Excitation()
+    excitation.check()
+    top = band_top(fmax_hz, excitation)
+    base = with_shared_fsi(model) if fsi else model
+    fsi_values = None
+    if truth is not None:
+        base = truth_model(base, truth)
+        if truth.per_mode is not None:
+            fsi_values = np.column_stack([truth.per_mode.added_mass, truth.per_mode.added_damping])
+    dry, _, _ = state_modes(full_state_space(base).A)
+    targets = target_modes(dry, top)
+    if fsi_values is not None:
+        targets = targets[: len(fsi_values)]
+    J, columns, scales, poles, shapes = modal_jacobian(base, names, list(targets), fsi=fsi, fsi_values=fsi_values)
+    if samples is not None:
+        if samples < 1:
+            raise ModelError(f"samples must be at least 1, got {samples}")
+        used = list(range(len(targets)))
+        covs = [sample_covariance(shapes[i], samples) for i in used]
+        method = f"{samples} synthetic samples per mode (pole variances 1.58, 1.1 rad^2/s^2; shape CoV 5%)"
+    else:
+        obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
+        sp = spectrum(system_for(model, truth, "full", None), model, excitation)
+        used, covs = [], []
+        for i, pole in enumerate(poles):
+            row = int(np.argmin(np.abs(obs.frequency.values - pole.imag / (2 * np.pi))))
+            if bool(obs.observable[row]):
+                used.append(i)
+                covs.append(record_covariance(sp, int(np.argmin(np.abs(sp.poles - pole))), excitation.duration_s)[0])
+        method = (f"poles and shapes of the observable modes from a {excitation.duration_s:g} s record "
+                  "(Cramer-Rao covariance raised to the single-mode bound of each pole)")  # fmt: skip
+    if not used:
+        raise ModelError(f"no target mode of '{model.name}' is observable with this layout and record: "
+                         "nothing determines the parameters")  # fmt: skip
+    keep = np.ones(len(columns), bool)
+    if fsi:  # per-mode values of unused modes are not judged
+        for i in set(range(len(targets))) - set(used):
+            keep[len(names) + 2 * i : len(names) + 2 * i + 2] = False
+    J = J[used][:, :, keep]
+    columns = [c for c, k in zip(columns, keep) if k]
+    scales = scales[keep]
+    cov = fisher_covariance(J, covs, scales)
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return xr.Dataset(
+        {
+            "scale": ("parameter", scales, {"long_name": "size the std is judged against [SI]"}),
+            "std": ("parameter", std, {"long_name": "expected posterior std (Fisher) [SI]"}),
+            "relative_std": ("parameter", std / scales, {"units": "1"}),
+            "determined": ("parameter", std / scales < DETERMINED_LIMIT,
+                           {"long_name": f"expected std below {DETERMINED_LIMIT:.0%} of the scale"}),
+            "correlation": (("parameter", "parameter_2"), cov / np.outer(std, std), {"units": "1"}),
+        },  # fmt: skip
+        coords={"parameter": columns, "parameter_2": columns},
+        attrs={
+            "title": f"identifiability of {model.name}'s parameters",
+            "producer": f"twin {__version__} twin.design.identify",
+            "model": model.name,
+            "command": command,
+            "method": method,
+            "modes_used": json.dumps([int(i) + 1 for i in used]),
+            "target_modes": len(targets),
+            "excitation": json.dumps(excitation.__dict__),
+            **({"truth": truth.to_json()} if truth is not None else {}),
+        },
+    )

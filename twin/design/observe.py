@@ -1,0 +1,450 @@
+"""Which modes a sensor layout and a record can see, before any measurement.
+
+The excitation is the one :func:`twin.fmu.simulate.simulate` applies: white
+turbulence force on the runner (one-sided ASD ``a`` [N/√Hz] in x and y, held
+over each sample, hence the factor ``sinc²(f h)``) and white sensor noise of
+std ``σ_n`` per sample (one-sided PSD ``2 σ_n² / fs``). The output spectrum of
+the linear system is, on a frequency grid,
+
+    S(f) = a² sinc²(f h) H(f) H(f)ᴴ + (2 σ_n² / fs) I,
+    H(f) = Σ_j c_j b_jᵀ / (i 2π f − λ_j)   (all state eigenvalues).
+
+**Response against noise.** Mode ``k`` alone at its peak, channel ``c``:
+``|c_kc|² |b_k|² a² sinc² / σ_k²`` (``σ_k = −Re λ_k``), divided by the noise
+PSD, in dB.
+
+**Expected standard errors (theory, Whittle likelihood).** A record of
+length ``T`` gives ``T df`` independent Fourier coefficients per band ``df``,
+each complex Gaussian with covariance ``S(f)``, so the Fisher information of
+parameters ``p`` is ``F_pq = T ∫ Re tr(S⁻¹ ∂_p S S⁻¹ ∂_q S) df``. Two bounds
+come from it:
+
+* the *single-mode bound* (``frequency_std``, ``damping_ratio_std``): the
+  mode seen alone through its own shape as a spatial filter, on the
+  background of the other modes and the noise (:func:`single_mode_covariance`).
+  This is what SSI gets: over 12 independent one-hour FMU records the spread
+  of the SSI estimates is 0.4-3.8 times it (median about 2);
+* the *Cramér-Rao bound* of the whole multichannel record (``*_crb``,
+  :func:`mode_covariance`): it also uses the exact rank of the spectrum (two
+  force inputs), which SSI does not; it is 4-20 times lower than the SSI
+  spread for the lightly damped modes. It says what a full maximum-likelihood
+  estimator could reach.
+
+``benchmarks/extraction.py --seeds N`` is the Monte Carlo check of both.
+
+A mode is **observable** when its peak stands at least :data:`SNR_LIMIT_DB`
+above the noise on some channel (SSI's stabilisation and clustering found
+the hydro unit's modes in 12 of 12 one-hour records at 20 dB and more, 6 of
+12 at 14 dB, 1 of 12 at 5 dB, none below -19 dB) and the single-mode bound
+is within the extraction targets: frequency std at most
+:data:`FREQUENCY_STD_LIMIT` of the frequency, damping std at most
+:data:`DAMPING_STD_LIMIT` of the damping ratio.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import xarray as xr
+
+from twin import __version__
+from twin.errors import ModelError
+from twin.fem.model import RotorModel
+from twin.fem.truthfile import Truth
+from twin.fmu.export import default_turbulence_node
+from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, output_rms, system_for
+from twin.fmu.statespace import StateSpace, discretize
+from twin.fmu.truth import MAX_TARGET_DAMPING
+from twin.modes.analysis import damping_ratio
+
+log = logging.getLogger(__name__)
+
+#: Largest expected relative frequency std of an observable mode (the extraction target).
+FREQUENCY_STD_LIMIT = 0.002
+#: Largest expected damping-ratio std of an observable mode, as a fraction of the ratio (the extraction target).
+DAMPING_STD_LIMIT = 0.10
+#: Smallest peak-to-noise ratio [dB] on the best channel of an observable mode.
+SNR_LIMIT_DB = 15.0
+#: Default highest frequency [Hz] of the target modes (capped at 0.4 fs).
+DEFAULT_FMAX_HZ = 100.0
+#: Points of the Lorentzian-adapted frequency grid around each mode.
+GRID_POINTS = 801
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """What drives the rotor and what the sensors add, as in :func:`twin.fmu.simulate.simulate`.
+
+    Attributes
+    ----------
+    turbulence_asd : float
+        One-sided ASD of the runner turbulence force, x and y [N/√Hz].
+    noise_ratio : float
+        Sensor noise std as a fraction of the median channel RMS of the turbulence response
+        (ignored when ``noise_std_m`` is given).
+    noise_std_m : float, optional
+        Sensor noise std [m] per sample.
+    duration_s : float
+        Record length [s].
+    fs_hz : float
+        Sampling rate [Hz].
+    """
+
+    turbulence_asd: float = DEFAULT_TURBULENCE_ASD
+    noise_ratio: float = 0.05
+    noise_std_m: float | None = None
+    duration_s: float = 1200.0
+    fs_hz: float = 256.0
+
+    def check(self) -> None:
+        """Raise :class:`ModelError` naming the first setting out of range."""
+        for name in ("turbulence_asd", "duration_s", "fs_hz"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ModelError(f"{name} must be positive, got {value}")
+        if not (np.isfinite(self.noise_ratio) and self.noise_ratio >= 0):
+            raise ModelError(f"noise_ratio must not be negative, got {self.noise_ratio}")
+        if self.noise_std_m is not None and not (np.isfinite(self.noise_std_m) and self.noise_std_m > 0):
+            raise ModelError(f"noise_std_m must be positive, got {self.noise_std_m}")
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """The output spectrum model of a system under an excitation (see the module docstring).
+
+    Attributes
+    ----------
+    poles : (n,) complex
+        All eigenvalues of the state matrix [1/s].
+    c : (m, n) complex
+        Output vectors ``C v_j``.
+    b : (n, p) complex
+        Turbulence input vectors ``w_j B`` (``p`` = 2 ports, x and y).
+    force_psd : float
+        ``a²`` [N²/Hz].
+    noise_psd : float
+        ``2 σ_n² / fs`` [m²/Hz].
+    noise_std_m : float
+    h : float
+        Sample time [s].
+    """
+
+    poles: np.ndarray
+    c: np.ndarray
+    b: np.ndarray
+    force_psd: float
+    noise_psd: float
+    noise_std_m: float
+    h: float
+
+    def transfer(self, f_hz: np.ndarray) -> np.ndarray:
+        """``H(f)`` [m/N], shape ``(nf, m, p)``."""
+        s = 2j * np.pi * np.asarray(f_hz, dtype=float)
+        return np.einsum("mj,fj,jp->fmp", self.c, 1.0 / (s[:, None] - self.poles[None, :]), self.b)
+
+    def force_weight(self, f_hz: np.ndarray) -> np.ndarray:
+        """``a² sinc²(f h)``: the held force samples' PSD [N²/Hz]."""
+        return self.force_psd * np.sinc(np.asarray(f_hz) * self.h) ** 2
+
+    def psd(self, f_hz: np.ndarray) -> np.ndarray:
+        """One-sided output cross-spectral matrix [m²/Hz], shape ``(nf, m, m)``."""
+        H = self.transfer(f_hz)
+        S = self.force_weight(f_hz)[:, None, None] * H @ H.conj().transpose(0, 2, 1)
+        return S + self.noise_psd * np.eye(self.c.shape[0])
+
+
+def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spectrum:
+    """The :class:`Spectrum` of ``ss`` under ``excitation`` (turbulence at the model's immersed node).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fmu.statespace import full_state_space
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> sp = spectrum(full_state_space(m), m, Excitation())
+    >>> sp.psd([10.0]).shape
+    (1, 8, 8)
+    """
+    excitation.check()
+    node = default_turbulence_node(model)
+    if node is None:
+        raise ModelError(f"model '{model.name}' has no [regions] immersed node for the turbulence to act on")
+    ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
+    h = 1.0 / excitation.fs_hz
+    if excitation.noise_std_m is not None:
+        noise_std = float(excitation.noise_std_m)
+    else:
+        noise_std = excitation.noise_ratio * float(np.median(output_rms(ss, h, excitation.turbulence_asd, ports)))
+    lam, V = sla.eig(ss.A)
+    c = ss.C @ V
+    b = np.linalg.solve(V, ss.B[:, ports])
+    noise_psd = max(2.0 * noise_std**2 / excitation.fs_hz, 1e-300)
+    return Spectrum(lam, c, b, excitation.turbulence_asd**2, noise_psd, noise_std, h)
+
+
+def _grid(pole: complex, f_top_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies [Hz] and weights [Hz] dense near the pole: ``f = f_k + γ tan u``, ``γ`` its half-width."""
+    gamma = max(-pole.real, 1e-12) / (2 * np.pi)
+    f_k = pole.imag / (2 * np.pi)
+    lo, hi = np.arctan((1e-3 * f_k - f_k) / gamma), np.arctan((f_top_hz - f_k) / gamma)
+    u = np.linspace(lo, hi, GRID_POINTS)
+    f = f_k + gamma * np.tan(u)
+    w = gamma / np.cos(u) ** 2 * np.gradient(u)
+    return f, w
+
+
+def mode_fisher(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, list[str]]:
+    """Fisher information of mode ``k``'s parameters from a record of ``duration_s``.
+
+    Parameters: ``Re λ``, ``Im λ`` [1/s], the real and imaginary parts of its
+    output vector ``c`` turned so that its largest entry is real positive, in
+    units of that entry (the imaginary part of the largest entry fixed), and
+    ``log σ_n²``.
+
+    Returns
+    -------
+    (F, names)
+        ``F`` is ``(q, q)``; ``names`` label its rows.
+    """
+    lam = sp.poles[k]
+    partner = int(np.argmin(np.abs(sp.poles - np.conj(lam)) + (np.arange(len(sp.poles)) == k) * 1e300))
+    f, w = _grid(lam, 0.5 / sp.h)
+    s = 2j * np.pi * f
+    ck, bk = sp.c[:, k], sp.b[k]
+    m = len(ck)
+    ref = int(np.argmax(np.abs(ck)))
+    turn = ck[ref] / abs(ck[ref])
+    ck, bk = ck / turn, bk * turn  # largest output entry real positive (the product c bᵀ is unchanged)
+    g1, g2 = 1.0 / (s - lam), 1.0 / (s - np.conj(lam))
+    H = sp.transfer(f)
+    # two terms per mode (λ and its conjugate; for a real-data system the partner's vectors are the conjugates)
+    cb = np.outer(ck, bk)
+    cb_bar = np.outer(sp.c[:, partner], sp.b[partner])
+    dH = [cb * g1[:, None, None] ** 2 + cb_bar * g2[:, None, None] ** 2,
+          1j * cb * g1[:, None, None] ** 2 - 1j * cb_bar * g2[:, None, None] ** 2]  # fmt: skip
+    names = ["pole.real", "pole.imag"]
+    scale = np.abs(ck).max()
+    for j in range(m):
+        for part, unit in (("real", 1.0), ("imag", 1j)):
+            if part == "imag" and j == ref:
+                continue
+            e = np.zeros((m, 1), dtype=complex)
+            e[j, 0] = scale
+            term = unit * e * bk[None, :] * g1[:, None, None] + np.conj(unit) * e * np.conj(bk)[None, :] * g2[:, None, None]
+            dH.append(term)
+            names.append(f"shape.{j}.{part}")
+    q = np.array(sp.force_weight(f))
+    dS = [q[:, None, None] * (d @ H.conj().transpose(0, 2, 1) + H @ d.conj().transpose(0, 2, 1)) for d in dH]
+    dS.append(sp.noise_psd * np.broadcast_to(np.eye(m), (len(f), m, m)))
+    names.append("log_noise")
+    S_inv = np.linalg.inv(sp.psd(f))
+    X = np.stack([S_inv @ d for d in dS])  # (p, nf, m, m)
+    F = duration_s * np.einsum("f,pfab,qfba->pq", w, X, X).real
+    return 0.5 * (F + F.T), names
+
+
+def mode_covariance(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cramér-Rao covariance of mode ``k``'s pole and normalised sensor shape from a record.
+
+    Returns
+    -------
+    (cov, shape)
+        ``cov`` of shape ``(2 + 2m, 2 + 2m)`` over ``[Re λ, Im λ, Re ψ, Im ψ]`` ([1/s] and 1),
+        ``ψ`` the shape normalised as everywhere in the package (unit norm, largest
+        entry real positive); ``shape`` is that ``ψ``.
+    """
+    F, _ = mode_fisher(sp, k, duration_s)
+    cov = np.linalg.pinv(F, rcond=1e-13, hermitian=True)[:-1, :-1]  # the noise level is a nuisance
+    c = sp.c[:, k]
+    m, ref = len(c), int(np.argmax(np.abs(c)))
+    c = c * abs(c[ref]) / c[ref] / abs(c[ref])  # in units of its largest entry, which is real positive
+    x = np.concatenate([c.real, np.delete(c.imag, ref)])
+    norm = np.linalg.norm(x)
+    shape = c / norm
+    xn = x / norm
+    to_psi = np.zeros((2 * m, 2 * m - 1))  # ψ = x / |x|: ∂ψ/∂x = (I - x̂ x̂ᵀ) / |x|, Im ψ_ref = 0
+    rows = np.delete(np.arange(2 * m), m + ref)
+    to_psi[rows] = (np.eye(2 * m - 1) - np.outer(xn, xn)) / norm
+    G = np.zeros((2 + 2 * m, 2 + 2 * m - 1))
+    G[:2, :2] = np.eye(2)
+    G[2:, 2:] = to_psi
+    return G @ cov @ G.T, shape
+
+
+def pole_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarray:
+    """Cramér-Rao covariance of ``(Re λ, Im λ)`` of mode ``k`` [1/s²], the other parameters unknown too."""
+    F, _ = mode_fisher(sp, k, duration_s)
+    return np.linalg.pinv(F, rcond=1e-13, hermitian=True)[:2, :2]
+
+
+def _mode_terms(sp: Spectrum, k: int, pole: complex, s: np.ndarray) -> np.ndarray:
+    """``H_k(f)``: mode ``k`` and its conjugate alone, with the pole replaced by ``pole``, ``(nf, m, p)``."""
+    partner = int(np.argmin(np.abs(sp.poles - np.conj(sp.poles[k])) + (np.arange(len(sp.poles)) == k) * 1e300))
+    cb, cb_bar = np.outer(sp.c[:, k], sp.b[k]), np.outer(sp.c[:, partner], sp.b[partner])
+    return cb / (s - pole)[:, None, None] + cb_bar / (s - np.conj(pole))[:, None, None]
+
+
+def single_mode_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarray:
+    """Covariance bound of ``(Re λ, Im λ)`` of mode ``k`` for an estimator that sees it alone [1/s²].
+
+    The channels are combined through the mode's own shape ``u = c_k / |c_k|``
+    (a modal filter); the scalar spectrum ``uᴴ S u`` is the mode's Lorentzian
+    pair on a background of the other modes and the noise. The Whittle Fisher
+    information of (Re λ, Im λ, the mode's level, the background's level) on
+    that one spectrum gives the bound. Unlike :func:`mode_covariance` it does
+    not use the exact two-input structure of the multichannel spectrum, which
+    SSI cannot exploit either; over independent FMU records the spread of the
+    SSI estimates is 0.4-3.8 times this bound (``benchmarks/extraction.py``).
+    """
+    lam = sp.poles[k]
+    f, w = _grid(lam, 0.5 / sp.h)
+    s = 2j * np.pi * f
+    u = sp.c[:, k] / np.linalg.norm(sp.c[:, k])
+    q = sp.force_weight(f)
+
+    def alone(pole: complex) -> np.ndarray:
+        g = np.einsum("a,fap->fp", u.conj(), _mode_terms(sp, k, pole, s))
+        return q * np.sum(np.abs(g) ** 2, axis=1)
+
+    total = np.einsum("a,fab,b->f", u.conj(), sp.psd(f), u).real
+    own = alone(lam)
+    h = 1e-6 * abs(lam)
+    d = np.array([(alone(lam + h) - alone(lam - h)) / (2 * h), (alone(lam + 1j * h) - alone(lam - 1j * h)) / (2 * h),
+                  own, total - own]) / total  # fmt: skip
+    F = duration_s * np.einsum("f,pf,qf->pq", w, d, d)
+    return np.linalg.pinv(F, rcond=1e-13, hermitian=True)[:2, :2]
+
+
+def zeta_frequency_std(pole: complex, cov: np.ndarray) -> tuple[float, float]:
+    """Std of the damped frequency [Hz] and of the damping ratio from the covariance of ``(Re λ, Im λ)``."""
+    mod = abs(pole)
+    grad = np.array([-(pole.imag**2) / mod**3, pole.real * pole.imag / mod**3])  # ∂ζ/∂(Re λ, Im λ)
+    return float(np.sqrt(max(cov[1, 1], 0.0)) / (2 * np.pi)), float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+
+
+def band_top(fmax_hz: float | None, excitation: Excitation) -> float:
+    """Highest target frequency [Hz]: ``fmax_hz`` (default 100 Hz), at most 0.4 fs."""
+    top = min(DEFAULT_FMAX_HZ if fmax_hz is None else float(fmax_hz), 0.4 * excitation.fs_hz)
+    if not top > 0:
+        raise ModelError(f"fmax_hz must be positive, got {fmax_hz}")
+    return top
+
+
+def target_modes(poles: np.ndarray, fmax_hz: float) -> np.ndarray:
+    """Indices of the oscillating poles damped less than 10% up to ``fmax_hz``, by frequency."""
+    idx = np.nonzero((poles.imag > 0) & (poles.imag <= 2 * np.pi * fmax_hz)
+                     & (damping_ratio(poles) < MAX_TARGET_DAMPING))[0]  # fmt: skip
+    return idx[np.argsort(poles.imag[idx], kind="stable")]
+
+
+def observability(
+    model: RotorModel,
+    excitation: Excitation | None = None,
+    *,
+    truth: Truth | None = None,
+    fmax_hz: float | None = None,
+    command: str = "",
+) -> xr.Dataset:
+    """Per target mode: response against noise per channel, expected frequency and damping std, verdict.
+
+    Parameters
+    ----------
+    model : RotorModel
+        Its sensors are the layout judged.
+    excitation : Excitation, optional
+        Turbulence, noise, record length and sampling rate (defaults: those of ``twin simulate``, 20 min).
+    truth : Truth, optional
+        Judge the truth's system (model plus hidden effects) instead of the model's.
+    fmax_hz : float, optional
+        Highest target frequency [Hz] (default 100 Hz, at most 0.4 fs).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``mode`` (1-based) and ``channel``: ``snr_db`` (mode, channel), ``best_snr_db``,
+        ``frequency`` [Hz], ``damping_ratio``, ``frequency_std`` [Hz], ``damping_ratio_std``,
+        ``observable`` (bool) and ``reason``.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> obs = observability(load_model(shipped_model("hydro_unit")))
+    >>> int(obs.sizes["mode"]), int(obs.observable.sum()) < 15
+    (15, True)
+    """
+    excitation = excitation or Excitation()
+    excitation.check()
+    if not model.sensors:
+        raise ModelError(f"model '{model.name}' declares no [[sensor]]: nothing can be observed")
+    top = band_top(fmax_hz, excitation)
+    ss = system_for(model, truth, "full", None)
+    sp = spectrum(ss, model, excitation)
+    targets = target_modes(sp.poles, top)
+    n, m = len(targets), len(ss.outputs)
+    snr = np.zeros((n, m))
+    f_std, z_std, f_crb, z_crb = (np.zeros(n) for _ in range(4))
+    lam = sp.poles[targets]
+    for i, k in enumerate(targets):
+        peak = np.abs(sp.c[:, k]) ** 2 * np.sum(np.abs(sp.b[k]) ** 2) * sp.force_weight(lam[i].imag / (2 * np.pi))
+        snr[i] = 10 * np.log10(np.maximum(peak / lam[i].real**2, 1e-300) / sp.noise_psd)
+        f_std[i], z_std[i] = zeta_frequency_std(lam[i], single_mode_covariance(sp, k, excitation.duration_s))
+        f_crb[i], z_crb[i] = zeta_frequency_std(lam[i], pole_covariance(sp, k, excitation.duration_s))
+    freq, zeta = lam.imag / (2 * np.pi), damping_ratio(lam)
+    best = snr.max(axis=1)
+    observable, reasons = verdicts(best, f_std / freq, z_std / zeta)
+    settings = {"turbulence_asd": excitation.turbulence_asd, "noise_ratio": excitation.noise_ratio,
+                "noise_std_m": sp.noise_std_m, "duration_s": excitation.duration_s, "fs_hz": excitation.fs_hz,
+                "fmax_hz": top}  # fmt: skip
+    sensors = {s.name: s for s in model.sensors}
+    return xr.Dataset(
+        {
+            "snr_db": (("mode", "channel"), snr, {"units": "dB", "long_name": "peak response of the mode alone against the noise PSD"}),
+            "best_snr_db": ("mode", best, {"units": "dB", "long_name": "peak-to-noise ratio on the best channel"}),
+            "frequency": ("mode", freq, {"units": "Hz", "long_name": "damped natural frequency"}),
+            "damping_ratio": ("mode", zeta, {"units": "1", "long_name": "damping ratio"}),
+            "frequency_std": ("mode", f_std, {"units": "Hz", "long_name": "expected std of the frequency (single-mode bound)"}),
+            "damping_ratio_std": ("mode", z_std, {"units": "1", "long_name": "expected std of the damping ratio (single-mode bound)"}),
+            "frequency_crb": ("mode", f_crb, {"units": "Hz", "long_name": "Cramér-Rao bound of the frequency std (whole record)"}),
+            "damping_ratio_crb": ("mode", z_crb, {"units": "1", "long_name": "Cramér-Rao bound of the damping-ratio std (whole record)"}),
+            "observable": ("mode", observable, {"long_name": "the record can determine the mode"}),
+            "reason": ("mode", reasons, {"long_name": "why not observable (empty when observable)"}),
+        },  # fmt: skip
+        coords={
+            "mode": ("mode", np.arange(1, n + 1), {"long_name": "target mode (by frequency)"}),
+            "channel": ("channel", list(ss.outputs)),
+            "node": ("channel", [sensors[c].node for c in ss.outputs]),
+            "direction": ("channel", [sensors[c].direction for c in ss.outputs]),
+        },
+        attrs={
+            "title": f"observability of {model.name}'s target modes",
+            "producer": f"twin {__version__} twin.design.observe",
+            "model": model.name,
+            "model_source": model.source,
+            "command": command,
+            "method": "Whittle likelihood of the output spectrum (theory, no simulation): single-mode bound and Cramér-Rao bound",
+            "excitation": json.dumps(settings),
+            "rule": (f"observable: best peak-to-noise >= {SNR_LIMIT_DB:g} dB, frequency std <= "
+                     f"{100 * FREQUENCY_STD_LIMIT:g}% and damping std <= {100 * DAMPING_STD_LIMIT:g}% of the damping ratio"),
+            **({"truth": truth.to_json()} if truth is not None else {}),
+        },  # fmt: skip
+    )
+
+
+def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Observable or not per mode, with the reasons it is not (see the module docstring)."""
+    ok, reasons = [], []
+    for snr, fr, zr in zip(best_snr_db, f_rel_std, zeta_rel_std):
+        why = []
+        if snr < SNR_LIMIT_DB:
+            why.append(f"peak {snr:.0f} dB against the noise")
+        if fr > FREQUENCY_STD_LIMIT:
+            why.append(f"frequency std {100 * fr:.2g}%")
+        if zr > DAMPING_STD_LIMIT:
+            why.append(f"damping std {100 * zr:.2g}%")
+        ok.append(not why)
+        reasons.append("; ".join(why))
+    return np.array(ok), reasons
