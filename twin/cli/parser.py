@@ -83,8 +83,23 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
                         "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
 
 
+def _add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
+    """The record and its excitation, as ``simulate`` makes it and ``observe`` judges it."""
+    from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD
+
+    if duration_required:
+        p.add_argument("--duration", type=float, required=True, help="record length [s]")
+    else:
+        p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
+    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
+    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
+                   help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
+    p.add_argument("--noise", type=float, default=0.05,
+                   help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)")
+
+
 def _add_stages(sub) -> None:
-    from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+    from twin.fmu.simulate import DEFAULT_UNBALANCE_ME
 
     p = _command(sub, "modal", "complex modes of a model at a speed",
                  "Frequency, damping ratio, log decrement and whirl of every under-damped mode (the state-space\n"
@@ -124,12 +139,7 @@ def _add_stages(sub) -> None:
                  ["twin observe hydro_unit", "twin observe hydro_unit --duration 3600 --params bearings --fsi --truth paper",
                   "twin observe hydro_unit -o observability.nc"], design._observe)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
-    p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
-    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
-    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
-                   help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
-    p.add_argument("--noise", type=float, default=0.05,
-                   help="sensor noise std as a fraction of the median channel RMS (as twin simulate)")
+    _add_record(p, duration_required=False)
     p.add_argument("--fmax", type=float, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
     p.add_argument("--truth", default=None,
                    help="judge a truth with hidden effects instead of the model: a truth file, or 'paper' (default: none)")
@@ -159,17 +169,12 @@ def _add_stages(sub) -> None:
                   "twin simulate hydro_unit --duration 600 --truth paper --seed 3 -o signals.nc"], stages._simulate)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
-    p.add_argument("--duration", type=float, required=True, help="record length [s]")
-    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
+    _add_record(p, duration_required=True)
     p.add_argument("--seed", type=int, default=1, help="random seed of turbulence and noise")
     p.add_argument("--truth", default=None,
                    help="truth file with hidden effects, or 'paper' (the paper's Table 2 FSI) (default: none, the "
                         "model as it is)")  # fmt: skip
-    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
-                   help="runner turbulence force ASD [N/sqrt(Hz)]")
     p.add_argument("--unbalance", type=float, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]")
-    p.add_argument("--noise", type=float, default=0.05,
-                   help="sensor noise, as a fraction of each channel's signal RMS (0.05: noise at 5%% of the signal)")
     p.add_argument("--basis", choices=("full", "modal"), default="full",
                    help="the full FEM, or a truncated basis of its modes below --fmax")
     p.add_argument("--fmax", type=float, default=None,

@@ -38,7 +38,8 @@ from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.loop.fit import effect_priors
-from twin.modes.shapes import normalise_shapes
+from twin.modes.shapes import mac, normalise_shapes
+from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
 
 #: Finite-difference step, as a fraction of each parameter's scale.
 STEP = 1e-6
@@ -78,8 +79,6 @@ def _data_vector(pole: complex, shape: np.ndarray, ref: int) -> np.ndarray:
 
 
 def _nearest(poles: np.ndarray, shapes: np.ndarray, pole: complex, shape: np.ndarray) -> int:
-    from twin.modes.shapes import mac
-
     cost = np.abs(poles - pole) / abs(pole) + (1 - mac(shapes, shape)[:, 0])
     return int(np.argmin(cost))
 
@@ -160,8 +159,8 @@ def record_covariance(sp, k: int, duration_s: float) -> tuple[np.ndarray, np.nda
     return cov * max(ratio, 1.0), shape
 
 
-def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = (1.58, 1.1),
-                      shape_cov: float = 0.05) -> np.ndarray:
+def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = POLE_VARIANCE,
+                      shape_cov: float = SHAPE_COV) -> np.ndarray:
     """Error covariance of a mode's mean pole and shape over ``samples`` synthetic samples (diagonal)."""
     var = np.concatenate([pole_variance, (shape_cov * shape.real) ** 2, (shape_cov * shape.imag) ** 2])
     return np.diag(var / samples)
@@ -256,7 +255,8 @@ def identifiability(
             raise ModelError(f"samples must be at least 1, got {samples}")
         used = list(range(len(targets)))
         covs = [sample_covariance(shapes[i], samples) for i in used]
-        method = f"{samples} synthetic samples per mode (pole variances 1.58, 1.1 rad^2/s^2; shape CoV 5%)"
+        method = (f"{samples} synthetic samples per mode (pole variances {POLE_VARIANCE[0]:g}, {POLE_VARIANCE[1]:g} "
+                  f"rad^2/s^2; shape CoV {SHAPE_COV:.0%})")  # fmt: skip
     else:
         obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
         sp = spectrum(system_for(model, truth, "full", None), model, excitation)

@@ -197,6 +197,11 @@ def _grid(pole: complex, f_top_hz: float) -> tuple[np.ndarray, np.ndarray]:
     return f, w
 
 
+def _partner(sp: Spectrum, k: int) -> int:
+    """Index of the conjugate of pole ``k`` (for a real-data system its vectors are the conjugates)."""
+    return int(np.argmin(np.abs(sp.poles - np.conj(sp.poles[k])) + (np.arange(len(sp.poles)) == k) * 1e300))
+
+
 def mode_fisher(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, list[str]]:
     """Fisher information of mode ``k``'s parameters from a record of ``duration_s``.
 
@@ -211,7 +216,7 @@ def mode_fisher(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, li
         ``F`` is ``(q, q)``; ``names`` label its rows.
     """
     lam = sp.poles[k]
-    partner = int(np.argmin(np.abs(sp.poles - np.conj(lam)) + (np.arange(len(sp.poles)) == k) * 1e300))
+    partner = _partner(sp, k)
     f, w = _grid(lam, 0.5 / sp.h)
     s = 2j * np.pi * f
     ck, bk = sp.c[:, k], sp.b[k]
@@ -283,7 +288,7 @@ def pole_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarray:
 
 def _mode_terms(sp: Spectrum, k: int, pole: complex, s: np.ndarray) -> np.ndarray:
     """``H_k(f)``: mode ``k`` and its conjugate alone, with the pole replaced by ``pole``, ``(nf, m, p)``."""
-    partner = int(np.argmin(np.abs(sp.poles - np.conj(sp.poles[k])) + (np.arange(len(sp.poles)) == k) * 1e300))
+    partner = _partner(sp, k)
     cb, cb_bar = np.outer(sp.c[:, k], sp.b[k]), np.outer(sp.c[:, partner], sp.b[partner])
     return cb / (s - pole)[:, None, None] + cb_bar / (s - np.conj(pole))[:, None, None]
 
