@@ -39,21 +39,29 @@ def observe_text(obs, ident=None) -> str:
     return "\n".join(lines)
 
 
-def _observe(args: argparse.Namespace) -> int:
-    from twin.design import Excitation, identifiability, observability
+def _inputs(args: argparse.Namespace):
+    """The model, truth, excitation and parameter names ``observe`` and ``sensors`` share."""
+    from twin.design import Excitation
     from twin.fem import load_model
     from twin.fem.truthfile import load_truth
     from twin.update.problem import select_parameters
 
     model = load_model(args.model)
     truth = None if args.truth is None else load_truth(args.truth, model)
-    excitation = Excitation(turbulence_asd=args.turbulence, noise_ratio=args.noise, duration_s=args.duration,
-                            fs_hz=args.fs)  # fmt: skip
+    excitation = Excitation(turbulence_asd=args.turbulence, noise_ratio=args.noise, noise_std_m=args.noise_std,
+                            duration_s=args.duration, fs_hz=args.fs)  # fmt: skip
+    names = select_parameters(model, args.params) if args.params else []
+    return model, truth, excitation, names
+
+
+def _observe(args: argparse.Namespace) -> int:
+    from twin.design import identifiability, observability
+
+    model, truth, excitation, names = _inputs(args)
     command = " ".join(sys.argv)
     obs = observability(model, excitation, truth=truth, fmax_hz=args.fmax, command=command)
     ident = None
     if args.params or args.fsi:
-        names = select_parameters(model, args.params) if args.params else []
         ident = identifiability(model, names, fsi=args.fsi, excitation=excitation, truth=truth, observability=obs,
                                 fmax_hz=args.fmax, command=command)  # fmt: skip
     if args.output:
@@ -61,4 +69,66 @@ def _observe(args: argparse.Namespace) -> int:
 
         write_netcdf(obs, args.output)
     print(observe_text(obs, ident))
+    return 0
+
+
+def sensors_text(design) -> str:
+    """A sensor design (:func:`twin.design.design_sensors`) as text: the pairs with their gains, then per mode."""
+    judged = "relative_std" in design
+    lines = [f"{design.attrs['model']}: {design.sizes['mode']} target modes; sensor noise std "
+             f"{design.attrs['noise_std_m']:.3g} m on every sensor",
+             f"{'step':>4} {'node':>5} {'sensor':<8} {'observable':>10} {'gain':>5}"
+             + (f" {'determined':>10} {'gain':>5}" if judged else "") + f" {'criterion':>9} {'gain':>7}  location"]
+    for i in range(design.sizes["step"]):
+        r = design.isel(step=i)
+        prev = design.isel(step=max(i - 1, 0))
+        node = "now" if i == 0 else str(int(r.node))
+        row = f"{i:4d} {node:>5} {str(r.sensor.values):<8} {int(r.n_observable):10d} {int(r.n_observable - prev.n_observable):+5d}"
+        if judged:
+            row += f" {int(r.n_determined):10d} {int(r.n_determined - prev.n_determined):+5d}"
+        row += f" {float(r.criterion):9.3f} {float(r.criterion - prev.criterion):+7.3f}  {str(r.location.values)}"
+        lines.append(row)
+    last = design.isel(step=-1)
+    lines += ["", f"{'mode':>4} {'f [Hz]':>8} {'now':>4} {'after':>5} {'std f %':>8} {'std zeta %':>10} "
+                  f"{'SNR dB':>7}  where seen best (any candidate)"]  # fmt: skip
+    for k in range(design.sizes["mode"]):
+        now, after = bool(design.observable[0, k]), bool(last.observable[k])
+        best = (f"node {int(design.best_node[k])}: {float(design.best_node_snr_db[k]):.0f} dB"
+                + ("" if after else f"; 15 dB there with a noise std <= {float(design.noise_std_needed_m[k]):.2g} m"
+                   if float(design.best_node_snr_db[k]) < 15 else ""))  # fmt: skip
+        lines.append(f"{k + 1:4d} {float(design.frequency[k]):8.2f} {'yes' if now else 'no':>4} "
+                     f"{'yes' if after else 'no':>5} {100 * float(last.frequency_rel_std[k]):8.3g} "
+                     f"{100 * float(last.damping_rel_std[k]):10.3g} {float(last.best_snr_db[k]):7.1f}  {best}")  # fmt: skip
+    if judged:
+        lines += ["", f"{'parameter':<24} {'std % now':>10} {'after':>8}"]
+        for j, p in enumerate(design.parameter.values):
+            a, b = float(design.relative_std[0, j]), float(last.relative_std[j])
+            lines.append(f"{p:<24} {100 * a:10.3g} {100 * b:8.3g}  {'determined' if b < 0.1 else 'NOT determined'}")
+    return "\n".join(lines)
+
+
+def _sensors(args: argparse.Namespace) -> int:
+    from twin.design.sensors import design_sensors, write_layout
+    from twin.errors import ModelError
+    from twin.netcdf import check_writable
+
+    model, truth, excitation, names = _inputs(args)
+    candidates = None
+    if args.candidates:
+        try:
+            candidates = [int(c) for c in args.candidates.split(",") if c.strip()]
+        except ValueError as exc:
+            raise ModelError(f"--candidates: expected node numbers separated by commas, got '{args.candidates}'") from exc
+    check_writable(args.output)
+    if args.design:
+        check_writable(args.design)
+    design = design_sensors(model, args.add, candidates=candidates, names=names, fsi=args.fsi, excitation=excitation,
+                            truth=truth, fmax_hz=args.fmax, command=" ".join(sys.argv))  # fmt: skip
+    write_layout(model, design, args.output)
+    if args.design:
+        from twin.netcdf import write_netcdf
+
+        write_netcdf(design, args.design)
+    print(sensors_text(design))
+    print(f"wrote {args.output} (simulate it with --noise-std {design.attrs['noise_std_m']:.4g} for the same sensors)")
     return 0

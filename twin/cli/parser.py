@@ -96,6 +96,20 @@ def _add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
                    help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
     p.add_argument("--noise", type=float, default=0.05,
                    help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)")
+    p.add_argument("--noise-std", type=float, default=None,
+                   help="sensor noise std [m] per sample, instead of --noise (the same sensors on another layout)")
+
+
+def _add_design_inputs(p: argparse.ArgumentParser) -> None:
+    """The model, record, truth and parameters ``observe`` and ``sensors`` judge."""
+    p.add_argument("model", help=MODEL_HELP)
+    _add_record(p, duration_required=False)
+    p.add_argument("--fmax", type=float, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
+    p.add_argument("--truth", default=None,
+                   help="judge a truth with hidden effects instead of the model: a truth file, or 'paper' (default: none)")
+    p.add_argument("--params", default=None,
+                   help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated")
+    p.add_argument("--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode")
 
 
 def _add_stages(sub) -> None:
@@ -138,15 +152,25 @@ def _add_stages(sub) -> None:
                  "from the observable modes' poles and shapes (Fisher information), and whether each is determined.",
                  ["twin observe hydro_unit", "twin observe hydro_unit --duration 3600 --params bearings --fsi --truth paper",
                   "twin observe hydro_unit -o observability.nc"], design._observe)  # fmt: skip
-    p.add_argument("model", help=MODEL_HELP)
-    _add_record(p, duration_required=False)
-    p.add_argument("--fmax", type=float, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
-    p.add_argument("--truth", default=None,
-                   help="judge a truth with hidden effects instead of the model: a truth file, or 'paper' (default: none)")
-    p.add_argument("--params", default=None,
-                   help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated")
-    p.add_argument("--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode")
+    _add_design_inputs(p)
     p.add_argument("-o", "--output", default=None, help="write the observability table (NetCDF: mode x channel)")
+
+    p = _command(sub, "sensors", "where to add proximeter pairs so the target modes and parameters are determined",
+                 "Greedy sensor design: adds one x-y pair at a time at the candidate node that makes the most\n"
+                 "target modes observable, then (with --params/--fsi) the most parameters determined, then ranks\n"
+                 "best on the D-optimal criterion; prints each pair's gain and, for modes no node can make\n"
+                 "observable, where they are seen best and the sensor noise that would do. Writes the model file\n"
+                 "with the added [[sensor]] entries; the sensors keep the current layout's noise std [m].",
+                 ["twin sensors hydro_unit --add 2 -o unit_10.toml",
+                  "twin sensors hydro_unit --add 3 --params bearings --fsi --truth paper --duration 3600 -o unit.toml",
+                  "twin sensors hydro_unit --add 1 --candidates 12,16,20 -o unit.toml --design design.nc"],
+                 design._sensors)  # fmt: skip
+    _add_design_inputs(p)
+    p.add_argument("--add", type=int, required=True, help="number of proximeter pairs (x and y) to add")
+    p.add_argument("--candidates", default=None,
+                   help="nodes a pair may go to, comma-separated (default: every node without a sensor)")
+    p.add_argument("-o", "--output", required=True, help="model file to write: the model with the added sensors")
+    p.add_argument("--design", default=None, help="also write the design, step by step (NetCDF)")
 
     p = _command(sub, "export-fmu", "export the model as an FMI 2.0 co-simulation FMU",
                  "Compiles the model's state-space matrices into an FMU (needs a C compiler, gcc or cc); forces\n"

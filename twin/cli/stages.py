@@ -89,7 +89,7 @@ def _simulate(args: argparse.Namespace) -> int:
     truth = None if args.truth is None else load_truth(args.truth, model)
     simulate(model, duration_s=args.duration, fs_hz=args.fs, seed=args.seed, truth=truth,
              turbulence_asd=args.turbulence, unbalance_me=args.unbalance, noise_ratio=args.noise,
-             basis=args.basis, fmax_hz=args.fmax, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+             noise_std_m=args.noise_std, basis=args.basis, fmax_hz=args.fmax, output=args.output, command=" ".join(sys.argv))  # fmt: skip
     print(f"wrote {args.output}")
     return 0
 

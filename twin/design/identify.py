@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -83,6 +84,107 @@ def _nearest(poles: np.ndarray, shapes: np.ndarray, pole: complex, shape: np.nda
     return int(np.argmin(cost))
 
 
+@dataclass(frozen=True)
+class ModalPerturbations:
+    """Target modes and their finite-difference moves, on every channel of a model's layout.
+
+    The Jacobian of the normalised data follows for any subset of the channels
+    (:meth:`jacobian`), which is what a sensor design needs: one set of
+    eigen-solutions, many layouts.
+
+    Attributes
+    ----------
+    poles : (n_modes,) complex
+        Poles where linearised [1/s].
+    shapes : (n_modes, m) complex
+        Output vectors ``C v`` there (not normalised).
+    moved_poles : (n_modes, n_columns) complex
+        Poles after a step in each column's parameter.
+    moved_shapes : (n_modes, n_columns, m) complex
+    steps : (n_columns,)
+        Step of each column [SI].
+    active : (n_modes, n_columns) bool
+        Whether the column moves the mode (per-mode FSI moves its own mode only).
+    columns : list of str
+    scales : (n_columns,)
+        Size of each parameter [SI].
+    """
+
+    poles: np.ndarray
+    shapes: np.ndarray
+    moved_poles: np.ndarray
+    moved_shapes: np.ndarray
+    steps: np.ndarray
+    active: np.ndarray
+    columns: list[str]
+    scales: np.ndarray
+
+    def jacobian(self, rows: Sequence[int] | None = None) -> np.ndarray:
+        """``∂d_k/∂θ`` on the channels ``rows`` (default all), shape ``(n_modes, 2 + 2m, n_columns)``."""
+        rows = np.arange(self.shapes.shape[1]) if rows is None else np.asarray(rows, dtype=int)
+        n, q = self.active.shape
+        J = np.zeros((n, 2 + 2 * len(rows), q))
+        for i in range(n):
+            shape = self.shapes[i, rows]
+            ref = int(np.argmax(np.abs(shape)))
+            d0 = _data_vector(self.poles[i], shape, ref)
+            for c in np.nonzero(self.active[i])[0]:
+                moved = _data_vector(self.moved_poles[i, c], self.moved_shapes[i, c, rows], ref)
+                J[i, :, c] = (moved - d0) / self.steps[c]
+        return J
+
+
+def modal_perturbations(
+    model: RotorModel,
+    names: Sequence[str],
+    modes: Sequence[int],
+    *,
+    fsi: bool = False,
+    values: Mapping[str, float] | None = None,
+    fsi_values: np.ndarray | None = None,
+) -> ModalPerturbations:
+    """The target modes ``modes`` (indices into the model's poles) and their moves (see :func:`modal_jacobian`)."""
+    base = with_shared_fsi(model) if fsi or fsi_values is not None else model
+    values = dict(values or {})
+    lam_dry, shapes_dry = _modes(base, values)
+    modes = list(modes)
+    columns = list(names)
+    scales = list(parameter_scales(base, names))
+    fsi_full = [full for _, full in FSI_NAMES]
+    fsi_scales = parameter_scales(base, fsi_full) if fsi else np.zeros(0)
+    if fsi:
+        for i in range(len(modes)):
+            for (short, _), s in zip(FSI_NAMES, fsi_scales):
+                columns.append(f"FSI.{short}_{i + 1}")
+                scales.append(float(s))
+    m = shapes_dry.shape[1]
+    shared = list(names) + (fsi_full if fsi else [])
+    shared_scales = list(scales[: len(names)]) + list(fsi_scales)
+    n, q = len(modes), len(columns)
+    poles, shapes = np.zeros(n, dtype=complex), np.zeros((n, m), dtype=complex)
+    moved_poles, moved_shapes = np.zeros((n, q), dtype=complex), np.zeros((n, q, m), dtype=complex)
+    steps, active = np.ones(q), np.zeros((n, q), bool)
+    for i, k in enumerate(modes):
+        here = dict(values)
+        pole, shape = lam_dry[k], shapes_dry[k]
+        if fsi_values is not None:
+            for step in range(1, CONTINUATION_STEPS + 1):  # follow the dry mode to its altered FEM
+                for full, v in zip(fsi_full, fsi_values[i]):
+                    here[full] = v * step / CONTINUATION_STEPS
+                lam, shp = _modes(base, here)
+                j = _nearest(lam, shp, pole, shape)
+                pole, shape = lam[j], shp[j]
+        poles[i], shapes[i] = pole, shape
+        for p, (name, s) in enumerate(zip(shared, shared_scales)):
+            step = STEP * s
+            lam, shp = _modes(base, {**here, name: here.get(name, base.parameter(name).nominal) + step})
+            j = _nearest(lam, shp, pole, shape)
+            column = p if p < len(names) else len(names) + 2 * i + (p - len(names))
+            moved_poles[i, column], moved_shapes[i, column], steps[column] = lam[j], shp[j], step
+            active[i, column] = True
+    return ModalPerturbations(poles, shapes, moved_poles, moved_shapes, steps, active, columns, np.array(scales))
+
+
 def modal_jacobian(
     model: RotorModel,
     names: Sequence[str],
@@ -106,44 +208,8 @@ def modal_jacobian(
         ``FSI.added_damping_<i>`` per mode (1-based, as in the posterior); ``scales``
         their sizes [SI]; ``poles`` and sensor ``shapes`` of the modes where linearised.
     """
-    base = with_shared_fsi(model) if fsi or fsi_values is not None else model
-    values = dict(values or {})
-    lam_dry, shapes_dry = _modes(base, values)
-    modes = list(modes)
-    columns = list(names)
-    scales = list(parameter_scales(base, names))
-    fsi_full = [full for _, full in FSI_NAMES]
-    fsi_scales = parameter_scales(base, fsi_full) if fsi else np.zeros(0)
-    if fsi:
-        for i in range(len(modes)):
-            for (short, _), s in zip(FSI_NAMES, fsi_scales):
-                columns.append(f"FSI.{short}_{i + 1}")
-                scales.append(float(s))
-    m = shapes_dry.shape[1]
-    shared = list(names) + (fsi_full if fsi else [])
-    shared_scales = list(scales[: len(names)]) + list(fsi_scales)
-    J = np.zeros((len(modes), 2 + 2 * m, len(columns)))
-    at_poles, at_shapes = np.zeros(len(modes), dtype=complex), np.zeros((len(modes), m), dtype=complex)
-    for i, k in enumerate(modes):
-        here = dict(values)
-        pole, shape = lam_dry[k], shapes_dry[k]
-        if fsi_values is not None:
-            for step in range(1, CONTINUATION_STEPS + 1):  # follow the dry mode to its altered FEM
-                for full, v in zip(fsi_full, fsi_values[i]):
-                    here[full] = v * step / CONTINUATION_STEPS
-                lam, shapes = _modes(base, here)
-                j = _nearest(lam, shapes, pole, shape)
-                pole, shape = lam[j], shapes[j]
-        ref = int(np.argmax(np.abs(shape)))
-        d0 = _data_vector(pole, shape, ref)
-        at_poles[i], at_shapes[i] = pole, shape
-        for p, (name, s) in enumerate(zip(shared, shared_scales)):
-            step = STEP * s
-            lam, shapes = _modes(base, {**here, name: here.get(name, base.parameter(name).nominal) + step})
-            j = _nearest(lam, shapes, pole, shape)
-            column = p if p < len(names) else len(names) + 2 * i + (p - len(names))
-            J[i, :, column] = (_data_vector(lam[j], shapes[j], ref) - d0) / step
-    return J, columns, np.array(scales), at_poles, normalise_shapes(at_shapes)
+    pert = modal_perturbations(model, names, modes, fsi=fsi, values=values, fsi_values=fsi_values)
+    return pert.jacobian(), pert.columns, pert.scales, pert.poles, normalise_shapes(pert.shapes)
 
 
 def record_covariance(sp, k: int, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -157,6 +223,30 @@ def record_covariance(sp, k: int, duration_s: float) -> tuple[np.ndarray, np.nda
     single = single_mode_covariance(sp, k, duration_s)
     ratio = float(np.max(np.diag(single) / np.maximum(np.diag(cov)[:2], 1e-300)))
     return cov * max(ratio, 1.0), shape
+
+
+def record_data(poles: np.ndarray, sp, frequency_hz: np.ndarray, observable: np.ndarray,
+                duration_s: float) -> tuple[list[int], list[np.ndarray]]:
+    """The modes (indices into ``poles``) an observability table marks observable, and their record covariances.
+
+    Each pole is matched to the table's row of nearest ``frequency_hz`` and to the spectrum's nearest pole.
+    """
+    used, covs = [], []
+    for i, pole in enumerate(poles):
+        row = int(np.argmin(np.abs(frequency_hz - pole.imag / (2 * np.pi))))
+        if bool(observable[row]):
+            used.append(i)
+            covs.append(record_covariance(sp, int(np.argmin(np.abs(sp.poles - pole))), duration_s)[0])
+    return used, covs
+
+
+def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -> np.ndarray:
+    """Mask of the columns judged: the shared parameters, and with ``fsi`` the per-mode ones of the used modes."""
+    keep = np.ones(n_names + (2 * n_modes if fsi else 0), bool)
+    if fsi:
+        for i in set(range(n_modes)) - set(used):
+            keep[n_names + 2 * i : n_names + 2 * i + 2] = False
+    return keep
 
 
 def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = POLE_VARIANCE,
@@ -178,6 +268,31 @@ def fisher_covariance(J: np.ndarray, covariances: Sequence[np.ndarray], scales: 
     F += 1e-12 * np.eye(len(scales))
     cov_u = np.linalg.inv(F)
     return cov_u * np.outer(scales, scales)
+
+
+def linearisation(model: RotorModel, truth: Truth | None, fsi: bool,
+                  fmax_hz: float) -> tuple[RotorModel, np.ndarray, np.ndarray | None]:
+    """Where the Jacobian is taken: the model (with the shared FSI effect when ``fsi``) or the truth's.
+
+    Returns
+    -------
+    (base, targets, fsi_values)
+        The model to perturb, the indices of its target modes (by frequency) and, for a truth
+        with per-mode FSI, its ``(n_modes, 2)`` added mass [kg] and damping [N s/m].
+    """
+    from twin.fmu.truth import truth_model
+
+    base = with_shared_fsi(model) if fsi else model
+    fsi_values = None
+    if truth is not None:
+        base = truth_model(base, truth)
+        if truth.per_mode is not None:
+            fsi_values = np.column_stack([truth.per_mode.added_mass, truth.per_mode.added_damping])
+    dry, _, _ = state_modes(full_state_space(base).A)
+    targets = target_modes(dry, fmax_hz)
+    if fsi_values is not None:
+        targets = targets[: len(fsi_values)]
+    return base, targets, fsi_values
 
 
 def identifiability(
@@ -230,7 +345,6 @@ def identifiability(
     """
     from twin.design.observe import observability as observe
     from twin.fmu.simulate import system_for
-    from twin.fmu.truth import truth_model
 
     if not names and not fsi:
         raise ModelError("choose parameters (names) or per-mode FSI: nothing to judge")
@@ -239,16 +353,7 @@ def identifiability(
     excitation = excitation or Excitation()
     excitation.check()
     top = band_top(fmax_hz, excitation)
-    base = with_shared_fsi(model) if fsi else model
-    fsi_values = None
-    if truth is not None:
-        base = truth_model(base, truth)
-        if truth.per_mode is not None:
-            fsi_values = np.column_stack([truth.per_mode.added_mass, truth.per_mode.added_damping])
-    dry, _, _ = state_modes(full_state_space(base).A)
-    targets = target_modes(dry, top)
-    if fsi_values is not None:
-        targets = targets[: len(fsi_values)]
+    base, targets, fsi_values = linearisation(model, truth, fsi, top)
     J, columns, scales, poles, shapes = modal_jacobian(base, names, list(targets), fsi=fsi, fsi_values=fsi_values)
     if samples is not None:
         if samples < 1:
@@ -260,21 +365,13 @@ def identifiability(
     else:
         obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
         sp = spectrum(system_for(model, truth, "full", None), model, excitation)
-        used, covs = [], []
-        for i, pole in enumerate(poles):
-            row = int(np.argmin(np.abs(obs.frequency.values - pole.imag / (2 * np.pi))))
-            if bool(obs.observable[row]):
-                used.append(i)
-                covs.append(record_covariance(sp, int(np.argmin(np.abs(sp.poles - pole))), excitation.duration_s)[0])
+        used, covs = record_data(poles, sp, obs.frequency.values, obs.observable.values, excitation.duration_s)
         method = (f"poles and shapes of the observable modes from a {excitation.duration_s:g} s record "
                   "(Cramer-Rao covariance raised to the single-mode bound of each pole)")  # fmt: skip
     if not used:
         raise ModelError(f"no target mode of '{model.name}' is observable with this layout and record: "
                          "nothing determines the parameters")  # fmt: skip
-    keep = np.ones(len(columns), bool)
-    if fsi:  # per-mode values of unused modes are not judged
-        for i in set(range(len(targets))) - set(used):
-            keep[len(names) + 2 * i : len(names) + 2 * i + 2] = False
+    keep = judged_columns(len(names), len(targets), used, fsi)
     J = J[used][:, :, keep]
     columns = [c for c, k in zip(columns, keep) if k]
     scales = scales[keep]

@@ -45,16 +45,18 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import scipy.linalg as sla
 import xarray as xr
 
 from twin import __version__
-from twin.errors import ModelError
+from twin.errors import ModelError, TwinError
+from twin.fem import load_model
 from twin.fem.model import RotorModel
-from twin.fem.truthfile import Truth
+from twin.fem.truthfile import Truth, truth_from_json
 from twin.fmu.export import default_turbulence_node
 from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, output_rms, system_for
 from twin.fmu.statespace import StateSpace, discretize
@@ -155,6 +157,10 @@ class Spectrum:
         H = self.transfer(f_hz)
         S = self.force_weight(f_hz)[:, None, None] * H @ H.conj().transpose(0, 2, 1)
         return S + self.noise_psd * np.eye(self.c.shape[0])
+
+    def select(self, rows) -> Spectrum:
+        """The same system seen by a subset of its channels (``rows``: their indices)."""
+        return replace(self, c=self.c[np.asarray(rows, dtype=int)])
 
 
 def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spectrum:
@@ -280,10 +286,29 @@ def mode_covariance(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray
     return G @ cov @ G.T, shape
 
 
+#: Variance given to a coordinate the data do not inform (its Fisher information is zero).
+BLIND_VARIANCE = 1e200
+
+
+def _pole_block(F: np.ndarray) -> np.ndarray:
+    """The ``(Re λ, Im λ)`` block of ``F``'s pseudo-inverse; :data:`BLIND_VARIANCE` where ``F`` is blind to them.
+
+    A coordinate outside the range of ``F`` (a mode with no response on the channels) would get a
+    variance of zero from the pseudo-inverse; it is uninformed, so its variance is huge instead.
+    """
+    cov = np.linalg.pinv(F, rcond=1e-13, hermitian=True)
+    seen = np.einsum("ij,ji->i", F, cov)[:2]  # diagonal of the projector onto F's range
+    block = cov[:2, :2].copy()
+    for i in np.nonzero(seen < 0.5)[0]:
+        block[i, :] = block[:, i] = 0.0
+        block[i, i] = BLIND_VARIANCE
+    return block
+
+
 def pole_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarray:
     """Cramér-Rao covariance of ``(Re λ, Im λ)`` of mode ``k`` [1/s²], the other parameters unknown too."""
     F, _ = mode_fisher(sp, k, duration_s)
-    return np.linalg.pinv(F, rcond=1e-13, hermitian=True)[:2, :2]
+    return _pole_block(F)
 
 
 def _mode_terms(sp: Spectrum, k: int, pole: complex, s: np.ndarray) -> np.ndarray:
@@ -321,14 +346,16 @@ def single_mode_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarra
     d = np.array([(alone(lam + h) - alone(lam - h)) / (2 * h), (alone(lam + 1j * h) - alone(lam - 1j * h)) / (2 * h),
                   own, total - own]) / total  # fmt: skip
     F = duration_s * np.einsum("f,pf,qf->pq", w, d, d)
-    return np.linalg.pinv(F, rcond=1e-13, hermitian=True)[:2, :2]
+    return _pole_block(F)
 
 
 def zeta_frequency_std(pole: complex, cov: np.ndarray) -> tuple[float, float]:
     """Std of the damped frequency [Hz] and of the damping ratio from the covariance of ``(Re λ, Im λ)``."""
     mod = abs(pole)
     grad = np.array([-(pole.imag**2) / mod**3, pole.real * pole.imag / mod**3])  # ∂ζ/∂(Re λ, Im λ)
-    return float(np.sqrt(max(cov[1, 1], 0.0)) / (2 * np.pi)), float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+    f_std, z_std = np.sqrt(max(cov[1, 1], 0.0)) / (2 * np.pi), np.sqrt(max(grad @ cov @ grad, 0.0))
+    blind = np.sqrt(BLIND_VARIANCE) * 1e-10
+    return tuple(float(np.inf) if not (np.isfinite(x) and x < blind) else float(x) for x in (f_std, z_std))
 
 
 def band_top(fmax_hz: float | None, excitation: Excitation) -> float:
@@ -352,6 +379,7 @@ def observability(
     *,
     truth: Truth | None = None,
     fmax_hz: float | None = None,
+    crb: bool = True,
     command: str = "",
 ) -> xr.Dataset:
     """Per target mode: response against noise per channel, expected frequency and damping std, verdict.
@@ -366,6 +394,8 @@ def observability(
         Judge the truth's system (model plus hidden effects) instead of the model's.
     fmax_hz : float, optional
         Highest target frequency [Hz] (default 100 Hz, at most 0.4 fs).
+    crb : bool
+        Also the Cramér-Rao bounds (``*_crb``; NaN without, which is about 6 times faster).
 
     Returns
     -------
@@ -389,15 +419,8 @@ def observability(
     ss = system_for(model, truth, "full", None)
     sp = spectrum(ss, model, excitation)
     targets = target_modes(sp.poles, top)
-    n, m = len(targets), len(ss.outputs)
-    snr = np.zeros((n, m))
-    f_std, z_std, f_crb, z_crb = (np.zeros(n) for _ in range(4))
     lam = sp.poles[targets]
-    for i, k in enumerate(targets):
-        peak = np.abs(sp.c[:, k]) ** 2 * np.sum(np.abs(sp.b[k]) ** 2) * sp.force_weight(lam[i].imag / (2 * np.pi))
-        snr[i] = 10 * np.log10(np.maximum(peak / lam[i].real**2, 1e-300) / sp.noise_psd)
-        f_std[i], z_std[i] = zeta_frequency_std(lam[i], single_mode_covariance(sp, k, excitation.duration_s))
-        f_crb[i], z_crb[i] = zeta_frequency_std(lam[i], pole_covariance(sp, k, excitation.duration_s))
+    snr, f_std, z_std, f_crb, z_crb = mode_bounds(sp, targets, excitation.duration_s, crb=crb)
     freq, zeta = lam.imag / (2 * np.pi), damping_ratio(lam)
     best = snr.max(axis=1)
     observable, reasons = verdicts(best, f_std / freq, z_std / zeta)
@@ -419,7 +442,7 @@ def observability(
             "reason": ("mode", reasons, {"long_name": "why not observable (empty when observable)"}),
         },  # fmt: skip
         coords={
-            "mode": ("mode", np.arange(1, n + 1), {"long_name": "target mode (by frequency)"}),
+            "mode": ("mode", np.arange(1, len(targets) + 1), {"long_name": "target mode (by frequency)"}),
             "channel": ("channel", list(ss.outputs)),
             "node": ("channel", [sensors[c].node for c in ss.outputs]),
             "direction": ("channel", [sensors[c].direction for c in ss.outputs]),
@@ -439,6 +462,34 @@ def observability(
     )
 
 
+def mode_snr(sp: Spectrum, targets: np.ndarray) -> np.ndarray:
+    """Peak of each target mode alone against the noise PSD per channel [dB], ``(n_modes, n_channels)``."""
+    lam = sp.poles[targets]
+    peak = (np.abs(sp.c[:, targets].T) ** 2 * np.sum(np.abs(sp.b[targets]) ** 2, axis=1)[:, None]
+            * sp.force_weight(lam.imag / (2 * np.pi))[:, None])  # fmt: skip
+    return 10 * np.log10(np.maximum(peak / lam.real[:, None] ** 2, 1e-300) / sp.noise_psd)
+
+
+def mode_bounds(sp: Spectrum, targets: np.ndarray, duration_s: float, *, crb: bool = True) -> tuple[np.ndarray, ...]:
+    """Per target mode: peak-to-noise per channel [dB] and the frequency and damping std bounds.
+
+    Returns
+    -------
+    (snr_db, frequency_std, damping_ratio_std, frequency_crb, damping_ratio_crb)
+        ``snr_db`` of shape ``(n_modes, n_channels)``; the stds [Hz] and [1] from the single-mode
+        bound and from the Cramér-Rao bound (NaN with ``crb=False``, which saves its cost).
+    """
+    n = len(targets)
+    snr = mode_snr(sp, targets)
+    f_std, z_std, f_crb, z_crb = np.zeros(n), np.zeros(n), np.full(n, np.nan), np.full(n, np.nan)
+    for i, k in enumerate(targets):
+        lam = sp.poles[k]
+        f_std[i], z_std[i] = zeta_frequency_std(lam, single_mode_covariance(sp, k, duration_s))
+        if crb:
+            f_crb[i], z_crb[i] = zeta_frequency_std(lam, pole_covariance(sp, k, duration_s))
+    return snr, f_std, z_std, f_crb, z_crb
+
+
 def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """Observable or not per mode, with the reasons it is not (see the module docstring)."""
     ok, reasons = [], []
@@ -453,3 +504,85 @@ def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.nd
         ok.append(not why)
         reasons.append("; ".join(why))
     return np.array(ok), reasons
+
+
+def record_observability(attrs: dict, channels: list[str], duration_s: float,
+                         fmax_hz: float | None = None) -> xr.Dataset | None:
+    """The observability of the target modes in a simulated record, from its attrs (``signals.nc``).
+
+    The model file (``model_source``), the excitation (``settings``: turbulence ASD, noise std [m],
+    sampling rate) and the truth the record was simulated from, judged on ``channels`` over
+    ``duration_s``. None, with the reason logged, when the attrs do not say (a measured record)
+    or the model file is not there any more.
+    """
+    source = attrs.get("model_source")
+    if not source or not Path(str(source)).is_file() or "settings" not in attrs:
+        log.info("observability of the target modes not judged: the record does not name its model file and excitation")
+        return None
+    try:
+        settings = json.loads(attrs["settings"])
+        model = load_model(str(source))
+        sensors = {s.name: s for s in model.sensors}
+        if any(c not in sensors for c in channels):
+            log.info("observability not judged: channels %s are not sensors of %s",
+                     [c for c in channels if c not in sensors], source)
+            return None
+        model = replace(model, sensors=[sensors[c] for c in channels])
+        truth = truth_from_json(attrs["truth"]) if "truth" in attrs else None
+        excitation = Excitation(turbulence_asd=float(settings["turbulence_asd"]),
+                                noise_std_m=float(settings["noise_std_m"]) or None,
+                                duration_s=float(duration_s), fs_hz=float(settings["fs_hz"]))  # fmt: skip
+        return observability(model, excitation, truth=truth, fmax_hz=fmax_hz, crb=False)
+    except (TwinError, KeyError, ValueError, TypeError) as exc:
+        log.warning("observability of the target modes not judged: %s", exc)
+        return None
+
+
+#: A target mode counts as found when an extracted mode lies within this fraction of its frequency.
+FOUND_TOLERANCE = 0.01
+
+
+def target_summary(obs: xr.Dataset, found_hz: np.ndarray, fmin_hz: float = 0.0) -> list[dict]:
+    """Per target mode in the band: frequency, damping, observable (with the reason when not) and found.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> rows = target_summary(observability(load_model(shipped_model("hydro_unit")), crb=False), [2.92, 10.15])
+    >>> rows[1]["found"], rows[1]["observable"], rows[0]["found"]
+    (True, True, False)
+    """
+    out = []
+    for k in range(obs.sizes["mode"]):
+        f = float(obs.frequency[k])
+        if f < fmin_hz:
+            continue
+        found = bool(np.any(np.abs(np.asarray(found_hz, dtype=float) - f) <= FOUND_TOLERANCE * f))
+        out.append({"mode": int(obs.mode[k]), "frequency_hz": f, "damping_ratio": float(obs.damping_ratio[k]),
+                    "best_snr_db": float(obs.best_snr_db[k]), "observable": bool(obs.observable[k]),
+                    "reason": str(obs.reason.values[k]), "found": found})  # fmt: skip
+    return out
+
+
+def unobservable_text(targets: list[dict]) -> list[str]:
+    """Lines on the target modes a record cannot contain and those it contains but were not found."""
+    lines = []
+    hidden = [t for t in targets if not t["observable"] and not t["found"]]
+    if hidden:
+        lines.append("target modes not observable with this layout and record (not measured; not model failures): "
+                     + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in hidden))  # fmt: skip
+    weak = [t for t in targets if not t["observable"] and t["found"]]
+    if weak:
+        lines.append("found although below the observability rule (their estimates may scatter beyond their "
+                     "standard errors): " + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in weak))
+    missed = [t for t in targets if t["observable"] and not t["found"]]
+    if missed:
+        lines.append("observable target modes the extraction did not find: "
+                     + ", ".join(f"{t['frequency_hz']:.2f} Hz" for t in missed))  # fmt: skip
+    return lines
+
+
+def target_lines(attrs) -> list[str]:
+    """:func:`unobservable_text` of a file's ``target_observability`` attr (none when it has none)."""
+    text = attrs.get("target_observability", "")
+    return unobservable_text(json.loads(text)) if text else []

@@ -21,6 +21,7 @@ import scipy.signal as sig
 import xarray as xr
 
 from twin import __version__
+from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.modesfile import write_modes
@@ -236,9 +237,24 @@ def extract(
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
         if key in rec.attrs:
             out.attrs[f"signals_{key}" if key == "seed" else key] = rec.attrs[key]
+    targets = _judge_targets(rec, fmin_hz, fmax, out.frequency.values)
+    if targets is not None:
+        out.attrs["target_observability"] = json.dumps(targets)
+        out.attrs["unobservable_modes"] = json.dumps([t["frequency_hz"] for t in targets if not t["observable"]])
     if output is not None:
         write_modes(out, output)
     return out
+
+
+def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.ndarray) -> list[dict] | None:
+    """The simulated record's target modes, observable or not (theory, :mod:`twin.design.observe`), found or not."""
+    obs = record_observability(rec.attrs, list(rec.channels), rec.duration_s, fmax_hz)
+    if obs is None:
+        return None
+    targets = target_summary(obs, found_hz, fmin_hz)
+    for line in unobservable_text(targets):
+        log.info(line)
+    return targets
 
 
 def _orders_used(diag, cluster) -> np.ndarray:

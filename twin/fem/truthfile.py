@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from twin.errors import ModelFileError
-from twin.fem.effects import FluidAddedMassPerMode, effect_label
+from twin.fem.effects import EFFECTS, FluidAddedMassPerMode, effect_fields, effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import _Table, element_names, read_effect_tables, read_toml
 
@@ -54,6 +54,26 @@ class Truth:
     def to_json(self) -> str:
         """The truth as JSON, for file attrs: ``{"source": ..., "effects": {key: {field: value}}}``."""
         return json.dumps({"source": self.source, "effects": {effect_label(e): asdict(e) for e in self.effects}})
+
+
+def truth_from_json(text: str) -> Truth:
+    """The truth a file's ``truth`` attr describes (:meth:`Truth.to_json`'s inverse).
+
+    Examples
+    --------
+    >>> truth_from_json(paper_truth().to_json()) == paper_truth()
+    True
+    """
+    try:
+        data = json.loads(text)
+        effects = []
+        for label, fields in data["effects"].items():
+            cls = EFFECTS[label.split(":", 1)[0]]
+            kinds = effect_fields(cls)
+            effects.append(cls(**{k: tuple(v) if kinds.get(k) is tuple else v for k, v in fields.items()}))
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ModelFileError("(truth attr)", "effects", None, f"not a truth description: {exc}") from exc
+    return Truth(tuple(effects), str(data.get("source", "")))
 
 
 def paper_truth() -> Truth:

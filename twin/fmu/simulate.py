@@ -68,6 +68,7 @@ def simulate(
     unbalance_me: float = DEFAULT_UNBALANCE_ME,
     unbalance_phase_rad: float = 0.0,
     noise_ratio: float = 0.05,
+    noise_std_m: float | None = None,
     basis: str = "full",
     fmax_hz: float | None = None,
     warmup_s: float | None = None,
@@ -94,6 +95,9 @@ def simulate(
         1X unbalance at the generator [kg m] and its phase [rad].
     noise_ratio : float
         Sensor noise std as a fraction of the median channel RMS of the turbulence response.
+    noise_std_m : float, optional
+        Sensor noise std [m] per sample, instead of ``noise_ratio`` (keeps the noise of the
+        sensors the same when the layout changes, e.g. after ``twin sensors``).
     basis, fmax_hz
         System for a model without per-mode truth: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
     warmup_s : float, optional
@@ -122,6 +126,8 @@ def simulate(
         raise ModelError(f"sampling rate must be positive, got {fs_hz} Hz")
     if noise_ratio < 0 or turbulence_asd < 0 or unbalance_me < 0:
         raise ModelError("noise_ratio, turbulence_asd and unbalance_me must not be negative")
+    if noise_std_m is not None and not (np.isfinite(noise_std_m) and noise_std_m >= 0):
+        raise ModelError(f"noise_std_m must not be negative, got {noise_std_m} m")
     if output is not None:
         output = check_writable(output)
     h = 1.0 / fs_hz
@@ -145,7 +151,10 @@ def simulate(
     turb_node = default_turbulence_node(model)
     turb_ports = [] if turb_node is None else [ss.port_index(f"{turb_node}.{a}") for a in "xy"]
     rms = output_rms(ss, h, turbulence_asd, turb_ports)
-    noise_std = noise_ratio * float(np.median(rms)) if rms.any() else 0.0
+    if noise_std_m is not None:
+        noise_std = float(noise_std_m)
+    else:
+        noise_std = noise_ratio * float(np.median(rms)) if rms.any() else 0.0
     start_values = {
         "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,
         "noise_std": noise_std, "turbulence_seed": int(seed), "noise_seed": int(seed) + 7919,
@@ -190,7 +199,7 @@ def simulate(
         "sampling_rate_units": "Hz",
         "speed_rpm": float(ss.speed_rpm),
         "model": model.name,
-        "model_source": model.source,
+        "model_source": str(Path(model.source).resolve()) if model.source else "",
         "producer": f"twin {__version__} twin.fmu.simulate (FMI 2.0 co-simulation through FMPy {fmpy.__version__})",
         "command": command,
         "settings": json.dumps(settings),

@@ -98,6 +98,9 @@ class Measured:
         Length of the record [s].
     zeta_max : float, optional
         Largest damping ratio the extraction accepts.
+    targets : str
+        The record's target modes, observable or not and found or not (``modes.nc``'s
+        ``target_observability`` attr, JSON; empty when the extraction could not judge them).
     """
 
     mode: np.ndarray
@@ -109,6 +112,7 @@ class Measured:
     band_hz: tuple[float, float] | None = None
     duration_s: float | None = None
     zeta_max: float | None = None
+    targets: str = ""
 
     @property
     def frequency(self) -> np.ndarray:
@@ -152,7 +156,8 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
     sigma = np.maximum(np.sqrt(se**2 + (tolerance * np.abs(mean))[:, None] ** 2), floor)
     band, duration, zeta_max = _record(modes)
     return Measured(modes["mode"].values, mean, sigma, normalise_shapes(shape.mean(axis=1)),
-                    [str(c) for c in modes["channel"].values], source, band, duration, zeta_max)  # fmt: skip
+                    [str(c) for c in modes["channel"].values], source, band, duration, zeta_max,
+                    str(modes.attrs.get("target_observability", "")))  # fmt: skip
 
 
 def _record(modes: xr.Dataset) -> tuple[tuple[float, float] | None, float | None, float | None]:
@@ -344,7 +349,8 @@ def compare(
         ratios, their errors and z-scores, ``pole_error``, ``mac``), ``shape_error``
         (mode x channel), ``channel_shape_error``, ``mac_matrix``; attrs
         ``error`` (E, a fraction), ``chi2``, ``n_data``, ``poorly_paired``
-        (measured modes whose partner has a MAC below ``min_mac``).
+        (measured modes whose partner has a MAC below ``min_mac``) and, when ``modes.nc`` has
+        them, ``target_observability`` (the record's target modes, observable or not: never counted).
 
     Examples
     --------
@@ -413,6 +419,8 @@ def compare(
             "model": model.name,
         },
     )  # fmt: skip
+    if m.targets:
+        ds.attrs["target_observability"] = m.targets
     if len(poorly):
         log.info("measured mode(s) %s have no model mode like them (partner MAC < %g)", poorly.tolist(), min_mac)
     return ds

@@ -31,6 +31,7 @@ from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
 from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
+from twin.design.observe import target_lines
 from twin.loop.twin import Twin
 from twin.netcdf import atomic_output
 
@@ -280,7 +281,8 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
               f"{modes.sizes['mode']} modes, {modes.sizes['sample']} jackknife samples each "
               f"(fmax {settings.get('fmax_hz')} Hz); harmonics rejected: "
               + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"])) or "none")
-              + ".", "", "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
+              + ".", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
+              "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
     before = tw.history[0].table
     lines += ["## Model against measurement", "", f"Error {error_text(before)}.", ""]
     rows = [[str(int(r["mode"])), f"{float(r.measured_frequency):.4f}", f"{float(r.model_frequency):.4f}",

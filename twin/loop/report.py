@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from twin.design.observe import target_lines
 from twin.loop.compare import Measured, error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
@@ -40,6 +41,7 @@ def comparison_text(table: xr.Dataset) -> str:
     if poorly:
         lines.append(f"measured mode(s) {', '.join(map(str, poorly))}: the model has no mode like them (partner MAC < "
                      f"{table.attrs['min_mac']:g}); they count in the error like the others")  # fmt: skip
+    lines += target_lines(table.attrs)
     lines.append("shape error per sensor (RMS over modes, unit-norm shapes): " + ", ".join(
         f"{c} {float(v):.3f}" for c, v in zip(table["channel"].values, table["channel_shape_error"].values)))
     lines.append(f"error {error_text(table)}")
