@@ -19,6 +19,14 @@ Each step adds the pair that ranks first on, in order,
    own D-criterion).
 
 The gain of a pair is the change of each of the three.
+
+Known limitation: the record covariance of a mode is its Cramér-Rao bound
+raised by the ratio of its single-mode bound to its Cramér-Rao bound on the
+layout judged (:func:`twin.design.identify.record_covariance`). That ratio can
+grow with a pair added, so a parameter's expected std can rise by a few tens
+of percent although the record holds more information; the counts and the
+ranking of the candidates are not affected by it, the before/after of one
+parameter can be.
 """
 
 from __future__ import annotations
