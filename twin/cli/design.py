@@ -74,6 +74,9 @@ def _observe(args: argparse.Namespace) -> int:
 
 def sensors_text(design) -> str:
     """A sensor design (:func:`twin.design.design_sensors`) as text: the pairs with their gains, then per mode."""
+    from twin.design.identify import DETERMINED_LIMIT  # here, not at import: the command line starts fast
+    from twin.design.observe import SNR_LIMIT_DB
+
     judged = "relative_std" in design
     lines = [f"{design.attrs['model']}: {design.sizes['mode']} target modes; sensor noise std "
              f"{design.attrs['noise_std_m']:.3g} m on every sensor",
@@ -93,9 +96,9 @@ def sensors_text(design) -> str:
                   f"{'SNR dB':>7}  where seen best (any candidate)"]  # fmt: skip
     for k in range(design.sizes["mode"]):
         now, after = bool(design.observable[0, k]), bool(last.observable[k])
-        best = (f"node {int(design.best_node[k])}: {float(design.best_node_snr_db[k]):.0f} dB"
-                + ("" if after else f"; 15 dB there with a noise std <= {float(design.noise_std_needed_m[k]):.2g} m"
-                   if float(design.best_node_snr_db[k]) < 15 else ""))  # fmt: skip
+        best = f"node {int(design.best_node[k])}: {float(design.best_node_snr_db[k]):.0f} dB"
+        if not after and float(design.best_node_snr_db[k]) < SNR_LIMIT_DB:
+            best += f"; {SNR_LIMIT_DB:g} dB there with a noise std <= {float(design.noise_std_needed_m[k]):.2g} m"
         lines.append(f"{k + 1:4d} {float(design.frequency[k]):8.2f} {'yes' if now else 'no':>4} "
                      f"{'yes' if after else 'no':>5} {100 * float(last.frequency_rel_std[k]):8.3g} "
                      f"{100 * float(last.damping_rel_std[k]):10.3g} {float(last.best_snr_db[k]):7.1f}  {best}")  # fmt: skip
@@ -103,7 +106,8 @@ def sensors_text(design) -> str:
         lines += ["", f"{'parameter':<24} {'std % now':>10} {'after':>8}"]
         for j, p in enumerate(design.parameter.values):
             a, b = float(design.relative_std[0, j]), float(last.relative_std[j])
-            lines.append(f"{p:<24} {100 * a:10.3g} {100 * b:8.3g}  {'determined' if b < 0.1 else 'NOT determined'}")
+            lines.append(f"{p:<24} {100 * a:10.3g} {100 * b:8.3g}  "
+                         f"{'determined' if b < DETERMINED_LIMIT else 'NOT determined'}")  # fmt: skip
     return "\n".join(lines)
 
 

@@ -58,8 +58,8 @@ from twin.fem import load_model
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth, truth_from_json
 from twin.fmu.export import default_turbulence_node
-from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, output_rms, system_for
-from twin.fmu.statespace import StateSpace, discretize
+from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, sensor_noise_std, system_for
+from twin.fmu.statespace import StateSpace
 from twin.fmu.truth import MAX_TARGET_DAMPING
 from twin.modes.analysis import damping_ratio
 
@@ -181,10 +181,8 @@ def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spect
         raise ModelError(f"model '{model.name}' has no [regions] immersed node for the turbulence to act on")
     ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
     h = 1.0 / excitation.fs_hz
-    if excitation.noise_std_m is not None:
-        noise_std = float(excitation.noise_std_m)
-    else:
-        noise_std = excitation.noise_ratio * float(np.median(output_rms(ss, h, excitation.turbulence_asd, ports)))
+    noise_std = sensor_noise_std(ss, h, excitation.turbulence_asd, ports, excitation.noise_ratio,
+                                 excitation.noise_std_m)  # fmt: skip
     lam, V = sla.eig(ss.A)
     c = ss.C @ V
     b = np.linalg.solve(V, ss.B[:, ports])
@@ -353,9 +351,10 @@ def zeta_frequency_std(pole: complex, cov: np.ndarray) -> tuple[float, float]:
     """Std of the damped frequency [Hz] and of the damping ratio from the covariance of ``(Re λ, Im λ)``."""
     mod = abs(pole)
     grad = np.array([-(pole.imag**2) / mod**3, pole.real * pole.imag / mod**3])  # ∂ζ/∂(Re λ, Im λ)
-    f_std, z_std = np.sqrt(max(cov[1, 1], 0.0)) / (2 * np.pi), np.sqrt(max(grad @ cov @ grad, 0.0))
-    blind = np.sqrt(BLIND_VARIANCE) * 1e-10
-    return tuple(float(np.inf) if not (np.isfinite(x) and x < blind) else float(x) for x in (f_std, z_std))
+    blind = np.diag(cov) >= BLIND_VARIANCE  # coordinates the data do not inform: infinite std
+    f_std = np.inf if blind[1] else np.sqrt(max(cov[1, 1], 0.0)) / (2 * np.pi)
+    z_std = np.inf if blind.any() else np.sqrt(max(grad @ cov @ grad, 0.0))
+    return float(f_std), float(z_std)
 
 
 def band_top(fmax_hz: float | None, excitation: Excitation) -> float:

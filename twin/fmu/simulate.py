@@ -57,6 +57,16 @@ def output_rms(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports
     return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", ss.C, sigma, ss.C), 0, None))
 
 
+def sensor_noise_std(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports: list[int],
+                     noise_ratio: float, noise_std_m: float | None = None) -> float:
+    """Sensor noise std [m] per sample: ``noise_std_m`` when given, else ``noise_ratio`` times the
+    median channel RMS of the turbulence response (computed only then)."""
+    if noise_std_m is not None:
+        return float(noise_std_m)
+    rms = output_rms(ss, h, turbulence_asd, turbulence_ports)
+    return noise_ratio * float(np.median(rms)) if rms.any() else 0.0
+
+
 def simulate(
     model: RotorModel,
     *,
@@ -150,11 +160,7 @@ def simulate(
 
     turb_node = default_turbulence_node(model)
     turb_ports = [] if turb_node is None else [ss.port_index(f"{turb_node}.{a}") for a in "xy"]
-    rms = output_rms(ss, h, turbulence_asd, turb_ports)
-    if noise_std_m is not None:
-        noise_std = float(noise_std_m)
-    else:
-        noise_std = noise_ratio * float(np.median(rms)) if rms.any() else 0.0
+    noise_std = sensor_noise_std(ss, h, turbulence_asd, turb_ports, noise_ratio, noise_std_m)
     start_values = {
         "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,
         "noise_std": noise_std, "turbulence_seed": int(seed), "noise_seed": int(seed) + 7919,
