@@ -32,7 +32,15 @@ import numpy as np
 import xarray as xr
 
 from twin import __version__
-from twin.design.observe import Excitation, band_top, mode_covariance, single_mode_covariance, spectrum, target_modes
+from twin.design.observe import (
+    BLIND_VARIANCE,
+    Excitation,
+    band_top,
+    mode_covariance,
+    single_mode_covariance,
+    spectrum,
+    target_modes,
+)
 from twin.errors import ModelError
 from twin.fem.effects import with_shared_fsi
 from twin.fem.model import RotorModel
@@ -212,31 +220,49 @@ def modal_jacobian(
     return pert.jacobian(), pert.columns, pert.scales, pert.poles, normalise_shapes(pert.shapes)
 
 
-def record_covariance(sp, k: int, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+def record_ratio(sp, k: int, duration_s: float) -> float | None:
+    """How far SSI stays above the Cramér-Rao bound for mode ``k``: single-mode bound / Cramér-Rao bound.
+
+    The larger of the ratios of the frequency and damping coordinates (at least 1); ``None`` when the
+    layout is blind to the mode (no finite ratio).
+    """
+    cov, _ = mode_covariance(sp, k, duration_s)
+    single = single_mode_covariance(sp, k, duration_s)
+    crb = np.diag(cov)[:2]
+    if np.any(crb >= BLIND_VARIANCE) or np.any(np.diag(single) >= BLIND_VARIANCE):
+        return None
+    return max(float(np.max(np.diag(single) / np.maximum(crb, 1e-300))), 1.0)
+
+
+def record_covariance(sp, k: int, duration_s: float, ratio: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Covariance of mode ``k``'s pole and shape from a record, at the level SSI reaches.
 
     The Cramér-Rao covariance of the pole and shape (:func:`~twin.design.observe.mode_covariance`)
-    scaled up by the ratio of the single-mode bound of the pole to its Cramér-Rao bound (the larger
-    of the two parts): SSI does not use the multichannel structure for the shape either.
+    scaled up by ``ratio``, by default :func:`record_ratio` on this layout: SSI does not use the
+    multichannel structure for the shape either. A sensor design passes the ratio of the layout it
+    starts from, so that an added pair can only add information (the ratio on the larger layout
+    grows as its Cramér-Rao bound falls faster than the single-mode one).
     """
     cov, shape = mode_covariance(sp, k, duration_s)
-    single = single_mode_covariance(sp, k, duration_s)
-    ratio = float(np.max(np.diag(single) / np.maximum(np.diag(cov)[:2], 1e-300)))
-    return cov * max(ratio, 1.0), shape
+    if ratio is None:
+        ratio = record_ratio(sp, k, duration_s)
+    return cov * (1.0 if ratio is None else ratio), shape
 
 
 def record_data(poles: np.ndarray, sp, frequency_hz: np.ndarray, observable: np.ndarray,
-                duration_s: float) -> tuple[list[int], list[np.ndarray]]:
+                duration_s: float, ratios: Mapping[int, float] | None = None) -> tuple[list[int], list[np.ndarray]]:
     """The modes (indices into ``poles``) an observability table marks observable, and their record covariances.
 
-    Each pole is matched to the table's row of nearest ``frequency_hz`` and to the spectrum's nearest pole.
+    Each pole is matched to the table's row of nearest ``frequency_hz`` and to the spectrum's nearest pole;
+    ``ratios`` (by the spectrum's pole index) fixes the :func:`record_ratio` of a mode.
     """
     used, covs = [], []
     for i, pole in enumerate(poles):
         row = int(np.argmin(np.abs(frequency_hz - pole.imag / (2 * np.pi))))
         if bool(observable[row]):
+            k = int(np.argmin(np.abs(sp.poles - pole)))
             used.append(i)
-            covs.append(record_covariance(sp, int(np.argmin(np.abs(sp.poles - pole))), duration_s)[0])
+            covs.append(record_covariance(sp, k, duration_s, (ratios or {}).get(k))[0])
     return used, covs
 
 

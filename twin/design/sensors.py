@@ -20,13 +20,13 @@ Each step adds the pair that ranks first on, in order,
 
 The gain of a pair is the change of each of the three.
 
-Known limitation: the record covariance of a mode is its Cramér-Rao bound
-raised by the ratio of its single-mode bound to its Cramér-Rao bound on the
-layout judged (:func:`twin.design.identify.record_covariance`). That ratio can
-grow with a pair added, so a parameter's expected std can rise by a few tens
-of percent although the record holds more information; the counts and the
-ranking of the candidates are not affected by it, the before/after of one
-parameter can be.
+The record covariance of a mode is its Cramér-Rao bound raised by the ratio
+of its single-mode bound to its Cramér-Rao bound
+(:func:`twin.design.identify.record_covariance`), that ratio taken once on the
+layout the design starts from and kept for every layout judged: judged on each
+layout, it grows as pairs are added (the Cramér-Rao bound falls faster than
+the single-mode one), and a parameter's expected std could rise with a pair
+added although the record holds more information.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ from twin.design.identify import (
     linearisation,
     modal_perturbations,
     record_data,
+    record_ratio,
 )
 from twin.design.observe import (
     DAMPING_STD_LIMIT,
@@ -196,6 +197,11 @@ def design_sensors(
         base, ident_targets, fsi_values = linearisation(everything, truth, fsi, top)
         pert = modal_perturbations(base, names, list(ident_targets), fsi=fsi, fsi_values=fsi_values)
 
+    # SSI's distance above the Cramer-Rao bound, per mode, from the layout the design starts from
+    now = sp.select(list(range(n_now)))
+    ratios = {int(k): r for k in targets if (r := record_ratio(now, int(k), fixed.duration_s)) is not None} \
+        if pert is not None else {}  # fmt: skip
+
     def judge(rows: list[int]) -> dict:
         sub = sp.select(rows)
         snr, f_std, z_std, _, _ = mode_bounds(sub, targets, fixed.duration_s, crb=False)
@@ -208,7 +214,7 @@ def design_sensors(
             margin = -0.5 * np.log(rel).sum(axis=0)  # a mode the layout is blind to counts as std = 10^6 limits
             out.update(n_determined=0, criterion=float(np.mean(margin)))
             return out
-        used, covs = record_data(pert.poles, sub, freq, observable, fixed.duration_s)
+        used, covs = record_data(pert.poles, sub, freq, observable, fixed.duration_s, ratios)
         rel = np.full(len(pert.columns), np.inf)
         if used:
             keep = judged_columns(len(names), len(pert.poles), used, fsi)
