@@ -220,6 +220,11 @@ def modal_jacobian(
     return pert.jacobian(), pert.columns, pert.scales, pert.poles, normalise_shapes(pert.shapes)
 
 
+def _ratio(cov: np.ndarray, single: np.ndarray) -> float:
+    """Single-mode bound over Cramér-Rao bound, the larger of the frequency and damping coordinates, at least 1."""
+    return max(float(np.max(np.diag(single) / np.maximum(np.diag(cov)[:2], 1e-300))), 1.0)
+
+
 def record_ratio(sp, k: int, duration_s: float) -> float | None:
     """How far SSI stays above the Cramér-Rao bound for mode ``k``: single-mode bound / Cramér-Rao bound.
 
@@ -228,10 +233,9 @@ def record_ratio(sp, k: int, duration_s: float) -> float | None:
     """
     cov, _ = mode_covariance(sp, k, duration_s)
     single = single_mode_covariance(sp, k, duration_s)
-    crb = np.diag(cov)[:2]
-    if np.any(crb >= BLIND_VARIANCE) or np.any(np.diag(single) >= BLIND_VARIANCE):
+    if np.any(np.diag(cov)[:2] >= BLIND_VARIANCE) or np.any(np.diag(single) >= BLIND_VARIANCE):
         return None
-    return max(float(np.max(np.diag(single) / np.maximum(crb, 1e-300))), 1.0)
+    return _ratio(cov, single)
 
 
 def record_covariance(sp, k: int, duration_s: float, ratio: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -245,8 +249,8 @@ def record_covariance(sp, k: int, duration_s: float, ratio: float | None = None)
     """
     cov, shape = mode_covariance(sp, k, duration_s)
     if ratio is None:
-        ratio = record_ratio(sp, k, duration_s)
-    return cov * (1.0 if ratio is None else ratio), shape
+        ratio = _ratio(cov, single_mode_covariance(sp, k, duration_s))
+    return cov * ratio, shape
 
 
 def record_data(poles: np.ndarray, sp, frequency_hz: np.ndarray, observable: np.ndarray,

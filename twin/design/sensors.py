@@ -198,9 +198,12 @@ def design_sensors(
         pert = modal_perturbations(base, names, list(ident_targets), fsi=fsi, fsi_values=fsi_values)
 
     # SSI's distance above the Cramer-Rao bound, per mode, from the layout the design starts from
-    now = sp.select(list(range(n_now)))
-    ratios = {int(k): r for k in targets if (r := record_ratio(now, int(k), fixed.duration_s)) is not None} \
-        if pert is not None else {}  # fmt: skip
+    ratios: dict[int, float] = {}
+    if pert is not None:
+        now = sp.select(list(range(n_now)))
+        for k in map(int, targets):
+            if (r := record_ratio(now, k, fixed.duration_s)) is not None:
+                ratios[k] = r
 
     def judge(rows: list[int]) -> dict:
         sub = sp.select(rows)
