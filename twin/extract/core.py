@@ -97,8 +97,9 @@ def extract(
     signals : xarray.Dataset or path
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
     samples : int
-        J, samples per mode: the record is cut into J blocks and the samples
-        are delete-one-block jackknife pseudo-values (see :mod:`twin.extract.samples`).
+        J, samples per mode: the record is cut into J blocks and each sample
+        comes from the record without half of them, drawn at random (delete-d
+        jackknife, see :mod:`twin.extract.samples`).
     fmax_hz : float, optional
         Highest frequency of interest [Hz] (default 40% of the sampling rate).
         The record is decimated to about ``2.5 fmax``.
@@ -230,8 +231,8 @@ def extract(
         "command": command,
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
-        "samples_method": ("delete-one-block jackknife pseudo-values centred on the full-record estimate: "
-                           "sample std / sqrt(J) is the standard error"),
+        "samples_method": ("delete-d block jackknife (d = J // 2 random blocks) centred on the full-record "
+                           "estimate: sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
@@ -262,13 +263,11 @@ def _orders_used(diag, cluster) -> np.ndarray:
 
     A mode's lowest stable orders are its parsimonious realisations. At orders
     well above the number of modes, the extra (noise) poles re-arrange from one
-    leave-one-block-out record to the next and jostle the physical pole more
-    than the data's own variability does, so the jackknife spread comes out
-    too wide: on a one-mode record, 1.0 times the spread of estimates over
-    independent records at the true order, 1.4 times at four times it, 1.7 at
-    eight. Over 12 independent 20-min FMU records of the hydro unit the
-    lowest orders gave pole errors with chi2 / n = 0.99 against the jackknife
-    standard errors (0.57 when each mode took the orders most modes share).
+    reduced record to the next and jostle the physical pole more than the
+    data's own variability does, so the jackknife spread comes out too wide
+    (with the delete-one jackknife on a one-mode record: 1.0 times the spread
+    of estimates over independent records at the true order, 1.4 times at
+    four times it, 1.7 at eight).
     """
     m = cluster.members
     return m[np.argsort(diag.order[m], kind="stable")][:ORDERS_PER_MODE]
@@ -302,7 +301,7 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
                       stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
-                      "leave-one-block-out identifications: its sample spread is too narrow; treat it with care",
+                      "identifications on half the record: its sample spread is too narrow; treat it with care",
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 

@@ -1,8 +1,8 @@
 """Covariance-driven stochastic subspace identification (SSI-cov) at many model orders.
 
 The output covariances ``R_k = E[y(t+k) y(t)^T]`` are accumulated per record
-block, so the full record and every leave-one-block-out record (the jackknife
-of :mod:`twin.extract.samples`) share one pass over the data. The block
+block, so the full record and every record with some blocks left out (the
+jackknife of :mod:`twin.extract.samples`) share one pass over the data. The block
 Hankel matrix of the covariances is factorised once (SVD); the system matrix
 of every order then comes from one QR factorisation of the largest
 observability matrix (the fast multi-order solution of Döhler and Mevel,
@@ -12,6 +12,7 @@ observability matrix (the fast multi-order solution of Döhler and Mevel,
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,11 +39,12 @@ class BlockCovariances:
     def max_lag(self) -> int:
         return self.sums.shape[1] - 1
 
-    def covariance(self, leave_out: int | None = None) -> np.ndarray:
-        """``R_k`` for ``k = 0..max_lag`` (shape ``(max_lag + 1, l, l)``), without block ``leave_out``."""
+    def covariance(self, leave_out: int | Sequence[int] | None = None) -> np.ndarray:
+        """``R_k`` for ``k = 0..max_lag`` (shape ``(max_lag + 1, l, l)``), without the block(s) ``leave_out``."""
         s, c = self.sums.sum(axis=0), self.counts.sum(axis=0)
         if leave_out is not None:
-            s, c = s - self.sums[leave_out], c - self.counts[leave_out]
+            out = np.atleast_1d(leave_out)
+            s, c = s - self.sums[out].sum(axis=0), c - self.counts[out].sum(axis=0)
         return s / c[:, None, None]
 
 
