@@ -14,16 +14,18 @@ jackknife standard error of the full-record estimate (Shao and Wu 1989;
 spread the APerCEM likelihood expects from J samples treated as independent.
 
 Why not delete one block: a pole of SSI at a model order above the number of
-modes is a smooth but strongly curved function of the covariances (the noise
-part of the subspace re-arranges). The delete-one jackknife probes that
-function with steps of ``1 / (J - 1)`` of a block's deviation, where the
-curvature is steep, and overstates the spread over independent records:
-``benchmarks/extraction.py --seeds 12`` (hydro unit, 1 h records, J = 100)
-measured jackknife standard error / Monte Carlo std of 1.3-4.8 for the
-frequencies and 1.2-4.6 for the damping ratios. Deleting half the record
-steps as far as independent records differ, and the same ten modes gave
-0.8-1.3 for all but the slowest mode's frequency and two damping ratios
-(details in the README). The subsets come from a fixed seed, so an
+modes changes steeply with small changes of the covariances (the noise part
+of the subspace re-arranges), but the change saturates over the differences
+between independent records. Probing it with small steps overstates the
+spread over independent records: the infinitesimal jackknife (the
+linearisation) by 3.6 on a one-mode record at order 16, the delete-one
+jackknife (steps of ``1 / (J - 1)`` of a block's deviation) by 2.1 there and,
+with ``benchmarks/extraction.py --seeds 12`` (hydro unit, 1 h records, J = 100),
+by 0.96-4.8 for the frequencies and 1.24-4.6 for the damping ratios of ten
+modes. Deleting half the record steps as far as independent records differ:
+1.3 on the one-mode record, and on the hydro unit 0.91-1.37 for the
+frequencies, except the slowest mode's (2.2: see the README), and 0.81-1.44
+for the damping ratios. The subsets come from a fixed seed, so an
 extraction is repeatable.
 
 The samples are centred on the full-record estimate: the deviations of the
