@@ -29,7 +29,7 @@ def test_order_average_of_identical_estimates_is_that_estimate():
     assert p == 1 + 2j and np.allclose(shape, s[0] / np.sqrt(2))
 
 
-def _spread_ratios(make_record, seeds):
+def _spread_ratios(make_record, seeds, delete_blocks=1):
     """Mean standard error from the samples / std over independent records, for frequency and damping ratio."""
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
     shapes = np.array([[1.0, 0.6j]])
@@ -39,7 +39,7 @@ def _spread_ratios(make_record, seeds):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                m = extract(ds, samples=20, max_order=16, progress=False)
+                m = extract(ds, samples=20, max_order=16, progress=False, delete_blocks=delete_blocks)
             except SignalError:  # two channels, orders 8x the true one: the pole can wander too much to be stable
                 missed += 1
                 continue
@@ -53,20 +53,19 @@ def _spread_ratios(make_record, seeds):
 def test_spread_ratio_against_independent_records(make_record):
     """sample std / sqrt(J) (jackknife standard error) against the std over 16 independent records."""
     ratio_f, ratio_z = _spread_ratios(make_record, 16)
-    # 16 records estimate a std only to about +-18% (and one record far out moves it more): measured 2.2
-    # (frequency) and 1.3 (damping) on these 16, 1.3 and 1.3 on 40 (the slow test below). This one pins
-    # down that the samples are never too narrow.
-    assert 0.8 < ratio_f < 3.0, ratio_f
-    assert 0.8 < ratio_z < 2.0, ratio_z
+    # 16 records estimate a std to about +-18%. Measured: 2.8 (frequency) and 1.6 (damping): the
+    # delete-one samples are conservative (too wide), never too narrow; this pins that down.
+    assert 0.8 < ratio_f < 4.0, ratio_f
+    assert 0.8 < ratio_z < 2.5, ratio_z
 
 
 @pytest.mark.slow
 def test_spread_ratio_on_forty_records(make_record):
-    """The same on 40 records (std known to about +-11%): within the issue's +-30% and that sampling error.
+    """Delete-half samples on 40 records (std known to about +-11%): within +-30% and that sampling error.
 
     The delete-one jackknife gave 2.1 (frequency) and 1.8 (damping) here: it overstates the spread of a
     pole at model orders above the number of modes (:mod:`twin.extract.samples`).
     """
-    ratio_f, ratio_z = _spread_ratios(make_record, 40)
+    ratio_f, ratio_z = _spread_ratios(make_record, 40, delete_blocks=None)
     assert 0.7 < ratio_f < 1.6, ratio_f
     assert 0.7 < ratio_z < 1.6, ratio_z

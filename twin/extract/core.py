@@ -53,6 +53,8 @@ MIN_BLOCK_LAGS = 2.0
 ORDERS_PER_MODE = 8
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
+#: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread, see the README).
+DELETE_BLOCKS: int | None = 1
 #: Warn when a block is shorter than this many time constants of a mode (samples then too narrow).
 MIN_BLOCK_TIME_CONSTANTS = 3.0
 
@@ -89,6 +91,7 @@ def extract(
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
+    delete_blocks: int | None = DELETE_BLOCKS,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -98,7 +101,7 @@ def extract(
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
     samples : int
         J, samples per mode: the record is cut into J blocks and each sample
-        comes from the record without half of them, drawn at random (delete-d
+        comes from the record without ``delete_blocks`` of them (delete-d
         jackknife, see :mod:`twin.extract.samples`).
     fmax_hz : float, optional
         Highest frequency of interest [Hz] (default 40% of the sampling rate).
@@ -120,6 +123,11 @@ def extract(
         ``modes.nc`` to write (atomically).
     progress : bool
         Progress bar over the jackknife blocks.
+    delete_blocks : int or None
+        Blocks each sample leaves out: 1 (the default, delete-one jackknife)
+        or None for half of them, drawn at random (delete-half: a spread
+        that matches independent records, but the loop's comparison is not
+        yet calibrated to it; see the README).
 
     Returns
     -------
@@ -211,7 +219,7 @@ def extract(
     for c in modes:
         use = _orders_used(diag, c)
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
-    poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress)
+    poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress, delete=delete_blocks)
     n_orders = np.array([len(m[0]) for m in members])
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
@@ -231,8 +239,8 @@ def extract(
         "command": command,
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
-        "samples_method": ("delete-d block jackknife (d = J // 2 random blocks) centred on the full-record "
-                           "estimate: sample std / sqrt(J) is the standard error"),
+        "samples_method": (f"delete-d block jackknife (d = {delete_blocks or samples // 2} of {samples} blocks) "
+                           "centred on the full-record estimate: sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
