@@ -25,7 +25,7 @@ from twin.design.observe import record_observability, target_summary, unobservab
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.modesfile import write_modes
-from twin.extract.samples import jackknife, normalise_at
+from twin.extract.samples import blocks_deleted, jackknife, normalise_at
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import block_covariances, realise
 from twin.extract.stabilisation import Criteria, cluster_poles, diagram
@@ -168,6 +168,10 @@ def extract(
         raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
     if samples < 2:
         raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
+    try:
+        n_deleted = blocks_deleted(samples, delete_blocks)
+    except ValueError as exc:
+        raise SignalError(f"delete_blocks: {exc}") from None
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
         raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
@@ -239,7 +243,7 @@ def extract(
         "command": command,
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
-        "samples_method": (f"delete-d block jackknife (d = {delete_blocks or samples // 2} of {samples} blocks) "
+        "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {samples} blocks) "
                            "centred on the full-record estimate: sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
@@ -309,7 +313,7 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
                       stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
-                      "identifications on half the record: its sample spread is too narrow; treat it with care",
+                      "identifications without a sample's blocks: its sample spread is too narrow; treat it with care",
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 

@@ -95,22 +95,37 @@ def order_average(poles: np.ndarray, shapes: np.ndarray, reference: np.ndarray) 
     return complex(poles.mean()), mean / np.linalg.norm(mean)
 
 
-def deleted_blocks(n_blocks: int, delete: int, n_samples: int, seed: int = 0) -> list[np.ndarray]:
-    """The blocks each jackknife sample leaves out: block ``m`` alone for ``delete = 1``, else random subsets.
+def blocks_deleted(n_blocks: int, delete: int | None) -> int:
+    """How many blocks each sample leaves out: ``delete``, or half of them for None (checked).
 
     Examples
     --------
-    >>> [b.tolist() for b in deleted_blocks(3, 1, 3)]
-    [[0], [1], [2]]
-    >>> [len(b) for b in deleted_blocks(10, 5, 4)]
-    [5, 5, 5, 5]
+    >>> blocks_deleted(100, None), blocks_deleted(100, 1)
+    (50, 1)
     """
-    if not 1 <= delete < n_blocks:
-        raise ValueError(f"delete must be between 1 and {n_blocks - 1} blocks, got {delete}")
-    if delete == 1 and n_samples == n_blocks:
+    d = n_blocks // 2 if delete is None else int(delete)
+    if not 1 <= d < n_blocks:
+        raise ValueError(f"a jackknife sample must leave out between 1 and {n_blocks - 1} of the {n_blocks} "
+                         f"blocks, got {d}")  # fmt: skip
+    return d
+
+
+def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0) -> list[np.ndarray]:
+    """The blocks each of the ``n_blocks`` samples leaves out: block ``m`` alone for ``delete = 1``, else
+    random subsets of :func:`blocks_deleted` blocks (fixed ``seed``).
+
+    Examples
+    --------
+    >>> [b.tolist() for b in deleted_blocks(3, 1)]
+    [[0], [1], [2]]
+    >>> [len(b) for b in deleted_blocks(4, None)]
+    [2, 2, 2, 2]
+    """
+    d = blocks_deleted(n_blocks, delete)
+    if d == 1:
         return [np.array([m]) for m in range(n_blocks)]
     rng = np.random.default_rng(seed)
-    return [np.sort(rng.permutation(n_blocks)[:delete]) for _ in range(n_samples)]
+    return [np.sort(rng.permutation(n_blocks)[:d]) for _ in range(n_blocks)]
 
 
 def jackknife(
@@ -151,8 +166,8 @@ def jackknife(
         their full-record value in that sample).
     """
     n_modes, n_ch, J = len(members), members[0][2].shape[1], blocks.n_blocks
-    d = J // 2 if delete is None else int(delete)
-    left_out = deleted_blocks(J, d, J)
+    left_out = deleted_blocks(J, delete)
+    d = len(left_out[0])
     full = [order_average(p, s, s[0]) for _, p, s in members]
     poles = np.array([f[0] for f in full])
     shapes = np.array([f[1] for f in full])
