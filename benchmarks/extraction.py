@@ -11,12 +11,15 @@ unbalance, 5% sensor noise, simulated through the FMU):
    without its bootstrap uncertainty (``calc_unc``, 100 samples): wall time
    and accuracy;
 3. with ``--seeds N``: the spread ratio, i.e. the mean jackknife standard
-   error of each mode's frequency and damping against their standard
-   deviation over N independent records (Monte Carlo over seeds), and that
-   Monte Carlo std against the Cramér-Rao bound of ``twin observe``
-   (:func:`twin.design.observability`, theory, no simulation).
+   error of each mode's frequency and damping (the statistical part of the
+   samples' spread) against their standard deviation over N independent
+   records (Monte Carlo over seeds), that Monte Carlo std against the
+   Cramér-Rao bound of ``twin observe`` (:func:`twin.design.observability`,
+   theory, no simulation), the bias against the Monte Carlo std, and the
+   samples' whole standard error (jackknife and model-order spread) against
+   the RMS error over the records (which includes the bias).
 
-Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR]
+Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
 Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
 """
@@ -141,46 +144,53 @@ def run_pyoma(path, lam_t, phi_t, preset, calc_unc, complex_ok):
     return rows, dt, extra
 
 
-def spread(cache, seeds, lam_t, phi_t):
-    """Mean jackknife standard error against the standard deviation over independent records."""
-    f, z, sef, sez = [], [], [], []
+def spread(cache, seeds, lam_t, phi_t, **options):
+    """Mean jackknife standard error against the std over independent records, and the total against the RMS error."""
+    names = ("frequency", "damping_ratio", "frequency_se_jackknife", "damping_ratio_se_jackknife",
+             "frequency_se", "damping_ratio_se")  # fmt: skip
+    got = {n: [] for n in names}
     for s in range(1, seeds + 1):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            m = extract(record(cache, s), progress=False)
+            m = extract(record(cache, s), progress=False, **options)
         rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
-        fr, zr, sf, sz = [], [], [], []
-        for ft, _, got in rows:
-            k = None if got is None else int(np.argmin(np.abs(m.frequency.values - got[0])))
-            fr.append(np.nan if k is None else float(m.frequency[k]))
-            zr.append(np.nan if k is None else float(m.damping_ratio[k]))
-            sf.append(np.nan if k is None else float(m.frequency_se[k]))
-            sz.append(np.nan if k is None else float(m.damping_ratio_se[k]))
-        f.append(fr), z.append(zr), sef.append(sf), sez.append(sz)
-    f, z, sef, sez = map(np.array, (f, z, sef, sez))
+        ks = [None if g is None else int(np.argmin(np.abs(m.frequency.values - g[0]))) for _, _, g in rows]
+        for n in names:
+            got[n].append([np.nan if k is None else float(m[n][k]) for k in ks])
+    f, z, jf, jz, tf, tz = (np.array(got[n]) for n in names)
     obs = observability(load_model(MODEL), Excitation(duration_s=3600.0), truth=paper_truth())
-    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}): jackknife standard error (SE) / "
-          "Monte Carlo std, and Monte Carlo std / Cramer-Rao bound (CRB, twin observe)")  # fmt: skip
-    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f':>7} {'ratio':>6} {'CRB f':>7} {'MC/CRB':>6} | "
-          f"{'MC std zeta %':>13} {'SE zeta':>7} {'ratio':>6} {'CRB':>7} {'MC/CRB':>6}")  # fmt: skip
+    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}). Statistical part: the jackknife "
+          "standard error (SE) / the Monte Carlo std, and the Monte Carlo std / the Cramer-Rao bound (CRB, "
+          "twin observe). Total: the samples' standard error (jackknife and model-order spread) / the RMS error "
+          "against the truth (which includes SSI's bias)")  # fmt: skip
+    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f':>7} {'ratio':>6} {'MC/CRB':>6} "
+          f"{'bias/MC':>7} {'tot/RMSE':>8} | {'MC std zeta %':>13} {'SE zeta':>7} {'ratio':>6} {'MC/CRB':>6} "
+          f"{'bias/MC':>7} {'tot/RMSE':>8}")  # fmt: skip
     for j in range(len(lam_t)):
         ok = np.isfinite(f[:, j])
         if ok.sum() < 3:
             continue
-        mf, mz = np.std(f[ok, j], ddof=1), np.std(z[ok, j], ddof=1)
-        ft = lam_t[j].imag / (2 * np.pi)
+        ft, zt = lam_t[j].imag / (2 * np.pi), -lam_t[j].real / abs(lam_t[j])
         o = int(np.argmin(np.abs(obs.frequency.values - ft)))
-        cf, cz = float(obs.frequency_std[o]), float(obs.damping_ratio_std[o])
-        print(f"{ft:12.3f} {ok.sum():5d} | {1e3 * mf:14.3f} {1e3 * np.mean(sef[ok, j]):7.3f} "
-              f"{np.mean(sef[ok, j]) / mf:6.2f} {1e3 * cf:7.3f} {mf / cf:6.2f} | {100 * mz:13.4f} "
-              f"{100 * np.mean(sez[ok, j]):7.4f} {np.mean(sez[ok, j]) / mz:6.2f} {100 * cz:7.4f} {mz / cz:6.2f}")  # fmt: skip
+        line = f"{ft:12.3f} {ok.sum():5d} |"
+        for est, se, tot, truth, crb, unit in ((f, jf, tf, ft, float(obs.frequency_std[o]), 1e3),
+                                               (z, jz, tz, zt, float(obs.damping_ratio_std[o]), 100.0)):  # fmt: skip
+            x = est[ok, j]
+            mc, bias, rmse = np.std(x, ddof=1), np.mean(x) - truth, np.sqrt(np.mean((x - truth) ** 2))
+            line += (f" {unit * mc:{14 if unit == 1e3 else 13}.4f} {unit * np.mean(se[ok, j]):7.4f} "
+                     f"{np.mean(se[ok, j]) / mc:6.2f} {mc / crb:6.2f} {bias / mc:7.2f} "
+                     f"{np.sqrt(np.mean(tot[ok, j] ** 2)) / rmse:8.2f} |")  # fmt: skip
+        print(line.rstrip(" |"))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
+    ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
+    ap.add_argument("--order-spread", action="store_true", help="add the model-order spread to the samples")
     args = ap.parse_args()
+    options = {"delete_blocks": None if args.delete_half else 1, "order_spread": args.order_spread}
     args.cache.mkdir(parents=True, exist_ok=True)
     model = load_model(MODEL)
     lam_t, phi_t = truth_modes(model)
@@ -208,7 +218,7 @@ def main() -> None:
                 continue
             table(name, rows, dt, extra)
     if args.seeds:
-        spread(args.cache, args.seeds, lam_t, phi_t)
+        spread(args.cache, args.seeds, lam_t, phi_t, **options)
 
 
 if __name__ == "__main__":

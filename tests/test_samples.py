@@ -7,7 +7,7 @@ import pytest
 
 from twin.errors import SignalError
 from twin.extract import extract
-from twin.extract.samples import align_phase, normalise_at, order_average
+from twin.extract.samples import align_phase, normalise_at, order_average, order_deviations
 
 
 def test_align_and_normalise_keep_shapes_complex_and_consistent():
@@ -29,8 +29,42 @@ def test_order_average_of_identical_estimates_is_that_estimate():
     assert p == 1 + 2j and np.allclose(shape, s[0] / np.sqrt(2))
 
 
+def test_order_deviations_carry_the_spread_over_orders():
+    """Zero mean over the samples; std / sqrt(J) is the std of the pole (and of the aligned shape) over the orders."""
+    rng = np.random.default_rng(3)
+    p = -0.5 + 2j * np.pi * (2.0 + 0.01 * rng.standard_normal(5))
+    s = (np.array([1.0, 0.6j]) + 0.05 * rng.standard_normal((5, 2))) * np.exp(1j * rng.uniform(0, 6, (5, 1)))
+    ref = s[0] / np.linalg.norm(s[0])
+    one = [(np.array([2]), p[:1], s[:1])]
+    J = 40
+    dp, ds = order_deviations([(np.arange(5), p, s)] + one, np.array([ref, ref]), J)
+    assert np.allclose(dp.mean(axis=1), 0.0) and np.allclose(ds.mean(axis=1), 0.0)
+    assert np.isclose(np.sqrt(np.sum(np.abs(dp[0]) ** 2) / (J - 1) / J), np.std(p, ddof=1))
+    aligned = align_phase(s / np.linalg.norm(s, axis=1, keepdims=True), ref)
+    # every order used J / 5 times, so the shape deviations have the orders' spread times the same scale
+    assert np.isclose(np.sum(np.abs(ds[0]) ** 2) / np.sum(np.abs(dp[0]) ** 2),
+                      np.sum(np.abs(aligned - aligned.mean(axis=0)) ** 2) / np.sum(np.abs(p - p.mean()) ** 2))
+    assert not dp[1].any() and not ds[1].any()  # one order: nothing to spread
+
+
+def test_extraction_standard_error_has_its_two_parts(make_record):
+    """frequency_se (from the samples) is the jackknife part and the order spread in quadrature (to sampling)."""
+    poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
+    ds = make_record(poles, np.array([[1.0, 0.6j, 0.3, 0.8j]]), fs_hz=20.0, duration_s=1000.0, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = extract(ds, samples=40, max_order=16, progress=False, delete_blocks=None, order_spread=True)
+        plain = extract(ds, samples=40, max_order=16, progress=False, delete_blocks=None)
+    for q in ("frequency", "damping_ratio"):
+        total, jk, order = (float(m[f"{q}{x}"][0]) for x in ("_se", "_se_jackknife", "_order_std"))
+        assert order > 0 and np.isclose(jk, float(plain[f"{q}_se"][0]))
+        # the two parts are drawn independently: their cross term is of order 1/sqrt(J) of the sum
+        assert abs(total**2 / (jk**2 + order**2) - 1) < 3 / np.sqrt(40), (q, total, jk, order)
+    assert np.isclose(float(m.frequency[0]), float(plain.frequency[0]))  # same estimate
+
+
 def _spread_ratios(make_record, seeds, delete_blocks=1):
-    """Mean standard error from the samples / std over independent records, for frequency and damping ratio."""
+    """Mean jackknife standard error / std over independent records, for frequency and damping ratio."""
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
     shapes = np.array([[1.0, 0.6j]])
     f, z, se_f, se_z, missed = [], [], [], [], 0
@@ -45,7 +79,7 @@ def _spread_ratios(make_record, seeds, delete_blocks=1):
                 continue
         k = int(np.argmin(np.abs(m.frequency.values - 2.0)))
         f.append(float(m.frequency[k])), z.append(float(m.damping_ratio[k]))
-        se_f.append(float(m.frequency_se[k])), se_z.append(float(m.damping_ratio_se[k]))
+        se_f.append(float(m.frequency_se_jackknife[k])), se_z.append(float(m.damping_ratio_se_jackknife[k]))
     assert missed <= seeds // 10, f"no mode found in {missed} of {seeds} records"
     return np.mean(se_f) / np.std(f, ddof=1), np.mean(se_z) / np.std(z, ddof=1)
 

@@ -219,6 +219,11 @@ def _add_stages(sub) -> None:
     p.add_argument("--max-order", type=int, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
+    p.add_argument("--delete-half", action="store_true",
+                   help="each sample leaves out half the blocks (a spread that matches independent records) "
+                        "instead of one (the default: wider, what the loop is calibrated to)")
+    p.add_argument("--order-spread", action="store_true",
+                   help="add each mode's spread over its model orders to the samples")
 
     p = _command(sub, "synthesize-modes", "paper-style synthetic modal data (noisy pole and shape samples)",
                  "Samples of poles and partial mode shapes of a truth, with the reference paper's noise model:\n"

@@ -25,7 +25,7 @@ from twin.design.observe import record_observability, target_summary, unobservab
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.modesfile import write_modes
-from twin.extract.samples import blocks_deleted, jackknife, normalise_at
+from twin.extract.samples import blocks_deleted, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import block_covariances, realise
 from twin.extract.stabilisation import Criteria, cluster_poles, diagram
@@ -51,6 +51,8 @@ MIN_CYCLES = 100
 MIN_BLOCK_LAGS = 2.0
 #: A mode is the average of its poles at this many model orders (at most).
 ORDERS_PER_MODE = 8
+#: A cluster's poles farther than this many robust std from its median pole are not used (unconverged orders).
+OUTLIER_MADS = 3.0
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
 #: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread, see the README).
@@ -92,6 +94,7 @@ def extract(
     progress: bool = True,
     command: str = "",
     delete_blocks: int | None = DELETE_BLOCKS,
+    order_spread: bool = False,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -128,6 +131,13 @@ def extract(
         or None for half of them, drawn at random (delete-half: a spread
         that matches independent records, but the loop's comparison is not
         yet calibrated to it; see the README).
+    order_spread : bool
+        Add to the samples the spread of each mode over the model orders it
+        is averaged over (:func:`twin.extract.samples.order_deviations`): the
+        samples then stand for the jackknife's statistical error and the
+        model-order part of SSI's systematic error, in quadrature. Off by
+        default, like delete-half, until the loop is calibrated to them (see
+        the README).
 
     Returns
     -------
@@ -135,7 +145,8 @@ def extract(
         Dimensions ``mode``, ``sample``, ``channel`` (and ``diagram_pole`` for the
         stabilisation diagram): complex ``pole`` [1/s] and ``shape`` samples;
         per mode the full-record ``frequency`` (damped) and ``natural_frequency``
-        [Hz], ``damping_ratio``, their sample std and standard error,
+        [Hz], ``damping_ratio``, their sample std and standard error (and
+        its two parts: ``*_se_jackknife`` and ``*_order_std``),
         ``sensor_shape``, ``MPC``, ``MPD`` [deg], ``model_order``.
 
     Examples
@@ -224,18 +235,23 @@ def extract(
         use = _orders_used(diag, c)
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
     poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress, delete=delete_blocks)
+    jackknife_p = sample_p
+    if order_spread:
+        d_p, d_s = order_deviations(members, shapes, samples)
+        sample_p, sample_s = sample_p + d_p, sample_s + d_s
     n_orders = np.array([len(m[0]) for m in members])
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
     _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, missing.shape[1])
 
-    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, [len(c.members) for c in modes],
+    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders, [len(c.members) for c in modes],
                    ref_channel, diag)  # fmt: skip
     settings = {
         "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
+        "delete_blocks": n_deleted, "order_spread": bool(order_spread), "outlier_mads": OUTLIER_MADS,
     }  # fmt: skip
     out.attrs.update({
         "title": f"modes identified from {Path(source).name}",
@@ -244,7 +260,9 @@ def extract(
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
         "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {samples} blocks) "
-                           "centred on the full-record estimate: sample std / sqrt(J) is the standard error"),
+                           "centred on the full-record estimate"
+                           + (", plus the mode's spread over its model orders" if order_spread else "")
+                           + ": sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
@@ -271,7 +289,7 @@ def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.nda
 
 
 def _orders_used(diag, cluster) -> np.ndarray:
-    """The ORDERS_PER_MODE lowest model orders at which a cluster's mode is stable.
+    """The ORDERS_PER_MODE lowest model orders at which a cluster's mode is stable and settled.
 
     A mode's lowest stable orders are its parsimonious realisations. At orders
     well above the number of modes, the extra (noise) poles re-arrange from one
@@ -280,8 +298,20 @@ def _orders_used(diag, cluster) -> np.ndarray:
     (with the delete-one jackknife on a one-mode record: 1.0 times the spread
     of estimates over independent records at the true order, 1.4 times at
     four times it, 1.7 at eight).
+
+    The lowest orders may not have converged yet, though: a pole that passes
+    the stability criteria between neighbouring orders can still sit apart
+    from where the mode settles at higher orders (the 1.09 Hz mode of the hydro
+    unit: orders 14-28 up to 0.9% high). Poles farther from the cluster's
+    median pole than OUTLIER_MADS robust standard deviations (1.4826 times
+    the median distance) are left out before the lowest orders are taken.
     """
     m = cluster.members
+    p = diag.pole[m]
+    dist = np.abs(p - (np.median(p.real) + 1j * np.median(p.imag)))
+    scale = 1.4826 * np.median(dist)
+    if scale > 0:
+        m = m[dist <= OUTLIER_MADS * scale]
     return m[np.argsort(diag.order[m], kind="stable")][:ORDERS_PER_MODE]
 
 
@@ -317,10 +347,15 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 
-def _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, sizes, ref_channel, diag) -> xr.Dataset:
+def _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders, sizes, ref_channel,
+             diag) -> xr.Dataset:  # fmt: skip
     n_modes, J = sample_p.shape
     f_std = np.std(sample_p.imag / (2 * np.pi), axis=1, ddof=1)
     z_std = np.std(damping_ratio(sample_p), axis=1, ddof=1)
+    f_jk = np.std(jackknife_p.imag / (2 * np.pi), axis=1, ddof=1) / np.sqrt(J)
+    z_jk = np.std(damping_ratio(jackknife_p), axis=1, ddof=1) / np.sqrt(J)
+    f_order = np.array([np.std(p.imag / (2 * np.pi), ddof=1) if len(p) > 1 else 0.0 for _, p, _ in members])
+    z_order = np.array([np.std(damping_ratio(p), ddof=1) if len(p) > 1 else 0.0 for _, p, _ in members])
     ch_coords = {"channel": ("channel", list(rec.channels))}
     if "displacement" in ds:
         src = ds["displacement"]
@@ -338,9 +373,17 @@ def _dataset(rec, ds, poles, shapes, sample_p, sample_s, n_orders, sizes, ref_ch
         "frequency_std": ("mode", f_std, {"units": "Hz", "long_name": "sample std of frequency"}),
         "damping_ratio_std": ("mode", z_std, {"units": "1", "long_name": "sample std of damping ratio"}),
         "frequency_se": ("mode", f_std / np.sqrt(J),
-                         {"units": "Hz", "long_name": "standard error of frequency (jackknife)"}),
+                         {"units": "Hz", "long_name": "standard error of frequency (sample std / sqrt(J))"}),
         "damping_ratio_se": ("mode", z_std / np.sqrt(J),
-                             {"units": "1", "long_name": "standard error of damping ratio (jackknife)"}),
+                             {"units": "1", "long_name": "standard error of damping ratio (sample std / sqrt(J))"}),
+        "frequency_se_jackknife": ("mode", f_jk, {"units": "Hz",
+                                   "long_name": "statistical part of the frequency's standard error (jackknife)"}),
+        "damping_ratio_se_jackknife": ("mode", z_jk, {"units": "1",
+                                       "long_name": "statistical part of the damping ratio's standard error (jackknife)"}),
+        "frequency_order_std": ("mode", f_order, {"units": "Hz",
+                                "long_name": "std of the frequency over the model orders the mode is averaged over"}),
+        "damping_ratio_order_std": ("mode", z_order, {"units": "1",
+                                    "long_name": "std of the damping ratio over the model orders the mode is averaged over"}),
         "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "full-record mode shape"}),
         "MPC": ("mode", mpc(shapes), {"units": "1", "long_name": "modal phase collinearity (1 real, 0 circular)"}),
         "MPD": ("mode", mpd(shapes), {"units": "deg", "long_name": "mean phase deviation (0 real, 45 circular)"}),
