@@ -31,7 +31,7 @@ subsets come from a fixed seed, so an extraction is repeatable.
 :func:`order_deviations` adds the spread of each mode over the model orders
 it is averaged over (``extract(..., order_spread=True)``): with it, the
 samples' standard error covers the RMS error against the truth, SSI's bias
-included, of every mode on those records (0.99-2.44 times it).
+included, of every mode on those records (0.96-2.46 times it).
 
 Delete-one stays the default of :func:`twin.extract.extract`: the loop's
 comparison and update were calibrated against its wider spread. With
