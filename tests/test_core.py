@@ -170,3 +170,22 @@ def test_decimation_by_a_prime_factor_above_eight(make_record):
     m = extract(ds, samples=10, fmax_hz=4.0, max_order=16, progress=False)
     assert json.loads(m.attrs["settings"])["decimation"] == 11
     assert np.min(np.abs(m.frequency.values - 1.0)) < 0.01
+
+
+def test_orders_used_leave_out_unconverged_low_orders():
+    """Poles far (robust z > 3) from the cluster's median are not averaged, even at the lowest orders."""
+    from types import SimpleNamespace
+
+    from twin.extract.core import ORDERS_PER_MODE, _orders_used
+
+    orders = np.arange(10, 62, 2)
+    rng = np.random.default_rng(0)
+    pole = -0.15 + 2j * np.pi * (1.0 + 1e-4 * rng.standard_normal(len(orders)))
+    pole[[0, 3]] += 2j * np.pi * 0.008  # orders 10 and 16: 0.8% high, not yet settled
+    diag = SimpleNamespace(pole=pole, order=orders)
+    use = _orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))
+    assert len(use) == ORDERS_PER_MODE and 0 not in use and 3 not in use
+    assert list(diag.order[use]) == [12, 14, 18, 20, 22, 24, 26, 28]  # the lowest settled ones
+    # a cluster whose poles all agree keeps its lowest orders
+    diag = SimpleNamespace(pole=np.full(len(orders), -0.15 + 2j * np.pi), order=orders)
+    assert list(_orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))) == list(range(ORDERS_PER_MODE))
