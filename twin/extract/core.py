@@ -245,8 +245,8 @@ def extract(
     sample_s = normalise_at(sample_s, ref_channel[:, None])
     _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, missing.shape[1])
 
-    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders, [len(c.members) for c in modes],
-                   ref_channel, diag)  # fmt: skip
+    out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
+                   [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
     settings = {
         "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
@@ -347,15 +347,17 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 
+def _frequency_damping_std(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Std (ddof 1, over the last axis) of the damped frequency [Hz] and the damping ratio of poles [1/s]."""
+    return np.std(poles.imag / (2 * np.pi), axis=-1, ddof=1), np.std(damping_ratio(poles), axis=-1, ddof=1)
+
+
 def _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders, sizes, ref_channel,
              diag) -> xr.Dataset:  # fmt: skip
     n_modes, J = sample_p.shape
-    f_std = np.std(sample_p.imag / (2 * np.pi), axis=1, ddof=1)
-    z_std = np.std(damping_ratio(sample_p), axis=1, ddof=1)
-    f_jk = np.std(jackknife_p.imag / (2 * np.pi), axis=1, ddof=1) / np.sqrt(J)
-    z_jk = np.std(damping_ratio(jackknife_p), axis=1, ddof=1) / np.sqrt(J)
-    f_order = np.array([np.std(p.imag / (2 * np.pi), ddof=1) if len(p) > 1 else 0.0 for _, p, _ in members])
-    z_order = np.array([np.std(damping_ratio(p), ddof=1) if len(p) > 1 else 0.0 for _, p, _ in members])
+    f_std, z_std = _frequency_damping_std(sample_p)
+    f_jk, z_jk = (x / np.sqrt(J) for x in _frequency_damping_std(jackknife_p))
+    f_order, z_order = np.array([_frequency_damping_std(p) if len(p) > 1 else (0.0, 0.0) for _, p, _ in members]).T
     ch_coords = {"channel": ("channel", list(rec.channels))}
     if "displacement" in ds:
         src = ds["displacement"]

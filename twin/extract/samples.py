@@ -93,10 +93,14 @@ def normalise_at(shapes: np.ndarray, channel: np.ndarray | int) -> np.ndarray:
     return shapes / (norm * pivot / np.abs(pivot))
 
 
+def aligned_unit(shapes: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Shapes (last axis) scaled to unit norm and brought to the phase of ``reference`` (:func:`align_phase`)."""
+    return align_phase(shapes / np.linalg.norm(shapes, axis=-1, keepdims=True), reference)
+
+
 def order_average(poles: np.ndarray, shapes: np.ndarray, reference: np.ndarray) -> tuple[complex, np.ndarray]:
     """One mode estimate from its poles at several orders: mean pole, mean phase-aligned unit shape."""
-    aligned = align_phase(shapes / np.linalg.norm(shapes, axis=-1, keepdims=True), reference)
-    mean = aligned.mean(axis=0)
+    mean = aligned_unit(shapes, reference).mean(axis=0)
     return complex(poles.mean()), mean / np.linalg.norm(mean)
 
 
@@ -178,10 +182,9 @@ def order_deviations(
         n = len(p)
         if n < 2:
             continue
-        aligned = align_phase(s / np.linalg.norm(s, axis=-1, keepdims=True), shapes[k])
         which = rng.permutation(np.resize(np.arange(n), J))
-        d_p = p[which] - p[which].mean()
-        d_s = aligned[which] - aligned[which].mean(axis=0)
+        p_m, s_m = p[which], aligned_unit(s, shapes[k])[which]
+        d_p, d_s = p_m - p_m.mean(), s_m - s_m.mean(axis=0)
         spread = np.sqrt(np.sum(np.abs(p - p.mean()) ** 2) / (n - 1))  # std of the pole over the orders
         have = np.sqrt(np.sum(np.abs(d_p) ** 2) / (J - 1))
         scale = np.sqrt(J) * spread / have if have > 0 else 0.0
