@@ -12,7 +12,7 @@ the nothing-hidden seeds (about 1 when the uncertainty is honest).
                                     [--from-table twin-suite/sweep.nc]
 
 About 35 min on 2 cores. ``--method`` is how the loop updates (the APerCEM
-Gibbs sampler by default; results in ``loop_suite.md``, or the Laplace
+sampler, twin.update.update's default, by default; results in ``loop_suite.md``, or the Laplace
 approximation of the pole fit: ``loop_suite_laplace.md``). ``--from-table``
 rewrites the results from a sweep already run (its method from the table).
 """

@@ -1,9 +1,9 @@
-"""Calibration of the default Gibbs sampler on the twin's own data: FMU signals -> extracted modes -> posterior.
+"""Calibration of the default APerCEM sampler on the twin's own data: FMU signals -> extracted modes -> posterior.
 
 For each scenario and seed: the truth (the hydro unit with a hidden effect) is
 simulated through its FMU (20-min record), the modes are extracted, the
 hidden effect is added to the twin's model and its parameters are updated by
-:func:`twin.update.update` with its defaults (the calibrated sampler, 4 chains
+:func:`twin.update.update` with its defaults (the default sampler, 4 chains
 x 500 draws). The scenario ``bearings`` hides nothing and updates the 16
 guide-bearing coefficients (truth: the model's values).
 
@@ -125,7 +125,7 @@ def main() -> None:
     with dask_client("local" if args.workers > 1 else "sync", n_workers=args.workers) as client:
         results = mapper(client, progress=True, desc="datasets")(one_dataset, jobs, duration_s=args.duration)
     rows = [r for rs in results for r in rs]
-    lines = ["# Calibration of the default Gibbs sampler on FMU data (issue 18)", "",
+    lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `python benchmarks/update_coverage_fmu.py --scenarios {args.scenarios} --seeds {args.seeds} "
              f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.", ""] + report(rows)  # fmt: skip

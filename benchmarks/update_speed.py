@@ -1,17 +1,18 @@
-"""Case B, 500 draws, one chain: time of the APerCEM Gibbs sampler, and ESS/s against emcee on the same posterior.
+"""Case B, 500 draws, one chain: time and ESS of the updater, beside emcee and NUTS on the same density.
 
-The posterior is the sampler's own joint density (shared and per-mode parameters,
-latent shapes and perturbations, log residual variances), written as one flat
-vector for emcee (affine-invariant ensemble, the generic sampler), run for the
-same wall time. ESS is ArviZ's bulk ESS of the 16 bearing coefficients.
+The default configuration (twin.update.CALIBRATED: the errors-in-variables
+marginal of the parameters, sampled by twin's HMC) is compared with two
+general samplers on the same 46-dimensional log density: emcee (affine-
+invariant ensemble, run for the same wall time) and, when nutpie is
+installed, its NUTS (diagonal mass matrix adapted in 300 tuning steps). For
+the Gibbs configurations (--pole-model linear|samples, --paper) emcee samples
+the Gibbs sampler's own joint density (parameters, latent shapes and
+perturbations, log residual variances). ESS is ArviZ's bulk ESS.
 
-    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--paper | [--noise-model full|diagonal]
-                                      [--collapsed|--no-collapsed] [--pole-model linear|samples]]
+    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--paper | [--pole-model marginal|linear|samples]
+                                      [--noise-model full|diagonal] [--collapsed|--no-collapsed]]
 
-The options time the Gibbs sampler in another configuration (default: the
-calibrated one, twin.update.CALIBRATED, as update() uses; --paper: the
-paper's); emcee (``pip install emcee``) always samples the paper's posterior.
-It also prints the bulk ESS of the slowest parameters of the Gibbs chain.
+emcee and nutpie are optional (``pip install emcee nutpie``).
 """
 
 from __future__ import annotations
@@ -22,19 +23,32 @@ import time
 import numpy as np
 
 import twin
+from twin.tasks import one_blas_thread
 from twin.update import CALIBRATED, PAPER, synthesize_modes
+from twin.update import marginal as marginal_model
 from twin.update.gibbs import NOISE_MODELS, Prior, State, initial_state, log_density, run_chain, sweep
 from twin.update.poles import POLE_MODELS
 from twin.update.posterior import _arviz
 from twin.update.problem import build_problem, select_parameters
 
 
+def _ess(az, x: np.ndarray) -> np.ndarray:
+    """Bulk ESS of each column of draws ``x`` (chains, draws, k)."""
+    return np.array([az.ess(x[..., k], method="bulk") for k in range(x.shape[-1])])
+
+
+def _report(label: str, seconds: float, ess: np.ndarray, names: list[str], n_bearings: int) -> None:
+    print(f"{label}: {seconds:.1f} s; bulk ESS of all {ess.size} parameters: median {np.median(ess):.0f}, "
+          f"min {ess.min():.0f} ({names[int(np.argmin(ess))]}); of the bearings: median "
+          f"{np.median(ess[:n_bearings]):.0f}, min {ess[:n_bearings].min():.0f}; min ESS/s {ess.min() / seconds:.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--noise-model", choices=NOISE_MODELS, default=CALIBRATED["noise_model"])
-    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=CALIBRATED["collapsed"])
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="full")
+    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=True)
     ap.add_argument("--pole-model", choices=POLE_MODELS, default=CALIBRATED["pole_model"])
     ap.add_argument("--paper", action="store_true", help="the paper's sampler (twin.update.PAPER)")
     args = ap.parse_args()
@@ -43,35 +57,109 @@ def main() -> None:
     az = _arviz()
     model = twin.load_model(twin.shipped_model("hydro_unit"))
     data = synthesize_modes(model, samples=100, seed=args.seed)
-    t0 = time.perf_counter()
     params = select_parameters(model, "bearings")
+    t0 = time.perf_counter()
     problem = build_problem(model, data, params, fsi=True, pole_model=args.pole_model)
+    names = problem.parameter_labels
+    Kg = problem.n_global
+    if args.pole_model == "marginal":
+        marg = marginal_model.marginal_problem(problem, data["pole"].values)
+        setup = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        chain = marginal_model.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed))
+        seconds = time.perf_counter() - t0
+        x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
+        _report(f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{marginal_model.WARMUP} warm-up; "
+                f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}", seconds, _ess(az, x[None]), names, Kg)
+        _compare_marginal(az, marg, seconds, args, names, Kg, x)
+        return
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()
     chain = run_chain(problem, args.draws, burn_in=20, rng=np.random.default_rng(args.seed),
                       prior=Prior.flat(problem, noise_model=args.noise_model), collapsed=args.collapsed)
     gibbs_s = time.perf_counter() - t0
-    print(f"configuration: noise model {args.noise_model}, pole model {args.pole_model}"
-          f"{', collapsed step' if args.collapsed else ''}")
-    if (args.noise_model, args.collapsed, args.pole_model) != ("diagonal", False, "samples"):
-        problem = build_problem(model, data, params, fsi=True)  # emcee on the paper's posterior
-    ess_g = np.array([az.ess(chain.t[None, :, k], method="bulk") for k in range(problem.n_global)])
-    print(f"Gibbs, Case B (46 parameters), 1 chain x {args.draws} draws (+20 burn-in): {gibbs_s:.1f} s "
-          f"(+ {setup:.1f} s setup); bulk ESS of the bearings: median {np.median(ess_g):.0f}, min {ess_g.min():.0f}; "
-          f"median ESS/s {np.median(ess_g) / gibbs_s:.1f}")  # fmt: skip
     x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
-    ess_all = np.array([az.ess(x[None, :, k], method="bulk") for k in range(x.shape[1])])
-    names = problem.parameter_labels
-    print("slowest parameters (bulk ESS): " + ", ".join(f"{names[k]} {ess_all[k]:.0f}" for k in np.argsort(ess_all)[:6]))
+    _report(f"Gibbs ({args.noise_model} noise, {args.pole_model} poles{', collapsed step' if args.collapsed else ''}), "
+            f"Case B, 1 chain x {args.draws} draws (+20 burn-in; + {setup:.1f} s setup)", gibbs_s, _ess(az, x[None]),
+            names, Kg)  # fmt: skip
     if chain.accepted.any():
         print(f"collapsed step accepted in {chain.accepted.mean():.0%} of the sweeps")
+    _emcee_gibbs(az, model, data, params, gibbs_s, args)
+
+
+def _compare_marginal(az, marg, seconds: float, args, names: list[str], Kg: int, x_hmc: np.ndarray) -> None:
+    """emcee and nutpie's NUTS on the marginal density the HMC chain sampled."""
+    n = marg.size
+    zero = np.zeros(n)
+    mode, at = marginal_model.posterior_mode(marg, zero, zero)
+
+    def logp(v: np.ndarray) -> float:
+        try:
+            return marginal_model.log_density(marg, v).log_p
+        except np.linalg.LinAlgError:
+            return -np.inf
 
     try:
         import emcee
     except ImportError:
         print("emcee is not installed (pip install emcee): no comparison")
+    else:
+        walkers = 2 * n + 2
+        rng = np.random.default_rng(args.seed)
+        cov = np.linalg.inv(at.precision)
+        sampler = emcee.EnsembleSampler(walkers, n, logp)
+        state = rng.multivariate_normal(mode, cov, size=walkers)  # started in the posterior (in its favour)
+        t0, steps = time.perf_counter(), 0
+        with_one_thread = one_blas_thread(sampler.run_mcmc)
+        while time.perf_counter() - t0 < seconds:
+            state = with_one_thread(state, 10, progress=False)
+            steps += 10
+        chains = np.swapaxes(sampler.get_chain(), 0, 1)  # (walkers, steps, n)
+        ess = _ess(az, chains)  # counts walkers as chains: an upper bound this early
+        _report(f"emcee on the same marginal ({walkers} walkers, {steps} steps in the same wall time; ESS counts "
+                "walkers as chains)", time.perf_counter() - t0, ess, names, Kg)  # fmt: skip
+    try:
+        import nutpie
+        from nutpie.compiled_pyfunc import from_pyfunc
+    except ImportError:
+        print("nutpie is not installed (pip install nutpie): no NUTS comparison")
         return
 
+    def make_logp():
+        def f(v, **_):
+            try:
+                d = marginal_model.log_density(marg, np.asarray(v))
+            except np.linalg.LinAlgError:
+                return -np.inf, np.zeros(n)
+            return d.log_p, d.gradient
+
+        return f
+
+    def make_expand(*_):
+        return lambda v, **__: {"theta": np.asarray(v).copy()}
+
+    compiled = from_pyfunc(n, make_logp, make_expand, [np.dtype("float64")], [(n,)], ["theta"],
+                           make_initial_point_fn=lambda _: mode.copy())  # fmt: skip
+    t0 = time.perf_counter()
+    trace = one_blas_thread(nutpie.sample)(compiled, draws=args.draws, tune=300, chains=1, cores=1, seed=args.seed,
+                                           progress_bar=False)  # fmt: skip
+    nuts_s = time.perf_counter() - t0
+    x = trace.posterior["theta"].values
+    steps = float(trace.sample_stats["n_steps"].mean())
+    _report(f"nutpie NUTS on the same marginal, 1 chain x {args.draws} draws (+300 tuning), {steps:.0f} gradient "
+            "steps per draw", nuts_s, _ess(az, x), names, Kg)  # fmt: skip
+    ratio = x[0].std(axis=0) / x_hmc.std(axis=0)
+    print(f"posterior std, NUTS / twin HMC: median {np.median(ratio):.2f}, range {ratio.min():.2f}-{ratio.max():.2f}")
+
+
+def _emcee_gibbs(az, model, data, params, gibbs_s: float, args) -> None:
+    """emcee on the paper's joint density (parameters, shapes, perturbations, log variances)."""
+    try:
+        import emcee
+    except ImportError:
+        print("emcee is not installed (pip install emcee): no comparison")
+        return
+    problem = build_problem(model, data, params, fsi=True)  # the paper's posterior
     start = initial_state(problem)
     for _ in range(50):  # start emcee where Gibbs is after burn-in (in its favour)
         sweep(problem, start, Prior.flat(problem), np.random.default_rng(0))

@@ -29,8 +29,8 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     assert rounds[0]["ranking"][0]["effect"] == "magnetic_pull" and rounds[1]["verdict"] == "nothing missing"
     errors = read_history(out / "history.csv")["error"].values
     assert len(errors) == 3 and errors[-1] < 0.2 * errors[0]
-    # the update is the APerCEM Gibbs sampler's: its posterior, interval and diagnostics in the report
-    assert "jointly: APerCEM Gibbs sampler, 4 chains x 500 draws (full noise model, linear pole model, collapsed" in report
+    # the update is the APerCEM sampler's (HMC on the marginal): its posterior, interval and diagnostics in the report
+    assert "jointly: APerCEM, HMC on the marginal (pole deviations and shapes integrated out), 4 chains x 500 draws" in report
     row = next(line for line in report.splitlines() if line.startswith("| MAG.stiffness"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert " to " in cells[3] and float(cells[5]) <= 1.01 and float(cells[6]) >= 400, cells  # R-hat, bulk ESS

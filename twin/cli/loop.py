@@ -20,7 +20,7 @@ log = logging.getLogger("twin")
 #: Literal (importing twin.update here would slow every command's start-up); tests/test_cli.py checks that
 #: it matches twin.update.CALIBRATED and BURN_IN.
 GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "full", "collapsed": True,
-                  "pole_model": "linear"}  # fmt: skip
+                  "pole_model": "marginal"}  # fmt: skip
 
 
 def _update(args: argparse.Namespace) -> int:
@@ -40,7 +40,8 @@ def _update(args: argparse.Namespace) -> int:
     if args.params is not None:
         select_parameters(model, args.params)  # unknown names fail before a cluster starts
 
-    with _tasks(args) as client, stage(f"APerCEM Gibbs sampler: {args.chains} chains x {args.draws} draws"):
+    sampler = "HMC on the marginal" if args.pole_model == "marginal" else "Gibbs sampler"
+    with _tasks(args) as client, stage(f"APerCEM {sampler}: {args.chains} chains x {args.draws} draws"):
         tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
                       burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
                       pole_model=args.pole_model, output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip

@@ -79,7 +79,8 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="jackknife samples per mode")
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
     p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="how each round updates the added effects: the APerCEM Gibbs sampler (4 chains x 500 draws) "
+                   help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default: HMC "
+                        "on the marginal, 4 chains x 500 draws) "
                         "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
 
 
@@ -240,7 +241,7 @@ def _add_stages(sub) -> None:
 
 
 def _add_loop(sub) -> None:
-    p = _command(sub, "update", "Bayesian updating from mode samples (APerCEM Gibbs sampler, or Laplace)",
+    p = _command(sub, "update", "Bayesian updating from mode samples (APerCEM: HMC on the marginal, the Gibbs sampler, or Laplace)",
                  "The posterior of the chosen parameters given the measured poles and shapes, written in the\n"
                  "ArviZ layout (posterior.nc: posterior, sample_stats, observed_data groups).",
                  ["twin update hydro_unit modes.nc --params bearings --fsi -o posterior.nc",
@@ -255,24 +256,27 @@ def _add_loop(sub) -> None:
                         "lists the names (default: none, then --fsi is needed)")  # fmt: skip
     p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
     p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="gibbs: the APerCEM sampler on pole and shape samples; laplace: the Gaussian posterior of "
+                   help="gibbs: the APerCEM sampler on pole and shape samples (HMC on the marginal by default, "
+                        "see --pole-model); laplace: the Gaussian posterior of "
                         "the pole fit inside the physical bounds (fast, blind to shapes)")  # fmt: skip
     p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="draws kept per chain")
     p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="number of chains")
-    p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"], help="sweeps discarded per chain")
+    p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"],
+                   help="sweeps discarded per chain (HMC: warm-up iterations, at least 150)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
     # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
     p.add_argument("--noise-model", choices=("full", "diagonal"), default=GIBBS_DEFAULTS["noise_model"],
-                   help="covariance of the residual realisations: full (correlated rows, better calibrated) or "
+                   help="Gibbs sampler only: covariance of the residual realisations: full (correlated rows, better calibrated) or "
                         "diagonal (the paper's)")  # fmt: skip
     p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=GIBBS_DEFAULTS["collapsed"],
-                   help="a Metropolis step of the parameters with the shapes integrated out in every sweep "
+                   help="Gibbs sampler only: a Metropolis step of the parameters with the shapes integrated out in every sweep "
                         "(4-5x the time per sweep; chains mix along the parameter-shape ridge); --no-collapsed: "
                         "plain Gibbs, the paper's")
-    p.add_argument("--pole-model", choices=("linear", "samples"), default=GIBBS_DEFAULTS["pole_model"],
-                   help="how the pole samples enter the condensed model: linearised about each mode's mean pole "
-                        "(no curvature bias near resonances of the unobserved DOFs) or at every sample (the "
-                        "paper's)")
+    p.add_argument("--pole-model", choices=("marginal", "linear", "samples"), default=GIBBS_DEFAULTS["pole_model"],
+                   help="how the pole samples enter the condensed model: marginal (the default): the mean pole "
+                        "and its covariance, the pole deviation and the shapes integrated out, the parameters "
+                        "sampled by HMC; linear (Gibbs): linearised about each mode's mean pole; samples "
+                        "(Gibbs): at every sample (the paper's)")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
@@ -315,7 +319,7 @@ def _add_loop(sub) -> None:
     p.add_argument("modes", help=MODES_HELP)
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
     p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="how each round updates the added effects: the APerCEM Gibbs sampler or the Laplace "
+                   help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default) or the Laplace "
                         "approximation of the pole fit")
     p.add_argument("--rounds", type=int, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")

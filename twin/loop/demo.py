@@ -95,9 +95,12 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
                 table[key] = ("parameter", np.full(table.sizes["parameter"], np.nan))
         units = [model.parameter(str(n)).unit for n in table["parameter"].values]
         settings = json.loads(posterior.attrs.get("settings", "{}"))
-        method = (f"APerCEM Gibbs sampler, {settings.get('chains', '?')} chains x {settings.get('draws', '?')} "
-                  f"draws ({settings.get('noise_model', '?')} noise model, {settings.get('pole_model', '?')} pole "
-                  f"model{', collapsed step' if settings.get('collapsed') else ''})")  # fmt: skip
+        runs = f"{settings.get('chains', '?')} chains x {settings.get('draws', '?')} draws"
+        if settings.get("pole_model") == "marginal":
+            method = f"APerCEM, HMC on the marginal (pole deviations and shapes integrated out), {runs}"
+        else:
+            method = (f"APerCEM Gibbs sampler, {runs} ({settings.get('noise_model', '?')} noise model, "
+                      f"{settings.get('pole_model', '?')} pole model{', collapsed step' if settings.get('collapsed') else ''})")  # fmt: skip
         return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(unit=("parameter", units)).assign_attrs(
             method=method)
     z = 1.6448536269514722  # the 95% point of the standard normal
@@ -192,10 +195,11 @@ def run_demo(
     fmax_hz : float
         Highest frequency of the extraction [Hz].
     seed : int
-        Seed of the turbulence and the sensor noise (and of the Gibbs chains).
+        Seed of the turbulence and the sensor noise (and of the sampler's chains).
     method : {"gibbs", "laplace"}
-        How each round updates the effects the loop added: the APerCEM Gibbs
-        sampler (:data:`twin.update.CALIBRATED`, 4 chains x 500 draws) or the
+        How each round updates the effects the loop added: the APerCEM
+        sampler (:func:`twin.update.update` with :data:`twin.update.CALIBRATED`,
+        HMC on the marginal, 4 chains x 500 draws) or the
         Laplace approximation of the pole fit (:func:`twin.loop.fit.laplace_update`).
     progress : bool
         Progress bars.

@@ -20,26 +20,29 @@ from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
-from twin.update.gibbs import Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack
+from twin.update.gibbs import (Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack,
+                               weak_parameters)  # fmt: skip
+from twin.update.marginal import marginal_precision, marginal_problem
+from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import check_pole_model
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
 log = logging.getLogger(__name__)
 
-#: Condensation margin (pole-sample stds to the nearest resonance of the unobserved DOFs) below which a mode is flagged.
+#: Condensation margin (pole spreads to the nearest resonance of the unobserved DOFs) below which a mode is flagged.
 MIN_MARGIN = 5.0
 #: Posterior std, relative to the nominal value (or to the posterior mean when the nominal is zero), above
 #: which a parameter is reported as poorly determined.
 POORLY_DETERMINED = 0.5
 #: Sweeps discarded at the start of each chain by default (the chains start from zero).
 BURN_IN = 20
-#: The default sampler: full residual covariance, poles linearised about each mode's mean, and the
-#: collapsed Metropolis step. On the twin's own extracted modes it mixes for a hidden effect's few
-#: parameters (R-hat about 1.00) where the paper's configuration gives bimodal chains and biased values;
-#: its 90% intervals are wider than the paper's but still too narrow (60-85% coverage,
-#: benchmarks/results/update_coverage_fmu.md), and weakly determined parameters mix slowly (issue 18).
-CALIBRATED = {"noise_model": "full", "collapsed": True, "pole_model": "linear"}
+#: The default: the errors-in-variables PerCEM with the shapes, perturbations and pole deviations
+#: integrated out, its parameters sampled by HMC (:mod:`twin.update.marginal`); ``noise_model`` and
+#: ``collapsed`` only apply to the Gibbs configurations (``pole_model`` "linear" or "samples"). Where the
+#: Gibbs sampler with a full Δ left weakly determined parameters unmixed (paper Case B: bulk ESS 2 of
+#: 500) and gave 60-85% coverage on FMU data, this one mixes (README, benchmarks/update_speed.py).
+CALIBRATED = {"pole_model": "marginal"}
 #: The reference paper's configuration (its Table 1): diagonal Δ, bases at every pole sample, plain Gibbs.
 PAPER = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
 
@@ -72,10 +75,17 @@ def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, n
     return prior
 
 
-def _warn_margins(problem: Problem, frequency_hz: np.ndarray) -> None:
-    for i in np.flatnonzero(problem.margin < MIN_MARGIN):
+def _warn_margins(problem: Problem, frequency_hz: np.ndarray, n_samples: int, marginal: bool) -> None:
+    """Warn of modes within :data:`MIN_MARGIN` spreads of a resonance of the unobserved DOFs.
+
+    The spread is the pole samples' std for the Gibbs pole models, which evaluate the condensed model at
+    (or linearise it over) the samples, and the mean pole's standard error for the marginal model.
+    """
+    margin, unit = (problem.margin * np.sqrt(n_samples), "mean-pole standard errors") if marginal else \
+        (problem.margin, "pole-sample stds")  # fmt: skip
+    for i in np.flatnonzero(margin < MIN_MARGIN):
         warnings.warn(
-            f"mode {problem.modes[i]} ({frequency_hz[i]:.2f} Hz) lies {problem.margin[i]:.1f} pole-sample stds from "
+            f"mode {problem.modes[i]} ({frequency_hz[i]:.2f} Hz) lies {margin[i]:.1f} {unit} from "
             f"a resonance of the unobserved DOFs ({problem.resonance_hz[i]:.2f} Hz): the condensed model is "
             "ill-conditioned there and this mode's parameters are unreliable",
             TwinWarning, stacklevel=3,
@@ -107,10 +117,11 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
         {
             "lp": (("chain", "draw"), chains.lp, {"long_name": "log joint density, up to a constant"}),
             "noise_variance": (("chain", "draw", "mode"), chains.noise,
-                               {"long_name": "mean of the residual variances Δ_i (relative units)"}),
+                               {"long_name": "mean variance of a row of the condensed residual: Δ_i (Gibbs) or "
+                                             "V_i (marginal model) (relative units)"}),
             "accepted": (("chain", "draw"), chains.accepted,
-                         {"long_name": "whether the collapsed Metropolis step moved the parameters "
-                                       "(all false when the sampler is plain Gibbs)"}),
+                         {"long_name": "whether the collapsed Metropolis step (Gibbs) or the HMC trajectory "
+                                       "moved the parameters (all false when the sampler is plain Gibbs)"}),
         },  # fmt: skip
         coords={**coords, **mode_coord},
     )
@@ -144,15 +155,20 @@ def update(
     seed: int | None = None,
     priors: Mapping[str, tuple[float, float]] | None = None,
     eps_std: float = 1e-6,
-    noise_model: str = CALIBRATED["noise_model"],
-    collapsed: bool = CALIBRATED["collapsed"],
+    noise_model: str = "full",
+    collapsed: bool = True,
     pole_model: str = CALIBRATED["pole_model"],
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
     tasks: Any = None,
 ) -> xr.DataTree:
-    """Bayesian updating of a model from modal samples by the APerCEM Gibbs sampler.
+    """Bayesian updating of a model from modal samples with the APerCEM (perturbed condensed eigen-model).
+
+    By default the shapes, the perturbations and the pole deviations are
+    integrated out and the parameters sampled by HMC on their marginal
+    (:mod:`twin.update.marginal`); ``pole_model="linear"`` or ``"samples"``
+    give the Gibbs sampler (``**twin.update.PAPER``: the paper's).
 
     Parameters
     ----------
@@ -166,7 +182,9 @@ def update(
         Also update the per-mode FSI added mass and damping on the immersed region.
     draws, chains, burn_in : int
         Kept draws per chain, number of chains, discarded sweeps per chain.
-        Every chain starts from zero parameters.
+        Every Gibbs chain starts from zero parameters; every HMC chain from a
+        draw about the posterior mode, after at least
+        :data:`twin.update.marginal.WARMUP` warm-up iterations.
     seed : int, optional
         Seed of the chains.
     priors : mapping, optional
@@ -175,22 +193,20 @@ def update(
         σ of the perturbation ε of the condensed eigen-equation, relative to
         the dynamic stiffness.
     noise_model : {"full", "diagonal"}
-        Covariance of the residual realisations ``Δ_i``: a full matrix
-        (inverse-Wishart; the default), which accounts for rows correlated by
-        the pole noise and gives better calibrated intervals, or diagonal (the
-        paper's model; ``benchmarks/update_cases.py`` compares them).
+        Gibbs sampler only: covariance of the residual realisations ``Δ_i``,
+        a full matrix (inverse-Wishart), which accounts for rows correlated by
+        the pole noise, or diagonal (the paper's model).
     collapsed : bool
-        Add to every sweep a Metropolis step of the parameters on their
-        marginal with the shapes integrated out (:mod:`twin.update.collapsed`;
-        the default): 4 to 5 times the cost of a sweep, but the chains no
-        longer crawl along the parameter-shape ridge.
-    pole_model : {"linear", "samples"}
+        Gibbs sampler only: add to every sweep a Metropolis step of the
+        parameters on their marginal with the shapes integrated out
+        (:mod:`twin.update.collapsed`).
+    pole_model : {"marginal", "linear", "samples"}
         How the pole samples enter the condensed eigen-model
-        (:mod:`twin.update.poles`): linearised about each mode's mean pole (the
-        default), which removes the bias the model's curvature in the pole
-        puts into the residuals of modes near a resonance of the unobserved
-        DOFs, or the basis matrices at every sample (the paper's).
-        ``**twin.update.PAPER`` gives the paper's sampler in all three.
+        (:mod:`twin.update.poles`): through the mean pole and its covariance,
+        the pole deviation integrated out with the shapes, sampled by HMC (the
+        default); or, for the Gibbs sampler, linearised about each mode's mean
+        pole, or the basis matrices at every sample (the paper's).
+        ``**twin.update.PAPER`` gives the paper's sampler.
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -232,12 +248,21 @@ def update(
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, pole_model=pole_model, source=source)
     prior = _prior(problem, priors, noise_model)
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
-    _warn_margins(problem, frequency)
-    bad = not_identifiable(problem, initial_state(problem))
+    _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
+    if pole_model == "marginal":
+        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values)
+        bad = weak_parameters(problem.parameter_labels, marginal_precision(marg))
+    else:
+        bad = not_identifiable(problem, initial_state(problem))
     if bad:
         raise UpdateError(f"the data cannot determine these parameters (singular conditional): {', '.join(bad)}")
-    result = stack(run_chains(problem, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress,
-                                  tasks=tasks, collapsed=collapsed))  # fmt: skip
+    if pole_model == "marginal":
+        chains_out = run_marginal(marg, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress,
+                                  tasks=tasks)  # fmt: skip
+    else:
+        chains_out = run_chains(problem, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress,
+                                tasks=tasks, collapsed=collapsed)  # fmt: skip
+    result = stack(chains_out)
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
@@ -252,8 +277,7 @@ def update(
         "settings": json.dumps(settings),
         "condensation": problem.method,
         "effects": json.dumps([effect_label(e) for e in model.effects]),
-        "sampler": "Gibbs: t | rest, eta_i | rest, " + ("Metropolis (t, eta) | Delta with (psi, eps) integrated "
-                   "out, " if collapsed else "") + "(psi_i, eps_i) | rest, Delta_i | rest (closed form)",
+        "sampler": _sampler_text(pole_model, collapsed),
         "elapsed_s": elapsed,
     }
     if "truth" in modes.attrs:
@@ -266,6 +290,14 @@ def update(
         write_posterior(tree, output)
     log.info("updated %d parameters in %.1f s (%d chains x %d draws)", table.sizes["parameter"], elapsed, chains, draws)
     return tree
+
+
+def _sampler_text(pole_model: str, collapsed: bool) -> str:
+    if pole_model == "marginal":
+        return ("HMC on the marginal of (t, eta), with (psi, eps) and the pole deviations integrated out "
+                "(errors-in-variables PerCEM, Student t per mode); then psi | t, eta (closed form)")  # fmt: skip
+    return "Gibbs: t | rest, eta_i | rest, " + ("Metropolis (t, eta) | Delta with (psi, eps) integrated out, "
+            if collapsed else "") + "(psi_i, eps_i) | rest, Delta_i | rest (closed form)"  # fmt: skip
 
 
 def _warn_diagnostics(table: xr.Dataset, problem: Problem) -> None:

@@ -215,8 +215,11 @@ def not_identifiable(problem: Problem, state: State) -> list[str]:
     share in a near-null direction (eigenvalue ratio below
     :data:`SINGULAR_RATIO`), is named.
     """
-    names = problem.parameter_labels
-    P = parameter_precision(problem, state)
+    return weak_parameters(problem.parameter_labels, parameter_precision(problem, state))
+
+
+def weak_parameters(names: Sequence[str], P: np.ndarray) -> list[str]:
+    """Names of the parameters a precision matrix ``P`` leaves undetermined (see :func:`not_identifiable`)."""
     diag = np.diag(P).copy()
     dead = [names[k] for k in np.flatnonzero(diag <= 0)]
     if dead:

@@ -23,6 +23,14 @@ mode (:data:`POLE_MODELS`):
     ``Δ_i``, is the pole covariance carried through ``∂H/∂λ``. The mean pole
     is within ``std/√J`` of the truth, where the condensed model is close to
     linear. It needs five condensations per mode instead of ``J``.
+``marginal`` (the default of :func:`twin.update.update`)
+    The errors-in-variables model itself: one residual per mode, at the mean
+    pole, and the mean pole's deviation from the true pole a latent Gaussian
+    with the covariance of the mean (the pole samples' covariance over
+    ``J``), integrated out together with the shapes
+    (:mod:`twin.update.marginal`). The "samples" of the condensed model are
+    then three: the bases at the mean pole and their slopes along ``Re λ``
+    and ``Im λ``.
 
 The derivatives are central differences with step :data:`STEP` times the
 spread of the pole samples.
@@ -39,7 +47,7 @@ from twin.errors import UpdateError
 from twin.update.condense import Condensed, condense
 
 #: Ways the pole samples enter the condensed model (see the module docstring).
-POLE_MODELS = ("samples", "linear")
+POLE_MODELS = ("samples", "linear", "marginal")
 #: Finite-difference step of the pole derivatives, relative to the spread of the pole samples.
 STEP = 0.01
 
@@ -64,7 +72,8 @@ def condense_samples(
 
     Arguments as :func:`twin.update.condense.condense`; ``pole_model`` is one
     of :data:`POLE_MODELS`. The extra parameter-free rows are chosen at the
-    mean pole in both models.
+    mean pole in every model. With ``marginal`` the three "samples" are the
+    bases at the mean pole and their derivatives along ``Re λ`` and ``Im λ``.
 
     Examples
     --------
@@ -90,6 +99,12 @@ def condense_samples(
     h = STEP * (spread if spread > 0 else abs(centre))
     at = centre + np.array([0.0, h, -h, 1j * h, -1j * h])
     c = condense(fixed, bases, observed, at, speed_rad_s, force_latent=force_latent, centre=centre)
+    if pole_model == "marginal":
+
+        def slopes(f: np.ndarray) -> np.ndarray:
+            return np.stack([f[0], (f[1] - f[2]) / (2 * h), (f[3] - f[4]) / (2 * h)])
+
+        return dataclasses.replace(c, R=slopes(c.R), T=slopes(c.T))
     d = (poles - centre)[:, None, None, None]
 
     def linearised(f: np.ndarray) -> np.ndarray:

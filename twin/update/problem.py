@@ -302,10 +302,12 @@ def build_problem(
         Also update the added mass and damping of each mode on the immersed region.
     eps_std : float
         σ of the relative perturbation ``e`` of the condensed eigen-equation.
-    pole_model : {"samples", "linear"}
+    pole_model : {"samples", "linear", "marginal"}
         How the pole samples enter the condensed model: the bases at every
-        sample (the paper's) or linearised about the mean pole
-        (:mod:`twin.update.poles`).
+        sample (the paper's), linearised about the mean pole, or the bases at
+        the mean pole with their two slopes in the pole (the errors-in-variables
+        model of :mod:`twin.update.marginal`; then ``J`` is 3 in ``H0``, while
+        ``psi_hat`` keeps the samples) (:mod:`twin.update.poles`).
     source : str
         Name of the data in messages.
 
@@ -358,6 +360,8 @@ def build_problem(
         R = c.R * scale[None, :, None, None]
         T = c.T * scale[None, :, None, None]
         R_nom = np.einsum("k,jkrc->jrc", t_nom, R)
+        if pole_model == "marginal":  # the bases at the mean pole, then their slopes
+            R_nom = R_nom[:1]
         rho = np.sqrt(np.mean(np.sum(np.abs(R_nom) ** 2, axis=2), axis=0))
         rho = np.where(rho > 0, rho, 1.0)
         rho_bar = float(np.exp(np.mean(np.log(rho))))
@@ -374,7 +378,7 @@ def build_problem(
     var = np.var(psi_hat, axis=1, ddof=1)
     floor = VARIANCE_FLOOR * np.mean(var, axis=1, keepdims=True)
     log.info("updating %d shared and %d per-mode parameters from %d modes x %d samples (%s, %d rows)",
-             len(params), len(fsi_bases), H.shape[0], H.shape[2], method, H.shape[3])  # fmt: skip
+             len(params), len(fsi_bases), H.shape[0], poles.shape[1], method, H.shape[3])  # fmt: skip
     return Problem(
         H0=np.ascontiguousarray(H[:, 0]), blocks=blocks, data_index=data_index, eps_index=eps_index, psi_hat=psi_hat, psi_var=np.maximum(var, floor),
         global_names=params, global_scale=global_scale, global_nominal=global_nominal,

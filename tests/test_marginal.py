@@ -1,0 +1,86 @@
+"""twin.update.marginal: the errors-in-variables PerCEM marginal and its HMC sampler."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from twin.errors import TwinWarning
+from twin.fem.truthfile import PAPER_TABLE2
+from twin.update import summary, synthesize_modes, update
+from twin.update.marginal import log_density, marginal_problem, posterior_mode, residual_moments, run_chain
+from twin.update.problem import build_problem, select_parameters
+
+
+@pytest.fixture(scope="module")
+def small(hydro_unit):
+    """Modes 3, 4 and 10 of paper-style data, J = 30: the LGB stiffnesses and per-mode FSI."""
+    data = synthesize_modes(hydro_unit, samples=30, seed=7).isel(mode=[2, 3, 9])
+    problem = build_problem(hydro_unit, data, select_parameters(hydro_unit, "LGB.k*"), fsi=True, pole_model="marginal")
+    return marginal_problem(problem, data["pole"].values), data
+
+
+def test_residual_covariance_is_that_of_the_shape_and_pole_errors(small):
+    # V_i is the covariance of H_i z + B_i δ for z ~ N(μ_i, Λ_i) and δ ~ N(0, C_i): checked by drawing them
+    marg, _ = small
+    p = marg.problem
+    theta = np.random.default_rng(1).normal(0.0, 0.3, marg.size)
+    m, V, H, B = residual_moments(marg, theta)
+    rng = np.random.default_rng(2)
+    n = 40000
+    for i in range(p.n_modes):
+        z = marg.mean_z[i] + np.sqrt(marg.var_z[i]) * rng.standard_normal((n, marg.var_z.shape[1]))
+        d = rng.multivariate_normal(np.zeros(2), marg.pole_cov[i], size=n)
+        r = z @ H[i].T + d @ B[i].T
+        np.testing.assert_allclose(r.mean(axis=0), m[i], atol=4 * np.sqrt(np.diag(V[i]).max() / n))
+        scale = np.sqrt(np.outer(np.diag(V[i]), np.diag(V[i])))
+        np.testing.assert_allclose(np.cov(r.T) / scale, V[i] / scale, atol=0.03)
+
+
+@pytest.mark.parametrize("nu", [5.0, np.inf])
+def test_gradient_matches_finite_differences(small, nu):
+    marg, _ = small
+    rng = np.random.default_rng(3)
+    theta = rng.normal(0.0, 0.3, marg.size)
+    mean, prec = rng.normal(size=marg.size), rng.uniform(0.0, 2.0, marg.size)
+    d = log_density(marg, theta, mean, prec, nu)
+    for k in range(marg.size):
+        h = 1e-4 * max(1.0, abs(theta[k]))
+        e = np.zeros(marg.size)
+        e[k] = h
+        fd = (log_density(marg, theta + e, mean, prec, nu).log_p - log_density(marg, theta - e, mean, prec, nu).log_p)
+        assert fd / (2 * h) == pytest.approx(d.gradient[k], rel=1e-4, abs=1e-6 * np.abs(d.gradient).max())
+
+
+def test_mode_is_a_stationary_point_and_the_chain_samples_about_it(small):
+    marg, _ = small
+    zero = np.zeros(marg.size)
+    theta, at = posterior_mode(marg, zero, zero)
+    std = np.sqrt(np.diag(np.linalg.inv(at.precision)))
+    assert np.all(np.abs(at.gradient) * std < 1e-3)  # within 1e-3 posterior std of the exact mode
+    chain = run_chain(marg, 400, rng=np.random.default_rng(4))
+    x = np.concatenate([chain.t, chain.eta.reshape(400, -1)], axis=1)
+    assert 0.6 < chain.accepted.mean() < 1.0
+    # where the data determine a parameter well (Laplace std < 10% of its scale) the posterior is close to
+    # the Gaussian at the mode: the draws' spread is its std within the Monte Carlo error of 400 draws
+    sharp = std < 0.1
+    assert sharp.sum() >= 6
+    np.testing.assert_allclose(x[:, sharp].std(axis=0) / std[sharp], 1.0, atol=0.25)
+    assert np.all(np.abs(x[:, sharp].mean(axis=0) - theta[sharp]) < 0.3 * std[sharp])
+    # LGB.kxx and LGB.kyy from three modes are barely determined (std about 100%): the chain still spreads
+    # over their (non-Gaussian) posterior instead of sticking
+    assert np.all(x[:, ~sharp].std(axis=0) > 0.5 * std[~sharp])
+
+
+def test_zero_noise_limit_is_the_exact_answer(hydro_unit):
+    data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        tree = update(hydro_unit, data, "bearings", fsi=True, draws=30, chains=1, seed=0, eps_std=1e-9,
+                      progress=False)  # fmt: skip
+    truth = {n: hydro_unit.parameter(n).nominal for n in select_parameters(hydro_unit, "bearings")}
+    for i, (m, c) in enumerate(zip(PAPER_TABLE2.added_mass, PAPER_TABLE2.added_damping), start=1):
+        truth[f"FSI.added_mass_{i}"], truth[f"FSI.added_damping_{i}"] = m, c
+    table = summary(tree["posterior"].to_dataset(), truth)
+    assert table.sizes["parameter"] == 46
+    np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)

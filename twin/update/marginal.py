@@ -1,0 +1,428 @@
+"""The errors-in-variables PerCEM: the parameters' marginal posterior, sampled by HMC.
+
+The data of mode ``i`` are its mean pole ``λ̄_i`` with the covariance ``C_i``
+of that mean (the pole samples' covariance over ``J``) and its mean shape
+``ψ̄_i`` with the variance ``Σ_i / J`` of each real entry. The true pole is
+``λ̄_i + δ_i`` and the true shape ``ψ_i``; with the condensed eigen-model
+linearised in the pole (:mod:`twin.update.poles`, ``marginal``) the
+equation they satisfy is
+
+    H_i(θ) z_i + B_i(θ) δ_i = 0,   z_i = (ψ_i, ε_i),   B_i = [∂H_i/∂Re λ z_i, ∂H_i/∂Im λ z_i].
+
+With ``z_i ~ N(μ_i, Λ_i)`` (``ψ̄_i`` and ``Σ_i / J``; ``ε_i`` about zero
+with variance ``σ²``) and ``δ_i ~ N(0, C_i)``, and ``B_i`` taken at ``μ_i``
+(the neglected term is the product of two estimation errors), ``z_i`` and
+``δ_i`` integrate out in closed form: the residual at the data,
+``m_i(θ) = H_i(θ) μ_i``, is ``N(0, V_i(θ))`` with
+
+    V_i(θ) = H_i(θ) Λ_i H_i(θ)ᵀ + B_i(θ) C_i B_i(θ)ᵀ.
+
+This is the likelihood a Fisher analysis of poles and shapes assumes
+(:mod:`twin.design.identify`): no residual noise to learn, so none of the
+Gibbs sampler's ``Δ``, whose full version was set by the prior in all but
+two directions when ``J`` is small and followed the parameters, which is
+what kept weakly determined parameters from mixing (issue 18).
+
+The covariances are estimated from ``J`` samples and the model is linear in
+the pole only to first order, so a mode's residual is heavier-tailed than
+the Gaussian: each mode enters through a multivariate Student t with
+:data:`STUDENT_DOF` degrees of freedom, ``log p_i = −(ν + n_r)/2 log(1 +
+m_iᵀ V_i⁻¹ m_i / ν) − ½ log |V_i|``. A mode that agrees with the model weighs
+as under the Gaussian; one whose residual is far out weighs less.
+
+The parameters ``θ = (t, η)`` are sampled by Hamiltonian Monte Carlo with
+the exact gradient, the Gauss-Newton precision at the posterior mode as mass
+matrix, a jittered path length and the step size tuned in the warm-up
+(dual averaging). Each kept draw is followed by the closed-form draw of the
+shapes given ``θ``, so the output has the same latent shapes as the Gibbs
+sampler's.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin.progress import bar
+from twin.tasks import mapper, one_blas_thread
+from twin.update.algebra import combined, design, joint_parameters
+from twin.update.problem import Problem, UpdateError
+
+log = logging.getLogger(__name__)
+
+#: Degrees of freedom of each mode's multivariate Student t (see the module docstring).
+STUDENT_DOF = 5.0
+#: Warm-up iterations at least (the step size is tuned there); ``burn_in`` may ask for more.
+WARMUP = 150
+#: Mean path length of a trajectory in the whitened parameters (jittered by ±50%).
+PATH_LENGTH = 2.0
+#: Acceptance rate the step size is tuned to.
+TARGET_ACCEPT = 0.8
+#: Most steps of each kind on the way to the posterior mode (see :func:`posterior_mode`).
+NEWTON_STEPS = 50
+#: Newton decrement ``gᵀ S⁻¹ g`` at which the search for the posterior mode stops.
+MODE_TOLERANCE = 1e-10
+
+
+@dataclass(frozen=True)
+class Marginal:
+    """A :class:`Problem` built with ``pole_model="marginal"`` and the moments of its data.
+
+    Attributes
+    ----------
+    problem : Problem
+        ``H0`` and the blocks hold three "samples" per mode: the bases at the
+        mean pole and their slopes along ``Re λ`` and ``Im λ``.
+    pole_cov : (I, 2, 2)
+        Covariance of each mean pole ``[Re, Im]``.
+    mean_z, var_z : (I, n_z)
+        Prior mean and variance of ``z = (ψ, ε)``.
+    columns : (I, 1 + K, 3, n_r)
+        ``H_k μ`` for each basis ``k`` and "sample" (value, two slopes).
+    bases : (I, K, n_r, n_z)
+        The parameters' bases at the mean pole, dense.
+    """
+
+    problem: Problem
+    pole_cov: np.ndarray
+    mean_z: np.ndarray
+    var_z: np.ndarray
+    columns: np.ndarray
+    bases: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of sampled parameters ``Kg + I Km``."""
+        p = self.problem
+        return p.n_global + p.n_modes * p.n_per_mode
+
+
+def marginal_problem(problem: Problem, poles: np.ndarray) -> Marginal:
+    """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes
+    >>> from twin.update.problem import build_problem
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3])
+    >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
+    >>> marg.pole_cov.shape, marg.size
+    ((2, 2, 2), 4)
+    """
+    I, three, n_r, n_z = problem.H0.shape
+    if three != 3:
+        raise UpdateError("the marginal model needs a problem built with pole_model='marginal'")
+    latent = np.setdiff1d(np.arange(n_z), np.concatenate([problem.data_index, problem.eps_index]))
+    if latent.size:
+        raise UpdateError("the marginal pole model needs the stage-2 condensation, but this sensor layout leaves "
+                          "unobserved parametrised DOFs as latent shape entries; use pole_model='linear'")  # fmt: skip
+    poles = np.asarray(poles, dtype=complex)
+    J = poles.shape[1]
+    d = np.stack([poles.real, poles.imag], axis=-1)
+    d -= d.mean(axis=1, keepdims=True)
+    pole_cov = np.einsum("ija,ijb->iab", d, d) / (J - 1) / J
+    mean_z, var_z = np.zeros((I, n_z)), np.zeros((I, n_z))
+    mean_z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
+    var_z[:, problem.data_index] = problem.psi_var / J
+    var_z[:, problem.eps_index] = problem.eps_std**2
+    K = problem.n_global + problem.n_per_mode
+    bases = np.zeros((I, K, n_r, n_z))
+    for b in problem.blocks:
+        for a, k in enumerate(b.columns):
+            bases[:, k][:, b.rows] = b.H[:, a, 0]
+    columns = design(problem, mean_z).reshape(I, 1 + K, 3, n_r)
+    return Marginal(problem, pole_cov, mean_z, var_z, columns, bases)
+
+
+@dataclass(frozen=True)
+class Density:
+    """The log marginal density at ``θ`` (up to a constant), its gradient and the Gauss-Newton precision."""
+
+    log_p: float
+    gradient: np.ndarray
+    precision: np.ndarray
+    residual_variance: np.ndarray  # (I,): mean diagonal of V_i
+    newton_step: np.ndarray  # Gauss-Newton step (V_i held at θ): precision⁻¹ times the residual's share of the gradient
+
+
+def _coefficients(problem: Problem, theta: np.ndarray) -> np.ndarray:
+    """``c_i = [1, t, η_i]`` of every mode for the flat ``θ = [t, η_1, ..., η_I]``: (I, 1 + K)."""
+    I, Kg = problem.n_modes, problem.n_global
+    t, eta = theta[:Kg], theta[Kg:].reshape(I, problem.n_per_mode)
+    return np.concatenate([np.ones((I, 1)), np.broadcast_to(t, (I, Kg)), eta], axis=1)
+
+
+def residual_moments(marg: Marginal, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``m_i``, ``V_i``, ``H_i`` and ``B_i`` at ``θ`` (see the module docstring)."""
+    p = marg.problem
+    I, _, n_r, n_z = p.H0.shape
+    c = _coefficients(p, theta)
+    H = combined(p, c).reshape(I, 3, n_r, n_z)[:, 0]
+    mc = np.einsum("ik,ikjr->ijr", c, marg.columns)
+    m, B = mc[:, 0], np.swapaxes(mc[:, 1:], 1, 2)
+    V = (H * marg.var_z[:, None, :]) @ np.swapaxes(H, 1, 2) + B @ marg.pole_cov @ np.swapaxes(B, 1, 2)
+    return m, V, H, B
+
+
+def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
+                prior_precision: np.ndarray | None = None, nu: float = STUDENT_DOF) -> Density:  # fmt: skip
+    """Log marginal posterior of the scaled parameters ``θ = [t, η_1, ..., η_I]``, its gradient and GN precision.
+
+    ``nu`` is each mode's Student t degrees of freedom (``inf``: Gaussian).
+    Raises ``numpy.linalg.LinAlgError`` where a ``V_i`` is not positive definite.
+
+    Examples
+    --------
+    The density is highest near the truth of paper-style data (modes 3, 4 and 10, their FSI):
+
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes
+    >>> from twin.update.problem import build_problem
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3, 9])
+    >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
+    >>> truth = np.array([7.80e4, 9.99e5, 6.09e4, 7.92e6, 4.87e4, 1.64e7]) / marg.problem.mode_scale.ravel()
+    >>> bool(log_density(marg, truth).log_p > log_density(marg, 1.1 * truth).log_p)
+    True
+    """
+    p = marg.problem
+    I, _, n_r, n_z = p.H0.shape
+    m, V, H, B = residual_moments(marg, theta)
+    L = np.linalg.cholesky(V)
+    Vinv = np.linalg.inv(V)
+    y = np.einsum("irs,is->ir", Vinv, m)
+    q = np.einsum("ir,ir->i", m, y)
+    logdet = np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1)
+    if np.isfinite(nu):
+        log_p = float(np.sum(-0.5 * (nu + n_r) * np.log1p(q / nu) - logdet))
+        weight = (nu + n_r) / (nu + q)
+    else:
+        log_p = float(np.sum(-0.5 * q - logdet))
+        weight = np.ones(I)
+    A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
+    dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
+    LH = marg.var_z[:, :, None] * np.swapaxes(H, 1, 2)  # Λ Hᵀ: (I, n_z, n_r)
+    quadratic = (-np.einsum("ikr,ir->ik", A, y)
+                 + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
+                 + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y)))  # fmt: skip
+    trace = (np.einsum("ikrz,izr->ik", marg.bases, LH @ Vinv)
+             + np.einsum("ikra,ira->ik", dB, Vinv @ B @ marg.pole_cov))  # fmt: skip
+    grad_blocks = weight[:, None] * quadratic - trace
+    F = weight[:, None, None] * (A @ np.einsum("irs,iks->irk", Vinv, A))
+    precision, gradient = joint_parameters(p, F, grad_blocks)
+    gn = joint_parameters(p, F, -weight[:, None] * np.einsum("ikr,ir->ik", A, y))[1]
+    if prior_precision is not None:
+        precision[np.diag_indices_from(precision)] += prior_precision
+        gradient -= prior_precision * (theta - prior_mean)
+        gn -= prior_precision * (theta - prior_mean)
+        log_p -= 0.5 * float(np.sum(prior_precision * (theta - prior_mean) ** 2))
+    return Density(log_p, gradient, precision, np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1),
+                   np.linalg.solve(precision, gn))
+
+
+def nominal(problem: Problem) -> np.ndarray:
+    """The model's values of the parameters, scaled: ``[t, η_1, ..., η_I]``."""
+    return np.concatenate([problem.global_nominal / problem.global_scale,
+                           (problem.mode_nominal / problem.mode_scale).ravel()])  # fmt: skip
+
+
+def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.ndarray,
+                   nu: float = STUDENT_DOF) -> tuple[np.ndarray, Density]:  # fmt: skip
+    """The posterior mode of the scaled parameters, from their nominal values; and the density there.
+
+    First Gauss-Newton steps that hold each ``V_i`` at the current ``θ``
+    (iteratively reweighted least squares; far from the mode the exact
+    gradient's ``log |V_i|`` term points away from it), then quasi-Newton
+    steps on the exact gradient with the Gauss-Newton precision. Each step is
+    halved until the density rises.
+    """
+    theta = nominal(marg.problem)
+    try:
+        here = log_density(marg, theta, prior_mean, prior_precision, nu)
+    except np.linalg.LinAlgError:
+        raise UpdateError("the residual covariance of the marginal model is singular at the nominal "
+                          "parameters (a mode without shape or pole scatter?)") from None  # fmt: skip
+    for exact in (False, True):
+        for _ in range(NEWTON_STEPS):
+            step = np.linalg.solve(here.precision, here.gradient) if exact else here.newton_step
+            if exact and here.gradient @ step < MODE_TOLERANCE:  # Newton decrement: the rise left to gain
+                break
+            moved = _line_search(marg, theta, here, step, prior_mean, prior_precision, nu)
+            if moved is None:
+                break
+            rise = moved[1].log_p - here.log_p
+            theta, here = moved
+            if not exact and rise < 1e-6:
+                break
+    return theta, here
+
+
+def _line_search(marg: Marginal, theta: np.ndarray, here: Density, step: np.ndarray, prior_mean: np.ndarray,
+                 prior_precision: np.ndarray, nu: float) -> tuple[np.ndarray, Density] | None:  # fmt: skip
+    """``θ + step``, halved up to 30 times until the density does not fall; None if it always does."""
+    for _ in range(30):
+        try:
+            there = log_density(marg, theta + step, prior_mean, prior_precision, nu)
+        except np.linalg.LinAlgError:
+            step = step / 2
+            continue
+        if there.log_p >= here.log_p:
+            return theta + step, there
+        step = step / 2
+    return None
+
+
+def shape_draw(marg: Marginal, theta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A draw of the real-augmented shapes ``ψ_i | θ`` (I, n_psi), from their Gaussian given the residual."""
+    p = marg.problem
+    m, V, H, B = residual_moments(marg, theta)
+    idx = p.data_index
+    Hp = H[:, :, idx]
+    lam = marg.var_z[:, idx]
+    K = np.linalg.solve(V, Hp * lam[:, None, :])  # V⁻¹ H_ψ Λ_ψ: (I, n_r, n_psi)
+    mean = marg.mean_z[:, idx] - np.einsum("irp,ir->ip", K, m)
+    cov = lam[:, :, None] * np.eye(len(idx)) - np.swapaxes(Hp * lam[:, None, :], 1, 2) @ K
+    w, U = np.linalg.eigh(0.5 * (cov + np.swapaxes(cov, 1, 2)))
+    xi = rng.standard_normal(mean.shape) * np.sqrt(np.maximum(w, 0.0))
+    return mean + np.einsum("ipq,iq->ip", U, xi)
+
+
+@one_blas_thread
+def run_chain(
+    marg: Marginal,
+    draws: int,
+    *,
+    burn_in: int = 0,
+    prior_mean: np.ndarray | None = None,
+    prior_precision: np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
+    progress: bool = False,
+    label: str = "HMC",
+    nu: float = STUDENT_DOF,
+):
+    """One HMC chain on the marginal: ``max(burn_in, WARMUP)`` warm-up iterations, then ``draws`` kept.
+
+    The chain starts from a draw of the Gaussian at the posterior mode.
+    Returns a :class:`twin.update.gibbs.Chain` (``noise`` is the mean
+    residual variance ``diag V_i``, ``accepted`` whether the trajectory was
+    accepted).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes
+    >>> from twin.update.problem import build_problem
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3])
+    >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
+    >>> chain = run_chain(marg, 100, rng=np.random.default_rng(0))
+    >>> mass = chain.eta[:, :, 0] * marg.problem.mode_scale[:, 0]
+    >>> np.round(np.median(mass, axis=0) / [7.80e4, 6.09e4], 1)   # paper Table 2, modes 3 and 4
+    array([1., 1.])
+    """
+    from twin.update.gibbs import Chain  # gibbs imports this module for update's dispatch
+
+    rng = rng or np.random.default_rng()
+    p = marg.problem
+    n = marg.size
+    prior_mean = np.zeros(n) if prior_mean is None else prior_mean
+    prior_precision = np.zeros(n) if prior_precision is None else prior_precision
+    mode, at_mode = posterior_mode(marg, prior_mean, prior_precision, nu)
+    Lm = np.linalg.cholesky(at_mode.precision)  # mass matrix: whitened y = Lmᵀ θ
+
+    def evaluate(y: np.ndarray) -> tuple[Density | None, np.ndarray]:
+        theta = np.linalg.solve(Lm.T, y)
+        try:
+            d = log_density(marg, theta, prior_mean, prior_precision, nu)
+        except np.linalg.LinAlgError:
+            return None, theta
+        return (d if np.isfinite(d.log_p) else None), theta
+
+    y = Lm.T @ mode + rng.standard_normal(n)
+    here, theta = evaluate(y)
+    if here is None:
+        y, (here, theta) = Lm.T @ mode, evaluate(Lm.T @ mode)
+    g = np.linalg.solve(Lm, here.gradient)
+    warm = max(burn_in, WARMUP)
+    eps, log_eps_bar, h_bar, mu = 0.5, 0.0, 0.0, np.log(5.0)
+    out = np.empty((draws, n))
+    psi = np.empty((draws, p.n_modes, len(p.data_index)))
+    noise, lps, accepted = np.empty((draws, p.n_modes)), np.empty(draws), np.zeros(draws, bool)
+    for it in bar(range(warm + draws), desc=label, progress=progress, leave=False):
+        steps = max(1, int(np.ceil(rng.uniform(0.5, 1.5) * PATH_LENGTH / eps)))
+        mom = rng.standard_normal(n)
+        h0 = -here.log_p + 0.5 * mom @ mom
+        yn, gn, pn, new = y.copy(), g, mom + 0.5 * eps * g, None
+        for s in range(steps):
+            yn = yn + eps * pn
+            new, theta_n = evaluate(yn)
+            if new is None:
+                break
+            gn = np.linalg.solve(Lm, new.gradient)
+            pn = pn + (eps if s < steps - 1 else 0.5 * eps) * gn
+        a = 0.0 if new is None else float(min(1.0, np.exp(h0 - (-new.log_p + 0.5 * pn @ pn))))
+        moved = rng.uniform() < a
+        if moved:
+            y, g, here, theta = yn, gn, new, theta_n
+        if it < warm:  # dual averaging (Hoffman and Gelman 2014)
+            k = it + 1
+            h_bar += ((TARGET_ACCEPT - a) - h_bar) / (k + 10)
+            log_eps = mu - np.sqrt(k) / 0.05 * h_bar
+            log_eps_bar = k**-0.75 * log_eps + (1 - k**-0.75) * log_eps_bar
+            eps = float(np.exp(log_eps if k < warm else log_eps_bar))
+            continue
+        j = it - warm
+        out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
+        psi[j] = shape_draw(marg, theta, rng)
+    Kg = p.n_global
+    return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted)
+
+
+def run_chains(
+    marg: Marginal,
+    draws: int,
+    chains: int,
+    *,
+    burn_in: int = 0,
+    prior: Any = None,
+    seed: int | None = None,
+    progress: bool = False,
+    tasks: Any = None,
+) -> list:
+    """Independent HMC chains (seeds spawned from ``seed``), each from its own draw about the posterior mode.
+
+    ``prior`` is a :class:`twin.update.gibbs.Prior` (its Gaussian parameter
+    priors are used; the marginal model has no ``Δ``). ``tasks`` says where
+    the chains run (:func:`twin.tasks.mapper`); the chains do not depend on it.
+    """
+    mean = precision = None
+    if prior is not None:
+        mean = np.concatenate([prior.global_mean, prior.mode_mean.ravel()])
+        precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
+    seeds = np.random.SeedSequence(seed).spawn(chains)
+    jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
+    return mapper(tasks, progress=progress, desc="chains")(
+        _chain_task, jobs, marg=marg, draws=draws, burn_in=burn_in, mean=mean, precision=precision,
+        progress=progress and tasks is None,
+    )  # fmt: skip
+
+
+def _chain_task(job: tuple[np.random.SeedSequence, str], marg: Marginal, draws: int, burn_in: int,
+                mean: np.ndarray | None, precision: np.ndarray | None, progress: bool):  # fmt: skip
+    seed, label = job
+    return run_chain(marg, draws, burn_in=burn_in, prior_mean=mean, prior_precision=precision,
+                     rng=np.random.default_rng(seed), progress=progress, label=label)  # fmt: skip
+
+
+def marginal_precision(marg: Marginal) -> np.ndarray:
+    """The Gauss-Newton precision of the parameters at their nominal values (for the identifiability check)."""
+    try:
+        return log_density(marg, nominal(marg.problem)).precision
+    except np.linalg.LinAlgError:
+        raise UpdateError("the residual covariance of the marginal model is singular at the nominal "
+                          "parameters (a mode without shape or pole scatter?)") from None  # fmt: skip
