@@ -62,10 +62,12 @@ def test_mode_is_a_stationary_point_and_the_chain_samples_about_it(small):
     x = np.concatenate([chain.t, chain.eta.reshape(400, -1)], axis=1)
     assert 0.6 < chain.accepted.mean() < 1.0
     # where the data determine a parameter well (Laplace std < 10% of its scale) the posterior is close to
-    # the Gaussian at the mode: the draws' spread is its std within the Monte Carlo error of 400 draws
+    # the Gaussian at the mode, a little wider: each mode's Student t carries less information than the
+    # Gauss-Newton curvature (3 chains of 2000 draws: 1.08-1.27 times its std); 400 draws add about 10%
     sharp = std < 0.1
     assert sharp.sum() >= 6
-    np.testing.assert_allclose(x[:, sharp].std(axis=0) / std[sharp], 1.0, atol=0.25)
+    ratio = x[:, sharp].std(axis=0) / std[sharp]
+    assert np.all((ratio > 0.85) & (ratio < 1.5)), ratio
     assert np.all(np.abs(x[:, sharp].mean(axis=0) - theta[sharp]) < 0.3 * std[sharp])
     # LGB.kxx and LGB.kyy from three modes are barely determined (std about 100%): the chain still spreads
     # over their (non-Gaussian) posterior instead of sticking
@@ -84,3 +86,24 @@ def test_zero_noise_limit_is_the_exact_answer(hydro_unit):
     table = summary(tree["posterior"].to_dataset(), truth)
     assert table.sizes["parameter"] == 46
     np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
+
+
+def test_default_mixes_every_case_b_parameter(hydro_unit, paper_modes):
+    # paper Case B (16 bearings, 30 FSI parameters, J = 100): the Gibbs default left LGB.kxy and mode 13's
+    # FSI at bulk ESS 2 of 500; on the marginal every parameter mixes, and the determined ones have the
+    # paper's accuracy (about 1-3%; 4% allows for the Monte Carlo error of 2 x 500 draws)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        tree = update(hydro_unit, paper_modes, "bearings", fsi=True, draws=500, chains=2, seed=2, progress=False)
+    truth = {n: hydro_unit.parameter(n).nominal for n in select_parameters(hydro_unit, "bearings")}
+    for i, (m, c) in enumerate(zip(PAPER_TABLE2.added_mass, PAPER_TABLE2.added_damping), start=1):
+        truth[f"FSI.added_mass_{i}"], truth[f"FSI.added_damping_{i}"] = m, c
+    table = summary(tree["posterior"].to_dataset(), truth)
+    assert float(table["ess_bulk"].min()) >= 200  # 100 per chain of 500
+    assert float(table["r_hat"].max()) <= 1.02
+    determined = (table["std"] / np.abs(table["truth"])) < 0.02  # (LGB.cxy, std 3.6%: the paper's 20%)
+    assert int(determined.sum()) >= 35
+    assert float(np.abs(table["map_error"].where(determined)).max()) < 0.04
+    assert float(np.abs(table["z_score"]).max()) < 3.5
+    inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
+    assert float(inside.mean()) >= 0.8  # 90% intervals; 46 values

@@ -58,7 +58,7 @@ STUDENT_DOF = 5.0
 #: Warm-up iterations at least (the step size is tuned there); ``burn_in`` may ask for more.
 WARMUP = 150
 #: Mean path length of a trajectory in the whitened parameters (jittered by ±50%).
-PATH_LENGTH = 2.0
+PATH_LENGTH = 3.0
 #: Acceptance rate the step size is tuned to.
 TARGET_ACCEPT = 0.8
 #: Most steps of each kind on the way to the posterior mode (see :func:`posterior_mode`).
