@@ -86,13 +86,17 @@ def joint_parameters(problem: Problem, blocks: np.ndarray, vectors: np.ndarray) 
     """
     I, Kg, Km = problem.n_modes, problem.n_global, problem.n_per_mode
     n = Kg + I * Km
-    A, v = np.zeros((n, n)), np.zeros(n)
+    A = np.zeros((n, n))
     A[:Kg, :Kg] = blocks[:, :Kg, :Kg].sum(axis=0)
-    v[:Kg] = vectors[:, :Kg].sum(axis=0)
     for i in range(I):
         sl = slice(Kg + i * Km, Kg + (i + 1) * Km)
         A[:Kg, sl] = blocks[i, :Kg, Kg:]
         A[sl, :Kg] = blocks[i, Kg:, :Kg]
         A[sl, sl] = blocks[i, Kg:, Kg:]
-        v[sl] = vectors[i, Kg:]
-    return A, v
+    return A, joint_vector(problem, vectors)
+
+
+def joint_vector(problem: Problem, vectors: np.ndarray) -> np.ndarray:
+    """Per-mode ``(K,)`` vectors over ``[t, η_i]`` summed into ``[t, η_1, ..., η_I]`` (see :func:`joint_parameters`)."""
+    Kg = problem.n_global
+    return np.concatenate([vectors[:, :Kg].sum(axis=0), vectors[:, Kg:].ravel()])

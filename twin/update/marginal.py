@@ -48,7 +48,7 @@ import numpy as np
 
 from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
-from twin.update.algebra import combined, design, joint_parameters
+from twin.update.algebra import combined, design, joint_parameters, joint_vector
 from twin.update.problem import Problem, UpdateError
 
 log = logging.getLogger(__name__)
@@ -141,13 +141,17 @@ def marginal_problem(problem: Problem, poles: np.ndarray) -> Marginal:
 
 @dataclass(frozen=True)
 class Density:
-    """The log marginal density at ``θ`` (up to a constant), its gradient and the Gauss-Newton precision."""
+    """The log marginal density at ``θ`` (up to a constant), its gradient and the Gauss-Newton precision.
+
+    ``precision`` and ``newton_step`` (the Gauss-Newton step with each ``V_i`` held at ``θ``) are None
+    when :func:`log_density` was asked for no curvature (the HMC trajectories).
+    """
 
     log_p: float
     gradient: np.ndarray
-    precision: np.ndarray
     residual_variance: np.ndarray  # (I,): mean diagonal of V_i
-    newton_step: np.ndarray  # Gauss-Newton step (V_i held at θ): precision⁻¹ times the residual's share of the gradient
+    precision: np.ndarray | None = None
+    newton_step: np.ndarray | None = None
 
 
 def _coefficients(problem: Problem, theta: np.ndarray) -> np.ndarray:
@@ -170,10 +174,12 @@ def residual_moments(marg: Marginal, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
-                prior_precision: np.ndarray | None = None, nu: float = STUDENT_DOF) -> Density:  # fmt: skip
+                prior_precision: np.ndarray | None = None, nu: float = STUDENT_DOF,
+                curvature: bool = True) -> Density:  # fmt: skip
     """Log marginal posterior of the scaled parameters ``θ = [t, η_1, ..., η_I]``, its gradient and GN precision.
 
-    ``nu`` is each mode's Student t degrees of freedom (``inf``: Gaussian).
+    ``nu`` is each mode's Student t degrees of freedom (``inf``: Gaussian); ``curvature=False`` skips the
+    Gauss-Newton precision and step (a third of the cost, not needed along a trajectory).
     Raises ``numpy.linalg.LinAlgError`` where a ``V_i`` is not positive definite.
 
     Examples
@@ -213,16 +219,19 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     trace = (np.einsum("ikrz,izr->ik", marg.bases, LH @ Vinv)
              + np.einsum("ikra,ira->ik", dB, Vinv @ B @ marg.pole_cov))  # fmt: skip
     grad_blocks = weight[:, None] * quadratic - trace
+    gradient = joint_vector(p, grad_blocks)
+    residual_variance = np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1)
+    if prior_precision is not None:
+        gradient -= prior_precision * (theta - prior_mean)
+        log_p -= 0.5 * float(np.sum(prior_precision * (theta - prior_mean) ** 2))
+    if not curvature:
+        return Density(log_p, gradient, residual_variance)
     F = weight[:, None, None] * (A @ np.einsum("irs,iks->irk", Vinv, A))
-    precision, gradient = joint_parameters(p, F, grad_blocks)
-    gn = joint_parameters(p, F, -weight[:, None] * np.einsum("ikr,ir->ik", A, y))[1]
+    precision, gn = joint_parameters(p, F, -weight[:, None] * np.einsum("ikr,ir->ik", A, y))
     if prior_precision is not None:
         precision[np.diag_indices_from(precision)] += prior_precision
-        gradient -= prior_precision * (theta - prior_mean)
         gn -= prior_precision * (theta - prior_mean)
-        log_p -= 0.5 * float(np.sum(prior_precision * (theta - prior_mean) ** 2))
-    return Density(log_p, gradient, precision, np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1),
-                   np.linalg.solve(precision, gn))
+    return Density(log_p, gradient, residual_variance, precision, np.linalg.solve(precision, gn))
 
 
 def nominal(problem: Problem) -> np.ndarray:
@@ -338,7 +347,7 @@ def run_chain(
     def evaluate(y: np.ndarray) -> tuple[Density | None, np.ndarray]:
         theta = np.linalg.solve(Lm.T, y)
         try:
-            d = log_density(marg, theta, prior_mean, prior_precision, nu)
+            d = log_density(marg, theta, prior_mean, prior_precision, nu, curvature=False)
         except np.linalg.LinAlgError:
             return None, theta
         return (d if np.isfinite(d.log_p) else None), theta
