@@ -20,8 +20,8 @@ from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
-from twin.update.gibbs import (Chain, Prior, check_noise_model, initial_state, not_identifiable, run_chains, stack,
-                               weak_parameters)  # fmt: skip
+from twin.update.gibbs import (NOISE_PRIOR_SHAPE, Chain, Prior, check_noise_model, initial_state, not_identifiable,
+                               run_chains, stack, weak_parameters)  # fmt: skip
 from twin.update.marginal import marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import check_pole_model
@@ -49,13 +49,15 @@ CALIBRATED = {"pole_model": "marginal"}
 PAPER = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
 
 
-def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, noise_model: str = "diagonal") -> Prior:
+def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, noise_model: str = "diagonal",
+           noise_shape: float = NOISE_PRIOR_SHAPE) -> Prior:  # fmt: skip
     """Gaussian priors ``{name: (mean, std)}`` in SI -> scaled precisions; flat elsewhere.
 
     Names: shared parameter names, ``FSI.added_mass`` / ``FSI.added_damping``
-    (every mode) or ``FSI.added_mass_<mode>`` (one mode).
+    (every mode) or ``FSI.added_mass_<mode>`` (one mode). ``noise_shape`` 0 leaves out the prior on
+    the Gibbs sampler's Δ (the marginal model has none, and its three "samples" have no scatter to scale it).
     """
-    prior = Prior.flat(problem, noise_model=noise_model)
+    prior = Prior.flat(problem, noise_shape=noise_shape, noise_model=noise_model)
     for name, (mean, std) in (priors or {}).items():
         if not std > 0:
             raise UpdateError(f"prior of '{name}': the std must be positive, got {std}")
@@ -248,7 +250,7 @@ def update(
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, pole_model=pole_model, source=source)
-    prior = _prior(problem, priors, noise_model)
+    prior = _prior(problem, priors, noise_model, 0.0 if pole_model == "marginal" else NOISE_PRIOR_SHAPE)
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
     if pole_model == "marginal":
