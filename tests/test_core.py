@@ -70,6 +70,15 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     assert len(harmonics) == 1 and harmonics[0]["running_speed_multiple"] == 1
     assert abs(harmonics[0]["frequency_hz"] - 2.25) < 1e-3 and harmonics[0]["kurtosis"] < 2.0
     assert (m.diagram_mode.values == -2).any()
+    # asked to, the extraction subtracts the line before SSI: reported as removed, and SSI never sees it
+    m = extract(ds, samples=20, max_order=40, progress=False, remove_harmonics=True)
+    harmonics = json.loads(m.attrs["harmonics"])
+    assert len(harmonics) == 1 and harmonics[0]["removed"] and harmonics[0]["running_speed_multiple"] == 1
+    assert abs(harmonics[0]["frequency_hz"] - 2.25) < 1e-4
+    assert harmonics[0]["amplitude"] == pytest.approx(40.0, rel=0.02)  # |a| of cos(2 pi f t) Re(a) - sin Im(a)
+    assert not (m.diagram_mode.values == -2).any()
+    for f in (3.1, 7.0):
+        assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
 
 
 def test_shear_frame_reference(shear_frame):

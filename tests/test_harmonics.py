@@ -1,9 +1,10 @@
 """Harmonic recognition: band kurtosis 1.5 for a sinusoid, 3 for a mode's random response."""
 
 import numpy as np
+import pytest
 import scipy.signal as sg
 
-from twin.extract.harmonics import band_kurtosis, harmonic_test
+from twin.extract.harmonics import band_kurtosis, harmonic_test, remove_running_harmonics
 
 
 def test_kurtosis_of_sinusoid_plus_noise_follows_the_mixture_formula():
@@ -64,3 +65,26 @@ def test_sinusoid_at_a_multiple_of_the_running_speed_is_a_harmonic_on_a_short_re
     h = harmonic_test(spec, n, fs, -1e-6 + 2j * np.pi * f2, running_speed_hz=134 / 60)
     assert h is not None and h["running_speed_multiple"] == 2
     assert harmonic_test(spec, n, fs, -1e-6 + 2j * np.pi * f2) is not None  # without the speed too
+
+
+def test_running_speed_lines_are_removed_at_the_refined_speed_and_nothing_else(make_record):
+    # a 7.5%-damped mode at 2.6 Hz under a strong 1X line and a weak 2X one; the record's speed is 0.1% off
+    lam = -0.075 * 2 * np.pi * 2.6 + 2j * np.pi * 2.6 * np.sqrt(1 - 0.075**2)
+    f1 = 134.134 / 60
+    ds = make_record([lam], np.array([[1.0, 0.5j]]), fs_hz=20.0, duration_s=1200.0, seed=3)
+    t = ds["time"].values
+    y = ds["displacement"].values
+    line = np.outer(np.cos(2 * np.pi * f1 * t + 0.3), [5.0, 2.0]) + np.outer(np.sin(4 * np.pi * f1 * t), [0.0, 1.0])
+    clean, removed = remove_running_harmonics(y - y.mean(0) + line, 20.0, 134 / 60, 8.0)
+    assert [r["running_speed_multiple"] for r in removed] == [1, 2]
+    assert removed[0]["frequency_hz"] == pytest.approx(f1, rel=1e-6)
+    # the fit also takes the random response in the line's frequency bin: 3% of the 1X amplitude here
+    assert [r["amplitude"] for r in removed] == pytest.approx([5.0, 1.0], rel=0.05)
+    # what was taken away is two sinusoids at the lines and nothing else
+    taken = (y - y.mean(0) + line) - clean
+    basis = np.column_stack([f(2 * np.pi * r["frequency_hz"] * t) for r in removed for f in (np.cos, np.sin)])
+    rest = taken - basis @ np.linalg.lstsq(basis, taken, rcond=None)[0]
+    assert np.abs(rest).max() < 1e-9 * np.abs(taken).max()
+    # a record without lines loses nothing
+    same, none = remove_running_harmonics(y - y.mean(0), 20.0, 134 / 60, 8.0)
+    assert none == [] and np.array_equal(same, y - y.mean(0))

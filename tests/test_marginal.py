@@ -8,7 +8,8 @@ import pytest
 from twin.errors import TwinWarning
 from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import summary, synthesize_modes, update
-from twin.update.marginal import log_density, marginal_problem, posterior_mode, residual_moments, run_chain
+from twin.update.marginal import (log_density, marginal_problem, posterior_mode, residual_moments, run_chain,
+                                  shrunk_covariance)
 from twin.update.problem import build_problem, select_parameters
 
 
@@ -20,6 +21,29 @@ def small(hydro_unit):
     return marginal_problem(problem, data["pole"].values), data
 
 
+def test_shrunk_covariance_keeps_real_correlations_and_drops_chance_ones():
+    rng = np.random.default_rng(5)
+    # J = 15 samples of 16 entries, all driven by one common error plus their own: correlation 0.8
+    common = rng.standard_normal((400, 15, 1))
+    x = 2.0 * common + rng.standard_normal((400, 15, 16))
+    cov = shrunk_covariance(x, np.var(x, axis=1, ddof=1))
+    corr = cov / np.sqrt(np.diagonal(cov, axis1=1, axis2=2)[:, :, None] * np.diagonal(cov, axis1=1, axis2=2)[:, None, :])
+    off = ~np.eye(16, dtype=bool)
+    assert np.mean(corr[:, off]) == pytest.approx(0.8 * (1 - 0.15), abs=0.06)  # kept, shrunk by about 0.15 at J = 15
+    assert np.all(np.linalg.eigvalsh(cov) > 0)  # positive definite although J - 1 < 16
+    # the variance of the mean along the common direction: the samples' covariance, not their variances alone
+    u = np.ones(16)
+    assert np.median(u @ cov @ u / (u @ (np.diagonal(cov, axis1=1, axis2=2) * u).T)) > 10
+    # independent entries: the chance correlations of 15 samples (std 0.26) are mostly shrunk away
+    y = rng.standard_normal((400, 15, 16))
+    cy = shrunk_covariance(y, np.var(y, axis=1, ddof=1))
+    r = cy / np.sqrt(np.diagonal(cy, axis1=1, axis2=2)[:, :, None] * np.diagonal(cy, axis1=1, axis2=2)[:, None, :])
+    assert np.sqrt(np.mean(r[:, off] ** 2)) < 0.1
+    # many samples: the sample covariance
+    z = rng.standard_normal((20000, 3)) @ np.array([[1.0, 0.5, 0.0], [0.0, 1.0, 0.3], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(shrunk_covariance(z, np.var(z, axis=0, ddof=1)), np.cov(z.T), atol=0.01)
+
+
 def test_residual_covariance_is_that_of_the_shape_and_pole_errors(small):
     # V_i is the covariance of H_i z + B_i δ for z ~ N(μ_i, Λ_i) and δ ~ N(0, C_i): checked by drawing them
     marg, _ = small
@@ -29,7 +53,7 @@ def test_residual_covariance_is_that_of_the_shape_and_pole_errors(small):
     rng = np.random.default_rng(2)
     n = 40000
     for i in range(p.n_modes):
-        z = marg.mean_z[i] + np.sqrt(marg.var_z[i]) * rng.standard_normal((n, marg.var_z.shape[1]))
+        z = rng.multivariate_normal(marg.mean_z[i], marg.cov_z[i], size=n)
         d = rng.multivariate_normal(np.zeros(2), marg.pole_cov[i], size=n)
         r = z @ H[i].T + d @ B[i].T
         np.testing.assert_allclose(r.mean(axis=0), m[i], atol=4 * np.sqrt(np.diag(V[i]).max() / n))

@@ -225,6 +225,9 @@ def _add_stages(sub) -> None:
                         "instead of one (the default: wider, what the loop is calibrated to)")
     p.add_argument("--order-spread", action="store_true",
                    help="add each mode's spread over its model orders to the samples")
+    p.add_argument("--remove-harmonics", action="store_true",
+                   help="subtract the lines at the multiples of the record's running speed before SSI "
+                        "(by default they are rejected as modes by their band kurtosis)")
 
     p = _command(sub, "synthesize-modes", "paper-style synthetic modal data (noisy pole and shape samples)",
                  "Samples of poles and partial mode shapes of a truth, with the reference paper's noise model:\n"

@@ -102,10 +102,14 @@ def _extract(args: argparse.Namespace) -> int:
     channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
     ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
                  max_order=args.max_order, channels=channels, output=args.output, command=" ".join(sys.argv),
-                 delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread)  # fmt: skip
-    harmonics = ", ".join(f"{h['frequency_hz']:.3f}" for h in json.loads(ds.attrs["harmonics"]))
+                 delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
+                 remove_harmonics=args.remove_harmonics)  # fmt: skip
+    lines = json.loads(ds.attrs["harmonics"])
+    removed = ", ".join(f"{h['frequency_hz']:.3f}" for h in lines if h.get("removed"))
+    rejected = ", ".join(f"{h['frequency_hz']:.3f}" for h in lines if not h.get("removed"))
     print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
-          + (f"; harmonics rejected at {harmonics} Hz" if harmonics else ""))
+          + (f"; running-speed lines removed at {removed} Hz" if removed else "")
+          + (f"; harmonics rejected at {rejected} Hz" if rejected else ""))
     print(f"{'mode':>4}  {'f [Hz]':>9}  {'+-se':>7}  {'zeta [%]':>8}  {'+-se':>6}  {'MPC':>5}  {'MPD':>5}")
     for k in range(ds.sizes["mode"]):
         print(f"{int(ds.mode[k]):>4}  {float(ds.frequency[k]):>9.4f}  {float(ds.frequency_se[k]):>7.4f}  "

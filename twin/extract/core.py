@@ -2,7 +2,7 @@
 
 One function, :func:`extract`: check the record, decimate to the band asked
 for, covariance-driven SSI over many orders, stabilisation diagram, automatic
-clustering, rejection of running-speed harmonics, J jackknife samples per
+clustering, running-speed harmonics removed (a known speed) or rejected, J jackknife samples per
 mode. It never reads the model; pair the result with model modes by MAC with
 :func:`twin.pair_modes`.
 """
@@ -23,7 +23,7 @@ import xarray as xr
 from twin import __version__
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
-from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
+from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test, remove_running_harmonics
 from twin.extract.modesfile import write_modes
 from twin.extract.samples import blocks_deleted, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
@@ -95,6 +95,7 @@ def extract(
     command: str = "",
     delete_blocks: int | None = DELETE_BLOCKS,
     order_spread: bool = False,
+    remove_harmonics: bool = False,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -138,6 +139,14 @@ def extract(
         model-order part of SSI's systematic error, in quadrature. Off by
         default, like delete-half, until the loop is calibrated to them (see
         the README).
+    remove_harmonics : bool
+        When the record gives its running speed (attr ``speed_rpm``), subtract
+        the sinusoids at its multiples before SSI
+        (:func:`twin.extract.harmonics.remove_running_harmonics`); they are
+        listed in the ``harmonics`` attr with ``"removed": true``. Off by
+        default until the loop's held-out suite is re-run with it (see the
+        README); without it, the lines are rejected as modes by their band
+        kurtosis.
 
     Returns
     -------
@@ -188,6 +197,14 @@ def extract(
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
     _warn_about_layout(source, len(rec.channels), rec.fs_hz, fmax_hz)
     y, fs, q = _decimate(rec, fmax)
+    speed_rpm = rec.attrs.get("speed_rpm")
+    running_hz = float(speed_rpm) / 60.0 if speed_rpm else None
+    removed = []
+    if remove_harmonics and running_hz:
+        y, removed = remove_running_harmonics(y, fs, running_hz, fmax)
+        for h in removed:
+            log.info("%.4f Hz (%dX) removed before SSI: a line %.0f dB above the spectrum around it",
+                     h["frequency_hz"], h["running_speed_multiple"], h["line_to_floor_db"])  # fmt: skip
     n_ch = y.shape[1]
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
@@ -208,9 +225,7 @@ def extract(
     rep_zeta = [float(damping_ratio(diag.pole[c.representative])) for c in clusters]
     # the FFT of the record only when some cluster is damped little enough to be tested as a harmonic
     spectrum = np.fft.rfft(y, axis=0) if min(rep_zeta, default=1.0) < HARMONIC_MAX_DAMPING else None
-    speed_rpm = rec.attrs.get("speed_rpm")
-    running_hz = float(speed_rpm) / 60.0 if speed_rpm else None
-    harmonics, modes = [], []
+    harmonics, modes = list(removed), []
     labels = np.full(len(diag.pole), -1)  # -1 no mode, -2 harmonic, else the mode index
     for c, zeta in zip(clusters, rep_zeta):
         h = harmonic_test(spectrum, y.shape[0], fs, diag.pole[c.representative], running_hz)
@@ -252,6 +267,7 @@ def extract(
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": bool(order_spread), "outlier_mads": OUTLIER_MADS,
+        "remove_harmonics": bool(remove_harmonics),
     }  # fmt: skip
     out.attrs.update({
         "title": f"modes identified from {Path(source).name}",

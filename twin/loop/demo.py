@@ -283,8 +283,12 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     lines += ["", f"Total: {sum(result.timings_s.values()):.1f} s.", "",
               "## Identified modes", "",
               f"{modes.sizes['mode']} modes, {modes.sizes['sample']} jackknife samples each "
-              f"(fmax {settings.get('fmax_hz')} Hz); harmonics rejected: "
-              + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"])) or "none")
+              f"(fmax {settings.get('fmax_hz')} Hz); running-speed lines removed before SSI: "
+              + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"]) if h.get("removed"))
+                 or "none")
+              + "; harmonics rejected: "
+              + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"])
+                           if not h.get("removed")) or "none")
               + ".", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
               "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
     before = tw.history[0].table
