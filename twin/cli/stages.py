@@ -96,6 +96,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _extract(args: argparse.Namespace) -> int:
     from twin.extract import extract
+    from twin.extract.harmonics import line_frequencies
     from twin.netcdf import check_writable
 
     plot = None if args.plot is None else check_writable(args.plot, figure=True)
@@ -104,9 +105,7 @@ def _extract(args: argparse.Namespace) -> int:
                  max_order=args.max_order, channels=channels, output=args.output, command=" ".join(sys.argv),
                  delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
                  remove_harmonics=args.remove_harmonics)  # fmt: skip
-    lines = json.loads(ds.attrs["harmonics"])
-    removed = ", ".join(f"{h['frequency_hz']:.3f}" for h in lines if h.get("removed"))
-    rejected = ", ".join(f"{h['frequency_hz']:.3f}" for h in lines if not h.get("removed"))
+    removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
           + (f"; running-speed lines removed at {removed} Hz" if removed else "")
           + (f"; harmonics rejected at {rejected} Hz" if rejected else ""))

@@ -26,6 +26,8 @@ decide instead:
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from twin.modes.analysis import damping_ratio
@@ -186,14 +188,26 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
         near = near[(near > 0) & (near < len(bins))]
         if near.size == 0:
             continue
-        basis = np.column_stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)])
-        coef, *_ = np.linalg.lstsq(basis, out, rcond=None)
-        line = _line_power(out, t, f)
-        ratio = line / float(np.median(spectrum[near]))
+        ratio = _line_power(out, t, f) / float(np.median(spectrum[near]))
         if not ratio > LINE_TO_FLOOR:
             continue
+        basis = np.column_stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)])
+        coef, *_ = np.linalg.lstsq(basis, out, rcond=None)
         out -= basis @ coef
         removed.append({"frequency_hz": float(f), "running_speed_multiple": k, "removed": True,
                         "amplitude": float(np.max(np.hypot(coef[0], coef[1]))),
                         "line_to_floor_db": float(10 * np.log10(ratio))})  # fmt: skip
     return out, removed
+
+
+def line_frequencies(harmonics_attr: str) -> tuple[list[float], list[float]]:
+    """The frequencies [Hz] of a ``modes.nc`` ``harmonics`` attr: the lines removed before SSI, those rejected.
+
+    Examples
+    --------
+    >>> line_frequencies('[{"frequency_hz": 2.233, "removed": true}, {"frequency_hz": 4.47, "kurtosis": 1.6}]')
+    ([2.233], [4.47])
+    """
+    lines = json.loads(harmonics_attr)
+    return ([h["frequency_hz"] for h in lines if h.get("removed")],
+            [h["frequency_hz"] for h in lines if not h.get("removed")])  # fmt: skip

@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from twin.errors import TwinError
+from twin.extract.harmonics import line_frequencies
 from twin.fem.model import RotorModel
 from twin.loop.compare import PER_MODE_NAME, Measured, error_text
 from twin.loop.diagnose import Diagnosis
@@ -277,19 +278,15 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
         hidden = (f"Hidden in the truth: **{result.hidden_text()}** (SI; spec `{result.scenario.spec}`). "
                   f"The twin's model, `{name}`, does not have it. The right diagnosis: {result.scenario.expected()}.")
     settings = json.loads(modes.attrs["settings"])
+    removed, rejected = (", ".join(f"{f:.3f} Hz" for f in fs) or "none" for fs in line_frequencies(modes.attrs["harmonics"]))
     lines = ["# twin demo", "", hidden,
              "", "## What was run", ""]  # fmt: skip
     lines += _md_table(["stage", "time [s]"], [[k, f"{v:.1f}"] for k, v in result.timings_s.items()])
     lines += ["", f"Total: {sum(result.timings_s.values()):.1f} s.", "",
               "## Identified modes", "",
               f"{modes.sizes['mode']} modes, {modes.sizes['sample']} jackknife samples each "
-              f"(fmax {settings.get('fmax_hz')} Hz); running-speed lines removed before SSI: "
-              + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"]) if h.get("removed"))
-                 or "none")
-              + "; harmonics rejected: "
-              + (", ".join(f"{h['frequency_hz']:.3f} Hz" for h in json.loads(modes.attrs["harmonics"])
-                           if not h.get("removed")) or "none")
-              + ".", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
+              f"(fmax {settings.get('fmax_hz')} Hz); running-speed lines removed before SSI: {removed}; "
+              f"harmonics rejected: {rejected}.", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
               "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
     before = tw.history[0].table
     lines += ["## Model against measurement", "", f"Error {error_text(before)}.", ""]

@@ -98,11 +98,6 @@ class Marginal:
     bases: np.ndarray
 
     @property
-    def var_z(self) -> np.ndarray:
-        """The variances of ``z`` (the diagonal of ``cov_z``): (I, n_z)."""
-        return np.diagonal(self.cov_z, axis1=1, axis2=2)
-
-    @property
     def size(self) -> int:
         """Number of sampled parameters ``Kg + I Km``."""
         p = self.problem
@@ -227,14 +222,20 @@ def _coefficients(problem: Problem, theta: np.ndarray) -> np.ndarray:
 
 def residual_moments(marg: Marginal, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``m_i``, ``V_i``, ``H_i`` and ``B_i`` at ``θ`` (see the module docstring)."""
+    return _moments(marg, theta)[:4]
+
+
+def _moments(marg: Marginal, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:func:`residual_moments` and ``Λ_i H_iᵀ`` (I, n_z, n_r), which ``V_i`` is built from and the gradient reuses."""
     p = marg.problem
     I, _, n_r, n_z = p.H0.shape
     c = _coefficients(p, theta)
     H = combined(p, c).reshape(I, 3, n_r, n_z)[:, 0]
     mc = np.einsum("ik,ikjr->ijr", c, marg.columns)
     m, B = mc[:, 0], np.swapaxes(mc[:, 1:], 1, 2)
-    V = H @ marg.cov_z @ np.swapaxes(H, 1, 2) + B @ marg.pole_cov @ np.swapaxes(B, 1, 2)
-    return m, V, H, B
+    LH = marg.cov_z @ np.swapaxes(H, 1, 2)
+    V = H @ LH + B @ marg.pole_cov @ np.swapaxes(B, 1, 2)
+    return m, V, H, B, LH
 
 
 def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
@@ -262,7 +263,7 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     """
     p = marg.problem
     I, _, n_r, n_z = p.H0.shape
-    m, V, H, B = residual_moments(marg, theta)
+    m, V, H, B, LH = _moments(marg, theta)
     L = np.linalg.cholesky(V)
     Vinv = np.linalg.inv(V)
     y = np.einsum("irs,is->ir", Vinv, m)
@@ -276,7 +277,6 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
         weight = np.ones(I)
     A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
     dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
-    LH = marg.cov_z @ np.swapaxes(H, 1, 2)  # Λ Hᵀ: (I, n_z, n_r)
     quadratic = (-np.einsum("ikr,ir->ik", A, y)
                  + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
                  + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y)))  # fmt: skip
