@@ -40,8 +40,14 @@ def test_gyroscopic_circular_modes_are_found_with_their_phase(gyro_record):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         m = extract(ds, samples=20, fmax_hz=180.0, progress=False)
-    ref = modal(model, n_modes=3)  # modes 4 and 5 (137, 165 Hz) are below the sensor noise with disk forcing
-    assert m.sizes["mode"] == 3
+    ref = modal(model, n_modes=5)
+    # modes 4 and 5 (137, 165 Hz, 5.3% damped) are near the sensor noise with disk forcing: mode 4 is found on
+    # some seeds (this one: 135.95 Hz, 0.2 of its bandwidth its standard error); whatever else is found is
+    # one of them, within 3 standard errors, never a spurious pole
+    assert 3 <= m.sizes["mode"] <= 5
+    for j in range(3, m.sizes["mode"]):
+        k = int(np.argmin(np.abs(ref.frequency.values - float(m.frequency[j]))))
+        assert k >= 3 and abs(float(m.frequency[j] - ref.frequency[k])) < 3 * float(m.frequency_se[j])
     for k in range(3):
         j = int(np.argmin(np.abs(m.frequency.values - float(ref.frequency[k]))))
         assert abs(float(m.frequency[j]) / float(ref.frequency[k]) - 1) < 0.005
@@ -62,7 +68,7 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     shapes = np.array([[1.0, 1j, 0.4], [0.3, -0.5, 1.0]])
     ds = make_record(poles, shapes, fs_hz=32.0, duration_s=1200.0, seed=5,
                      sinusoid=(2.25, 40.0 * np.array([1.0, -1j, 0.2])), attrs={"speed_rpm": 135.0})  # fmt: skip
-    m = extract(ds, samples=20, max_order=40, progress=False)
+    m = extract(ds, samples=20, max_order=40, progress=False, remove_harmonics=False)
     for f in (3.1, 7.0):
         assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
     assert np.min(np.abs(m.frequency.values - 2.25)) > 0.05  # the 1X line is no mode
@@ -70,8 +76,8 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     assert len(harmonics) == 1 and harmonics[0]["running_speed_multiple"] == 1
     assert abs(harmonics[0]["frequency_hz"] - 2.25) < 1e-3 and harmonics[0]["kurtosis"] < 2.0
     assert (m.diagram_mode.values == -2).any()
-    # asked to, the extraction subtracts the line before SSI: reported as removed, and SSI never sees it
-    m = extract(ds, samples=20, max_order=40, progress=False, remove_harmonics=True)
+    # by default, the extraction subtracts the line before SSI: reported as removed, and SSI never sees it
+    m = extract(ds, samples=20, max_order=40, progress=False)
     harmonics = json.loads(m.attrs["harmonics"])
     assert len(harmonics) == 1 and harmonics[0]["removed"] and harmonics[0]["running_speed_multiple"] == 1
     assert abs(harmonics[0]["frequency_hz"] - 2.25) < 1e-4
@@ -79,6 +85,12 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     assert not (m.diagram_mode.values == -2).any()
     for f in (3.1, 7.0):
         assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
+    # nothing but the two modes: a noise pole that persisted over orders next to the 7 Hz mode (7.26 Hz on this
+    # seed) scatters over its samples beyond its own bandwidth and is dropped, listed as such
+    assert m.sizes["mode"] == 2
+    for u in json.loads(m.attrs["undetermined_poles"]):
+        assert min(abs(u["frequency_hz"] / f - 1) for f in (3.1, 7.0)) > 5e-3
+        assert u["frequency_se_hz"] > u["damping_ratio"] * u["frequency_hz"] / 2 or u["damping_ratio_se"] > 0.5 * u["damping_ratio"]
 
 
 def test_shear_frame_reference(shear_frame):

@@ -225,9 +225,10 @@ def _add_stages(sub) -> None:
                         "instead of one (the default: wider, what the loop is calibrated to)")
     p.add_argument("--order-spread", action="store_true",
                    help="add each mode's spread over its model orders to the samples")
-    p.add_argument("--remove-harmonics", action="store_true",
-                   help="subtract the lines at the multiples of the record's running speed before SSI "
-                        "(by default they are rejected as modes by their band kurtosis)")
+    p.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
+                   help="leave the lines at the multiples of the record's running speed in the record (by "
+                        "default they are subtracted before SSI); they are then rejected as modes by their "
+                        "band kurtosis")
 
     p = _command(sub, "synthesize-modes", "paper-style synthetic modal data (noisy pole and shape samples)",
                  "Samples of poles and partial mode shapes of a truth, with the reference paper's noise model:\n"
