@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sla
 
 from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
@@ -56,8 +57,8 @@ log = logging.getLogger(__name__)
 
 #: Degrees of freedom of each mode's multivariate Student t (see the module docstring).
 STUDENT_DOF = 5.0
-#: Warm-up iterations at least (the step size is tuned there); ``burn_in`` may ask for more.
-WARMUP = 150
+#: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
+WARMUP = 250
 #: Mean path length of a trajectory in the whitened parameters (jittered by ±50%).
 PATH_LENGTH = 3.0
 #: Acceptance rate the step size is tuned to.
@@ -377,8 +378,15 @@ def run_chain(
     progress: bool = False,
     label: str = "HMC",
     nu: float = STUDENT_DOF,
+    adapt_mass: bool = True,
 ):
     """One HMC chain on the marginal: ``max(burn_in, WARMUP)`` warm-up iterations, then ``draws`` kept.
+
+    The metric (mass matrix) is first the Gauss-Newton precision at the
+    posterior mode; with ``adapt_mass`` it is replaced in the warm-up by the
+    covariance of the warm-up's own draws (:func:`warmup_covariance`), where
+    the posterior is not the Gaussian at its mode (the Student t of each
+    mode's residual gives heavier tails along weakly determined directions).
 
     The chain starts from a draw of the Gaussian at the posterior mode.
     Returns a :class:`twin.update.gibbs.Chain` (``noise`` is the mean
@@ -409,20 +417,25 @@ def run_chain(
     Lm = np.linalg.cholesky(at_mode.precision)  # mass matrix: whitened y = Lmᵀ θ
 
     def evaluate(y: np.ndarray) -> tuple[Density | None, np.ndarray]:
-        theta = np.linalg.solve(Lm.T, y)
+        theta = sla.solve_triangular(Lm, y, trans="T", lower=True)
         try:
             d = log_density(marg, theta, prior_mean, prior_precision, nu, curvature=False)
         except np.linalg.LinAlgError:
             return None, theta
         return (d if np.isfinite(d.log_p) else None), theta
 
+    def gradient(d: Density) -> np.ndarray:
+        return sla.solve_triangular(Lm, d.gradient, lower=True)
+
     y = Lm.T @ mode + rng.standard_normal(n)
     here, theta = evaluate(y)
     if here is None:
         y, (here, theta) = Lm.T @ mode, evaluate(Lm.T @ mode)
-    g = np.linalg.solve(Lm, here.gradient)
+    g = gradient(here)
     warm = max(burn_in, WARMUP)
-    eps, log_eps_bar, h_bar, mu = 0.5, 0.0, 0.0, np.log(5.0)
+    window = _mass_window(warm) if adapt_mass else None
+    eps, log_eps_bar, h_bar, mu, k = 0.5, 0.0, 0.0, np.log(5.0), 0
+    seen = []
     out = np.empty((draws, n))
     psi = np.empty((draws, p.n_modes, len(p.data_index)))
     noise, lps, accepted = np.empty((draws, p.n_modes)), np.empty(draws), np.zeros(draws, bool)
@@ -436,24 +449,62 @@ def run_chain(
             new, theta_n = evaluate(yn)
             if new is None:
                 break
-            gn = np.linalg.solve(Lm, new.gradient)
+            gn = gradient(new)
             pn = pn + (eps if s < steps - 1 else 0.5 * eps) * gn
         a = 0.0 if new is None else float(min(1.0, np.exp(h0 - (-new.log_p + 0.5 * pn @ pn))))
         moved = rng.uniform() < a
         if moved:
             y, g, here, theta = yn, gn, new, theta_n
         if it < warm:  # dual averaging (Hoffman and Gelman 2014)
-            k = it + 1
+            k += 1
             h_bar += ((TARGET_ACCEPT - a) - h_bar) / (k + 10)
             log_eps = mu - np.sqrt(k) / 0.05 * h_bar
             log_eps_bar = k**-0.75 * log_eps + (1 - k**-0.75) * log_eps_bar
-            eps = float(np.exp(log_eps if k < warm else log_eps_bar))
+            eps = float(np.exp(log_eps if it < warm - 1 else log_eps_bar))
+            if window is not None and window[0] <= it < window[1]:
+                seen.append(theta)
+            if window is not None and it == window[1] - 1:  # the warm-up's own covariance becomes the metric
+                Lm = np.linalg.cholesky(np.linalg.inv(warmup_covariance(np.array(seen), at_mode.precision)))
+                y, g = Lm.T @ theta, gradient(here)
+                eps, log_eps_bar, h_bar, mu, k = eps, 0.0, 0.0, np.log(10 * eps), 0
             continue
         j = it - warm
         out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
         psi[j] = shape_draw(marg, theta, rng)
     Kg = p.n_global
     return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted)
+
+
+def _mass_window(warm: int) -> tuple[int, int]:
+    """Warm-up iterations whose draws set the metric: after the first fifth, up to the last fifth."""
+    return warm // 5, warm - warm // 5
+
+
+def warmup_covariance(draws: np.ndarray, precision: np.ndarray) -> np.ndarray:
+    """The metric's covariance from warm-up draws, regularised toward the Gauss-Newton one.
+
+    In the coordinates whitened by the Gauss-Newton ``precision`` the
+    posterior's covariance is the identity where the posterior is the
+    Gaussian at its mode. There the draws' covariance is estimated with its
+    correlations shrunk toward zero (:func:`shrunk_covariance`) and the
+    variances toward one, with the weight ``5 / (N + 5)`` of the N draws
+    (as Stan regularises its metric).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> draws = rng.standard_normal((400, 2)) * [1.0, 3.0]   # the second direction 3x wider than assumed
+    >>> np.round(np.sqrt(np.diag(warmup_covariance(draws, np.eye(2)))), 1)
+    array([1., 3.])
+    """
+    L = np.linalg.cholesky(precision)
+    w = draws @ L  # whitened: w = Lᵀ θ per draw
+    N = len(w)
+    var = np.var(w, axis=0, ddof=1)
+    var = (N * var + 5.0) / (N + 5.0)
+    cov_w = shrunk_covariance(w, var)
+    Linv = sla.solve_triangular(L, np.eye(len(L)), lower=True)  # θ = L⁻ᵀ w
+    return Linv.T @ cov_w @ Linv
 
 
 def run_chains(
