@@ -258,10 +258,10 @@ def extract(
         d_p, d_s = order_deviations(members, shapes, samples)
         sample_p, sample_s = sample_p + d_p, sample_s + d_s
     keep = pole_determined(poles, sample_p)
-    f_std, z_std = _frequency_damping_std(sample_p)
-    undetermined = [{"frequency_hz": float(poles[k].imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(poles[k])),
-                     "frequency_se_hz": float(f_std[k] / np.sqrt(samples)),
-                     "damping_ratio_se": float(z_std[k] / np.sqrt(samples))} for k in np.flatnonzero(~keep)]  # fmt: skip
+    f_se, z_se = (x / np.sqrt(samples) for x in _frequency_damping_std(sample_p[~keep]))
+    undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
+                     "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
+                    for p, f, z in zip(poles[~keep], f_se, z_se)]  # fmt: skip
     for u in undetermined:
         log.info("%.4f Hz (damping ratio %.3g) dropped: stable over orders, but its samples scatter beyond its "
                  "bandwidth (standard errors %.3g Hz, %.3g): no physical mode", u["frequency_hz"],

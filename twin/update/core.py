@@ -41,9 +41,9 @@ BURN_IN = 20
 #: integrated out, its parameters sampled by HMC (:mod:`twin.update.marginal`); ``noise_model`` and
 #: ``collapsed`` only apply to the Gibbs configurations (``pole_model`` "linear" or "samples"). Where the
 #: Gibbs sampler with a full Δ left weakly determined parameters unmixed (paper Case B: bulk ESS 2 of
-#: 500), this one mixes (README, benchmarks/update_speed.py). Its 90% intervals cover 87-88% of the truths
-#: on the paper's data; on extracted modes those of a hidden pull 80%, of a seal 70% (20 FMU records each,
-#: benchmarks/results/update_coverage_fmu.md).
+#: 500), this one mixes (README, benchmarks/update_speed.py). Its 90% intervals cover 87-89% of the truths
+#: on the paper's data; on extracted modes 57-89% by parameter group (a hidden pull 85%, a seal 70%; 20 FMU
+#: records each, benchmarks/results/update_coverage_fmu.md).
 CALIBRATED = {"pole_model": "marginal"}
 #: The reference paper's configuration (its Table 1): diagonal Δ, bases at every pole sample, plain Gibbs.
 PAPER = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}

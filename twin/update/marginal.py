@@ -466,7 +466,7 @@ def run_chain(
             if window is not None and it == window[1] - 1:  # the warm-up's own covariance becomes the metric
                 Lm = np.linalg.cholesky(np.linalg.inv(warmup_covariance(np.array(seen), at_mode.precision)))
                 y, g = Lm.T @ theta, gradient(here)
-                eps, log_eps_bar, h_bar, mu, k = eps, 0.0, 0.0, np.log(10 * eps), 0
+                log_eps_bar, h_bar, mu, k = 0.0, 0.0, np.log(10 * eps), 0
             continue
         j = it - warm
         out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
