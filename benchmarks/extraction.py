@@ -19,7 +19,7 @@ unbalance, 5% sensor noise, simulated through the FMU):
    samples' whole standard error (jackknife and model-order spread) against
    the RMS error over the records (which includes the bias).
 
-Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread]
+Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread shapes|all|none]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
 Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
 """
@@ -188,7 +188,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
-    ap.add_argument("--order-spread", action="store_true", help="add the model-order spread to the samples")
+    ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
+                    help="what the model-order spread is added to (as twin extract --order-spread)")
     args = ap.parse_args()
     options = {"delete_blocks": None if args.delete_half else 1, "order_spread": args.order_spread}
     args.cache.mkdir(parents=True, exist_ok=True)

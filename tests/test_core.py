@@ -171,11 +171,11 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     for f in (2.0, 5.0):
         assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
     settings = json.loads(raw.attrs["settings"])
-    assert settings["delete_blocks"] == 1 and not settings["order_spread"]
+    assert settings["delete_blocks"] == 1 and settings["order_spread"] == "shapes"
     honest = tmp_path / "honest.nc"
-    assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread"]) == 0
+    assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread", "all"]) == 0
     settings = json.loads(xr.load_dataset(honest).attrs["settings"])
-    assert settings["delete_blocks"] == 5 and settings["order_spread"]
+    assert settings["delete_blocks"] == 5 and settings["order_spread"] == "all"
     # bad input: one line, exit status 2, no file left behind
     ds["displacement"][10, 0] = np.nan
     ds.to_netcdf(tmp_path / "bad.nc")

@@ -223,8 +223,9 @@ def _add_stages(sub) -> None:
     p.add_argument("--delete-half", action="store_true",
                    help="each sample leaves out half the blocks (a spread that matches independent records) "
                         "instead of one (the default: wider, what the loop is calibrated to)")
-    p.add_argument("--order-spread", action="store_true",
-                   help="add each mode's spread over its model orders to the samples")
+    p.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
+                   help="add each mode's spread over its model orders to the shape samples (the default), "
+                        "to the pole samples too (all) or to neither (none)")
     p.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                    help="leave the lines at the multiples of the record's running speed in the record (by "
                         "default they are subtracted before SSI); they are then rejected as modes by their "

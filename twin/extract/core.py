@@ -53,6 +53,8 @@ MIN_BLOCK_LAGS = 2.0
 ORDERS_PER_MODE = 8
 #: A cluster's poles farther than this many robust std from its median pole are not used (unconverged orders).
 OUTLIER_MADS = 3.0
+#: What the model-order spread is added to (``extract(order_spread=...)``): the default first.
+ORDER_SPREADS = ("shapes", "all", "none")
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
 #: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread, see the README).
@@ -96,7 +98,7 @@ def extract(
     progress: bool = True,
     command: str = "",
     delete_blocks: int | None = DELETE_BLOCKS,
-    order_spread: bool = False,
+    order_spread: str | bool = "shapes",
     remove_harmonics: bool = True,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
@@ -134,13 +136,17 @@ def extract(
         or None for half of them, drawn at random (delete-half: a spread
         that matches independent records, but the loop's comparison is not
         yet calibrated to it; see the README).
-    order_spread : bool
+    order_spread : {"shapes", "all", "none"}
         Add to the samples the spread of each mode over the model orders it
-        is averaged over (:func:`twin.extract.samples.order_deviations`): the
-        samples then stand for the jackknife's statistical error and the
-        model-order part of SSI's systematic error, in quadrature. Off by
-        default, like delete-half, until the loop is calibrated to them (see
-        the README).
+        is averaged over (:func:`twin.extract.samples.order_deviations`), so
+        that they stand for the jackknife's statistical error and the
+        model-order part of SSI's systematic error, in quadrature: to the
+        shape samples only (``"shapes"``, the default), to the pole samples
+        too (``"all"``; ``True`` means the same) or to neither (``"none"``,
+        ``False``). SSI's shapes sit off the truth's by about their jackknife
+        error the same way on every record, and the update's intervals were
+        too narrow with jackknife shapes alone; the poles' jackknife error
+        is what the loop's comparison is calibrated to (see the README).
     remove_harmonics : bool
         When the record gives its running speed (attr ``speed_rpm``), subtract
         the sinusoids at its multiples before SSI
@@ -177,6 +183,9 @@ def extract(
     (array([2.]), array([0.02]), array([0.21]))
     """
     crit = criteria or Criteria()
+    order_spread = {True: "all", False: "none"}.get(order_spread, order_spread)  # type: ignore[call-overload]
+    if order_spread not in ORDER_SPREADS:
+        raise SignalError(f"order_spread must be one of {', '.join(ORDER_SPREADS)}, got {order_spread!r}")
     if output is not None:
         output = check_writable(output)
     ds, source = _open(signals)
@@ -254,9 +263,11 @@ def extract(
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
     poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress, delete=delete_blocks)
     jackknife_p = sample_p
-    if order_spread:
+    if order_spread != "none":
         d_p, d_s = order_deviations(members, shapes, samples)
-        sample_p, sample_s = sample_p + d_p, sample_s + d_s
+        sample_s = sample_s + d_s
+        if order_spread == "all":
+            sample_p = sample_p + d_p
     keep = pole_determined(poles, sample_p)
     f_se, z_se = (x / np.sqrt(samples) for x in _frequency_damping_std(sample_p[~keep]))
     undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
@@ -289,7 +300,7 @@ def extract(
         "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
-        "delete_blocks": n_deleted, "order_spread": bool(order_spread), "outlier_mads": OUTLIER_MADS,
+        "delete_blocks": n_deleted, "order_spread": order_spread, "outlier_mads": OUTLIER_MADS,
         "remove_harmonics": bool(remove_harmonics),
     }  # fmt: skip
     out.attrs.update({
@@ -301,7 +312,8 @@ def extract(
         "undetermined_poles": json.dumps(undetermined),
         "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {samples} blocks) "
                            "centred on the full-record estimate"
-                           + (", plus the mode's spread over its model orders" if order_spread else "")
+                           + {"none": "", "shapes": ", the shapes plus the mode's spread over its model orders",
+                              "all": ", plus the mode's spread over its model orders"}[order_spread]
                            + ": sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
