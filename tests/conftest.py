@@ -102,6 +102,19 @@ def paper_modes(hydro_unit):
 
 
 @pytest.fixture(scope="session")
+def case_b_posterior(hydro_unit, paper_modes):
+    """The default sampler's posterior of paper Case B (16 bearings + per-mode FSI) on ``paper_modes``, 2 x 500."""
+    import warnings
+
+    from twin.errors import TwinWarning
+    from twin.update import update
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        return update(hydro_unit, paper_modes, "bearings", fsi=True, draws=500, chains=2, seed=2, progress=False)
+
+
+@pytest.fixture(scope="session")
 def dask_local():
     """A client of a local Dask cluster: two worker processes, one thread each (as ``--scheduler local``)."""
     from twin.tasks import dask_client

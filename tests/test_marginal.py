@@ -112,13 +112,11 @@ def test_zero_noise_limit_is_the_exact_answer(hydro_unit):
     np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
 
 
-def test_default_mixes_every_case_b_parameter(hydro_unit, paper_modes):
+def test_default_mixes_every_case_b_parameter(hydro_unit, case_b_posterior):
     # paper Case B (16 bearings, 30 FSI parameters, J = 100): the Gibbs default left LGB.kxy and mode 13's
     # FSI at bulk ESS 2 of 500; on the marginal every parameter mixes, and the determined ones have the
     # paper's accuracy (about 1-3%; 4% allows for the Monte Carlo error of 2 x 500 draws)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", TwinWarning)
-        tree = update(hydro_unit, paper_modes, "bearings", fsi=True, draws=500, chains=2, seed=2, progress=False)
+    tree = case_b_posterior
     truth = {n: hydro_unit.parameter(n).nominal for n in select_parameters(hydro_unit, "bearings")}
     for i, (m, c) in enumerate(zip(PAPER_TABLE2.added_mass, PAPER_TABLE2.added_damping), start=1):
         truth[f"FSI.added_mass_{i}"], truth[f"FSI.added_damping_{i}"] = m, c

@@ -396,5 +396,5 @@ def effect_fields(cls: type) -> dict[str, type]:
     >>> effect_fields(MagneticPull)
     {'stiffness': <class 'float'>}
     """
-    hints = {"float": float, "tuple[float, ...]": tuple, "str": str}
+    hints = {"float": float, "tuple[float, ...]": tuple, "str": str, "int": int}
     return {f.name: hints[str(f.type)] for f in dataclasses.fields(cls)}

@@ -59,16 +59,25 @@ class Truth:
 def truth_from_json(text: str) -> Truth:
     """The truth a file's ``truth`` attr describes (:meth:`Truth.to_json`'s inverse).
 
+    Library effects (:data:`twin.fem.effects.EFFECTS`) and local changes outside the library
+    (:data:`twin.fem.local.LOCAL_CHANGES`, as a scenario such as ``shaft_stiffness:18@0.5`` hides).
+
     Examples
     --------
     >>> truth_from_json(paper_truth().to_json()) == paper_truth()
     True
+    >>> from twin.fem.local import ShaftStiffnessChange
+    >>> truth_from_json(Truth((ShaftStiffnessChange(18, -0.5),)).to_json()).effects
+    (ShaftStiffnessChange(index=18, change=-0.5),)
     """
+    from twin.fem.local import LOCAL_CHANGES
+
+    known = {**EFFECTS, **LOCAL_CHANGES}
     try:
         data = json.loads(text)
         effects = []
         for label, fields in data["effects"].items():
-            cls = EFFECTS[label.split(":", 1)[0]]
+            cls = known[label.split(":", 1)[0]]
             kinds = effect_fields(cls)
             effects.append(cls(**{k: tuple(v) if kinds.get(k) is tuple else v for k, v in fields.items()}))
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
