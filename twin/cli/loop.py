@@ -44,18 +44,25 @@ def _update(args: argparse.Namespace) -> int:
     with _tasks(args) as client, stage(f"APerCEM {sampler}: {args.chains} chains x {args.draws} draws"):
         tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
                       burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
-                      pole_model=args.pole_model, output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
+                      pole_model=args.pole_model, adjust=args.adjust, output=args.output, command=" ".join(sys.argv),
+                      tasks=client)  # fmt: skip
     table = summary(tree["posterior"].to_dataset())
     print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
           f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
     print(f"{'parameter':<22} {'MAP':>11} {'mean':>11} {'std':>10} {'5%':>11} {'95%':>11} {'R-hat':>6} {'ESS':>6}")
     has_diag = "r_hat" in table
+    undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))
     for k, p in enumerate(table["parameter"].values):
         row = table.isel(parameter=k)
         r_hat = f"{float(row.r_hat):>6.3f}" if has_diag else f"{'-':>6}"
         diag = f"{r_hat} {float(row.ess_bulk):>6.0f}" if "ess_bulk" in table else f"{r_hat} {'-':>6}"
+        mark = "  not determined by the data" if str(p) in undetermined else ""
         print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
-              f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}")  # fmt: skip
+              f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}{mark}")  # fmt: skip
+    stretched = {n: f for n, f in json.loads(tree.attrs.get("spread_adjustment", "{}")).items() if f > 1.0}
+    if stretched:
+        print("spread stretched for the modes' correlation (--adjust jackknife): "
+              + ", ".join(f"{n} x{f:.2f}" for n, f in stretched.items()))
     print(f"wrote {args.output}")
     return 0
 

@@ -80,7 +80,10 @@ def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: lis
 
 
 def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> xr.Dataset:
-    """``map``, ``std``, the 90% interval ``q05``-``q95``, ``r_hat``, ``ess_bulk`` and ``unit`` over ``parameter``.
+    """``map``, ``std``, the 90% interval ``q05``-``q95``, ``r_hat``, ``ess_bulk``, ``unit`` and ``determined`` over ``parameter``.
+
+    ``determined`` is False for the parameters the update reports as not determined by the data
+    (the posterior's ``undetermined`` attr; the Laplace fit reports none).
 
     From a Gibbs posterior (:func:`twin.update.update`'s DataTree: its
     :func:`twin.update.summary`) or a Laplace one
@@ -102,14 +105,16 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
         else:
             method = (f"APerCEM Gibbs sampler, {runs} ({settings.get('noise_model', '?')} noise model, "
                       f"{settings.get('pole_model', '?')} pole model{', collapsed step' if settings.get('collapsed') else ''})")  # fmt: skip
-        return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(unit=("parameter", units)).assign_attrs(
-            method=method)
+        undetermined = set(json.loads(posterior.attrs.get("undetermined", "[]")))
+        determined = [str(n) not in undetermined for n in table["parameter"].values]
+        return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(
+            unit=("parameter", units), determined=("parameter", determined)).assign_attrs(method=method)
     z = 1.6448536269514722  # the 95% point of the standard normal
     nan = np.full(posterior.sizes["parameter"], np.nan)
     return xr.Dataset(
         {"map": posterior["map"], "std": posterior["std"], "q05": posterior["map"] - z * posterior["std"],
          "q95": posterior["map"] + z * posterior["std"], "r_hat": ("parameter", nan), "ess_bulk": ("parameter", nan),
-         "unit": posterior["unit"]},
+         "unit": posterior["unit"], "determined": ("parameter", np.full(posterior.sizes["parameter"], True))},
         attrs={"method": posterior.attrs["method"]},
     )  # fmt: skip
 
@@ -313,13 +318,15 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     if result.posterior is not None:
         ident = result.identified()
         lines += ["## Update", "", f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.", ""]
-        rows = [[str(r["parameter"].values), f"{float(r.truth):.4g}", f"{float(r['map']):.4g}",
+        rows = [[str(r["parameter"].values) + ("" if bool(r.determined) else " (not determined)"),
+                 f"{float(r.truth):.4g}", f"{float(r['map']):.4g}",
                  f"{float(r.q05):.4g} to {float(r.q95):.4g}", f"{float(r['std']):.2g}", _diag(float(r.r_hat), ".3f"),
                  _diag(float(r.ess_bulk), ".0f"), f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
                 for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip
         lines += _md_table(["parameter", "truth", "MAP", "90% interval", "std", "R-hat", "ESS", "error [%]", "unit"], rows)
         lines += ["", "R-hat (at most 1.01 when the chains agree) and the bulk ESS over all chains are the "
-                  "sampler's own diagnostics (ArviZ); '-' where the method has none.", ""]
+                  "sampler's own diagnostics (ArviZ); '-' where the method has none. A parameter marked not "
+                  "determined has a posterior std over half its size: its interval is what the data allow.", ""]
     lines += ["## History", ""]
     rows = [[str(k), s.action, f"{100 * s.error:.3f}", f"{float(s.table.attrs['chi2']):.1f}"]
             for k, s in enumerate(tw.history)]  # fmt: skip

@@ -113,12 +113,16 @@ def sweep_text(table: xr.Dataset) -> str:
             inside = (table["q05"].values[known] <= truth) & (truth <= table["q95"].values[known])
             line = (f"posteriors: the 90% interval covers the truth for {int(inside.sum())} of {int(known.sum())} "
                     "identified parameters")  # fmt: skip
-            rhat = table["r_hat"].values[known]
+            determined = table["determined"].values[known] != 0 if "determined" in table else np.ones(len(truth), bool)
+            rhat = np.where(determined, table["r_hat"].values[known], np.nan)
             if np.isfinite(rhat).any():
-                ess = table["ess_bulk"].values[known]
-                line += (f"; R-hat <= 1.01 for {int((rhat[np.isfinite(rhat)] <= 1.01).sum())} of "
-                         f"{int(np.isfinite(rhat).sum())} sampled, bulk ESS median {np.nanmedian(ess):.0f}, "
-                         f"least {np.nanmin(ess):.0f}")  # fmt: skip
+                ess = table["ess_bulk"].values[known][determined]
+                line += (f"; of the {int(determined.sum())} the data determine, R-hat <= 1.01 for "
+                         f"{int((rhat[np.isfinite(rhat)] <= 1.01).sum())} of {int(np.isfinite(rhat).sum())} sampled, "
+                         f"bulk ESS median {np.nanmedian(ess):.0f}, least {np.nanmin(ess):.0f}")  # fmt: skip
+            if (~determined).any():
+                line += (f"; {int((~determined).sum())} reported as not determined by the data, their interval "
+                         f"covering the truth for {int(inside[~determined].sum())}")  # fmt: skip
             lines.append(line)
     if "chi2_after" in table and "map" in table:
         # after a right update the residual has n - p degrees of freedom (p fitted parameters)

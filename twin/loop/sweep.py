@@ -263,7 +263,7 @@ def sweep(
 
 #: What a scenario's summary keeps of each identified parameter (:meth:`twin.loop.demo.DemoResult.identified`);
 #: a summary may lack some (NaN in the table).
-PARAMETER_VARIABLES = ("map", "std", "q05", "q95", "r_hat", "ess_bulk", "truth")
+PARAMETER_VARIABLES = ("map", "std", "q05", "q95", "r_hat", "ess_bulk", "truth", "determined")
 
 
 def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], settings: Settings) -> xr.Dataset:
@@ -320,6 +320,8 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
             "r_hat": (pdims, par["r_hat"], {"units": "1", "long_name": "R-hat over the chains (NaN: Laplace)"}),
             "ess_bulk": (pdims, par["ess_bulk"], {"units": "1", "long_name": "bulk ESS over the chains (NaN: Laplace)"}),
             "truth": (pdims, par["truth"], {"units": "SI"}),
+            "determined": (pdims, par["determined"], {"units": "1", "long_name": "1: determined by the data, 0: "
+                                                                              "reported as not determined (NaN: not identified)"}),
             "relative_error": (pdims, rel, {"units": "1", "long_name": "MAP / truth - 1"}),
             "z": (pdims, z, {"units": "1", "long_name": "(MAP - truth) / std"}),
         },

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -20,9 +21,10 @@ from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
+from twin.update.adjust import ADJUSTMENTS, correlation_factors, stretch
 from twin.update.gibbs import (NOISE_PRIOR_SHAPE, Chain, Prior, check_noise_model, initial_state, not_identifiable,
                                run_chains, stack, weak_parameters)  # fmt: skip
-from twin.update.marginal import marginal_precision, marginal_problem
+from twin.update.marginal import Marginal, marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import check_pole_model
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
@@ -162,6 +164,7 @@ def update(
     noise_model: str = "full",
     collapsed: bool = True,
     pole_model: str = CALIBRATED["pole_model"],
+    adjust: str | None = None,
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -211,6 +214,14 @@ def update(
         default); or, for the Gibbs sampler, linearised about each mode's mean
         pole, or the basis matrices at every sample (the paper's).
         ``**twin.update.PAPER`` gives the paper's sampler.
+    adjust : {"jackknife", "none"}, optional
+        Marginal model only (its default there: ``"jackknife"``): stretch each
+        parameter's draws about their mean by what the correlation of the
+        modes adds to the spread of its posterior mode over perturbations of
+        the data by its own samples, where that is more than one
+        (:mod:`twin.update.adjust`: modes extracted from one record are
+        correlated, the model's modes independent); the factors are in the
+        attr ``spread_adjustment``.
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -242,6 +253,11 @@ def update(
             raise UpdateError(f"{name} must be an integer >= {least}, got {value}")
     check_noise_model(noise_model)
     check_pole_model(pole_model)
+    adjust = adjust or ("jackknife" if pole_model == "marginal" else "none")
+    if adjust not in ADJUSTMENTS:
+        raise UpdateError(f"adjust must be one of {', '.join(ADJUSTMENTS)}, got {adjust!r}")
+    if adjust != "none" and pole_model != "marginal":
+        raise UpdateError(f"adjust={adjust!r} needs pole_model='marginal' (it searches the marginal's mode)")
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -267,9 +283,13 @@ def update(
         chains_out = run_chains(problem, draws, chains, burn_in=burn_in, prior=prior, seed=seed, progress=progress,
                                 tasks=tasks, collapsed=collapsed)  # fmt: skip
     result = stack(chains_out)
+    factors = None
+    if adjust == "jackknife":
+        result, factors = _adjusted(result, marg, model, modes, names, fsi, eps_std, prior)
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
+                "adjust": adjust,
                 "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",
@@ -284,16 +304,39 @@ def update(
         "sampler": _sampler_text(pole_model, collapsed),
         "elapsed_s": elapsed,
     }
+    if factors is not None:
+        attrs["spread_adjustment"] = json.dumps(dict(zip(problem.parameter_labels, np.round(factors, 4).tolist())))
     if "truth" in modes.attrs:
         attrs["truth"] = modes.attrs["truth"]
     tree = posterior_tree(problem, result, modes, attrs)
     table = summary(tree["posterior"].to_dataset())
     tree.attrs["diagnostics"] = diagnostics_json(table)
-    _warn_diagnostics(table, problem)
+    undetermined = undetermined_parameters(table, problem)
+    tree.attrs["undetermined"] = json.dumps(sorted(undetermined))
+    _warn_diagnostics(table, undetermined)
     if output is not None:
         write_posterior(tree, output)
     log.info("updated %d parameters in %.1f s (%d chains x %d draws)", table.sizes["parameter"], elapsed, chains, draws)
     return tree
+
+
+def _adjusted(result: Chain, marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Sequence[str],
+              fsi: bool, eps_std: float, prior: Prior) -> tuple[Chain, np.ndarray | None]:  # fmt: skip
+    """The draws stretched by what the modes' correlation adds to the spread (:mod:`twin.update.adjust`)."""
+    mean = np.concatenate([prior.global_mean, prior.mode_mean.ravel()])
+    precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
+    ratio = correlation_factors(marg, model, modes, names, fsi=fsi, eps_std=eps_std, prior_mean=mean,
+                                prior_precision=precision)  # fmt: skip
+    if ratio is None:
+        return result, None
+    factors = np.maximum(1.0, ratio)
+    flat = np.concatenate([result.t, result.eta.reshape(*result.eta.shape[:2], -1)], axis=-1)
+    flat = stretch(flat, factors)
+    problem = marg.problem
+    Kg = problem.n_global
+    log.info("posterior spread stretched for the modes' correlation: %s",
+             ", ".join(f"{n} x{f:.2f}" for n, f in zip(problem.parameter_labels, factors) if f > 1.0))  # fmt: skip
+    return dataclasses.replace(result, t=flat[..., :Kg], eta=flat[..., Kg:].reshape(result.eta.shape)), factors
 
 
 def _sampler_text(pole_model: str, collapsed: bool) -> str:
@@ -304,17 +347,32 @@ def _sampler_text(pole_model: str, collapsed: bool) -> str:
             if collapsed else "") + "(psi_i, eps_i) | rest, Delta_i | rest (closed form)"  # fmt: skip
 
 
-def _warn_diagnostics(table: xr.Dataset, problem: Problem) -> None:
+def undetermined_parameters(table: xr.Dataset, problem: Problem) -> dict[str, float]:
+    """The parameters whose posterior std exceeds :data:`POORLY_DETERMINED` of their size, with std / size.
+
+    The size is the nominal value, or the posterior mean where the nominal is zero (an effect's
+    parameter, per-mode FSI). Such a parameter is reported as not determined by the data: its
+    interval is what the data allow, and its R-hat and ESS are not held against the sampler.
+    """
     names = [str(p) for p in table["parameter"].values]
-    if "r_hat" in table:
-        high = [f"{n} ({r:.3f})" for n, r in zip(names, table["r_hat"].values) if r > RHAT_LIMIT]
-        if high:
-            warnings.warn(f"R-hat above {RHAT_LIMIT} (chains disagree; run longer): {', '.join(high)}",
-                          TwinWarning, stacklevel=3)  # fmt: skip
     nominal = dict(zip(problem.global_names, problem.global_nominal))
     ref = np.array([abs(nominal.get(n, 0.0)) or abs(m) for n, m in zip(names, table["mean"].values)])
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = table["std"].values / ref
-    poor = [f"{n} (std {r:.0%})" for n, r in zip(names, rel) if not r <= POORLY_DETERMINED]
-    if poor:
-        warnings.warn(f"the data hardly determine: {', '.join(poor)}", TwinWarning, stacklevel=3)
+    return {n: float(r) for n, r in zip(names, rel) if not r <= POORLY_DETERMINED}
+
+
+def _warn_diagnostics(table: xr.Dataset, undetermined: Mapping[str, float]) -> None:
+    names = [str(p) for p in table["parameter"].values]
+    if "r_hat" in table:
+        high = [f"{n} ({r:.3f})" for n, r in zip(names, table["r_hat"].values)
+                if r > RHAT_LIMIT and n not in undetermined]  # fmt: skip
+        if high:
+            warnings.warn(f"R-hat above {RHAT_LIMIT} (chains disagree; run longer): {', '.join(high)}",
+                          TwinWarning, stacklevel=3)  # fmt: skip
+    if undetermined:
+        parts = []
+        for n, rel in undetermined.items():
+            r_hat = f", R-hat {float(table['r_hat'].sel(parameter=n)):.3f}" if "r_hat" in table else ""
+            parts.append(f"{n} (std {rel:.0%}{r_hat})")
+        warnings.warn(f"the data hardly determine: {', '.join(parts)}", TwinWarning, stacklevel=3)

@@ -306,22 +306,23 @@ def nominal(problem: Problem) -> np.ndarray:
 
 
 def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.ndarray,
-                   nu: float = STUDENT_DOF) -> tuple[np.ndarray, Density]:  # fmt: skip
-    """The posterior mode of the scaled parameters, from their nominal values; and the density there.
+                   nu: float = STUDENT_DOF, start: np.ndarray | None = None) -> tuple[np.ndarray, Density]:  # fmt: skip
+    """The posterior mode of the scaled parameters, from ``start`` (default their nominal values); and the density there.
 
     First Gauss-Newton steps that hold each ``V_i`` at the current ``θ``
     (iteratively reweighted least squares; far from the mode the exact
     gradient's ``log |V_i|`` term points away from it), then quasi-Newton
     steps on the exact gradient with the Gauss-Newton precision. Each step is
-    halved until the density rises.
+    halved until the density rises. From a given ``start`` (near the mode: the mode of nearby data) the
+    first kind is skipped.
     """
-    theta = nominal(marg.problem)
+    theta = nominal(marg.problem) if start is None else np.array(start, dtype=float)
     try:
         here = log_density(marg, theta, prior_mean, prior_precision, nu)
     except np.linalg.LinAlgError:
         raise UpdateError("the residual covariance of the marginal model is singular at the nominal "
                           "parameters (a mode without shape or pole scatter?)") from None  # fmt: skip
-    for exact in (False, True):
+    for exact in (False, True) if start is None else (True,):  # from a given start: already near the mode
         for _ in range(NEWTON_STEPS):
             step = np.linalg.solve(here.precision, here.gradient) if exact else here.newton_step
             if exact and here.gradient @ step < MODE_TOLERANCE:  # Newton decrement: the rise left to gain
