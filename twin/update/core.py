@@ -44,8 +44,9 @@ BURN_IN = 20
 #: ``collapsed`` only apply to the Gibbs configurations (``pole_model`` "linear" or "samples"). Where the
 #: Gibbs sampler with a full Δ left weakly determined parameters unmixed (paper Case B: bulk ESS 2 of
 #: 500), this one mixes (README, benchmarks/update_speed.py). Its 90% intervals cover 87-89% of the truths
-#: on the paper's data; on extracted modes 57-89% by parameter group (a hidden pull 85%, a seal 70%; 20 FMU
-#: records each, benchmarks/results/update_coverage_fmu.md).
+#: on the paper's data; on extracted modes, with the spread adjusted for the modes' correlation
+#: (``adjust``), 75-98% by parameter group (a hidden pull 85%, a seal 75%; 20 FMU records each,
+#: benchmarks/results/update_coverage_fmu.md).
 CALIBRATED = {"pole_model": "marginal"}
 #: The reference paper's configuration (its Table 1): diagonal Δ, bases at every pole sample, plain Gibbs.
 PAPER = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
