@@ -283,9 +283,10 @@ def _add_loop(sub) -> None:
                         "sampled by HMC; linear (Gibbs): linearised about each mode's mean pole; samples "
                         "(Gibbs): at every sample (the paper's)")
     p.add_argument("--adjust", choices=("jackknife", "none"), default=None,
-                   help="marginal model only (default there: jackknife): stretch each parameter's draws to the "
-                        "standard error of its posterior mode over perturbations of the data by its own samples "
-                        "where that is wider (modes from one record are correlated); none: the model's posterior")
+                   help="marginal model only (default there: jackknife): stretch each parameter's draws by what "
+                        "the correlation of the modes adds to the spread of its posterior mode over perturbations "
+                        "of the data by its own samples, where that is more than one (modes from one record are "
+                        "correlated); none: the model's posterior")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

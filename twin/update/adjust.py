@@ -76,10 +76,11 @@ def correlation_factors(marg: Marginal, model: RotorModel, modes: xr.Dataset, na
     order of the posterior (shared, then per mode); ``None`` when fewer than
     :data:`MIN_PERTURBATIONS` perturbations of either kind give a mode.
     """
+    centre, _ = posterior_mode(marg, prior_mean, prior_precision)
     spread = {}
     for pairing in ("joint", "shuffled"):
         spread[pairing] = mode_spread(marg, model, modes, names, fsi=fsi, eps_std=eps_std, prior_mean=prior_mean,
-                                      prior_precision=prior_precision, pairing=pairing)  # fmt: skip
+                                      prior_precision=prior_precision, pairing=pairing, centre=centre)  # fmt: skip
         if spread[pairing] is None:
             return None
     joint, shuffled = spread["joint"], spread["shuffled"]
@@ -88,7 +89,7 @@ def correlation_factors(marg: Marginal, model: RotorModel, modes: xr.Dataset, na
 
 def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool,
                 eps_std: float, prior_mean: np.ndarray, prior_precision: np.ndarray,
-                pairing: str = "joint") -> np.ndarray | None:  # fmt: skip
+                pairing: str = "joint", centre: np.ndarray | None = None) -> np.ndarray | None:  # fmt: skip
     """RMS move [SI] of each parameter's posterior mode over perturbations of the data by its samples.
 
     Each perturbation moves the data's mean by a sample's deviation over
@@ -96,11 +97,13 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
     own: with ``pairing="joint"`` every mode by the same sample, with
     ``"shuffled"`` mode ``i`` by the ``i``-th next of the same picks (the
     modes' samples made independent). The joint RMS is the estimate's standard
-    error with every correlation of the samples in it. ``None`` when fewer
-    than :data:`MIN_PERTURBATIONS` modes are found.
+    error with every correlation of the samples in it. ``centre`` is the
+    posterior mode of ``marg`` (scaled; searched when not given). ``None``
+    when fewer than :data:`MIN_PERTURBATIONS` modes are found.
     """
     scales = np.concatenate([marg.problem.global_scale, marg.problem.mode_scale.ravel()])
-    centre, _ = posterior_mode(marg, prior_mean, prior_precision)
+    if centre is None:
+        centre, _ = posterior_mode(marg, prior_mean, prior_precision)
     J, I = modes.sizes["sample"], modes.sizes["mode"]
     picks = np.unique(np.linspace(0, J - 1, min(PERTURBATIONS, J)).round().astype(int))
     shift = np.arange(I) if pairing == "shuffled" else np.zeros(I, int)

@@ -79,9 +79,9 @@ def approximate(problem: Problem, state: State, prior: Prior) -> Approximation:
     blocks = C - B @ PinvBt  # θ-precision of each mode, z integrated out
     grads = -(JtW @ r[:, :, None])[..., 0]
     S, g = joint_parameters(problem, blocks, grads)
-    precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
+    precision = prior.parameter_precision
     S[np.diag_indices_from(S)] += precision
-    g -= precision * (_flat(problem, state) - np.concatenate([prior.global_mean, prior.mode_mean.ravel()]))
+    g -= precision * (_flat(problem, state) - prior.parameter_mean)
     log_marginal += float(-0.5 * np.sum(prior.global_precision * (state.t - prior.global_mean) ** 2)
                           - 0.5 * np.sum(prior.mode_precision * (state.eta - prior.mode_mean) ** 2))  # fmt: skip
     L = np.linalg.cholesky(S)

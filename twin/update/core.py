@@ -324,10 +324,8 @@ def update(
 def _adjusted(result: Chain, marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Sequence[str],
               fsi: bool, eps_std: float, prior: Prior) -> tuple[Chain, np.ndarray | None]:  # fmt: skip
     """The draws stretched by what the modes' correlation adds to the spread (:mod:`twin.update.adjust`)."""
-    mean = np.concatenate([prior.global_mean, prior.mode_mean.ravel()])
-    precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
-    ratio = correlation_factors(marg, model, modes, names, fsi=fsi, eps_std=eps_std, prior_mean=mean,
-                                prior_precision=precision)  # fmt: skip
+    ratio = correlation_factors(marg, model, modes, names, fsi=fsi, eps_std=eps_std, prior_mean=prior.parameter_mean,
+                                prior_precision=prior.parameter_precision)  # fmt: skip
     if ratio is None:
         return result, None
     factors = np.maximum(1.0, ratio)

@@ -137,6 +137,16 @@ class Prior:
         return cls(np.zeros(Kg), np.zeros(Kg), np.zeros((I, Km)), np.zeros((I, Km)), noise_shape, rate, noise_model)
 
     @property
+    def parameter_mean(self) -> np.ndarray:
+        """Prior means of the scaled parameters as one vector ``[t, η_1, ..., η_I]``."""
+        return np.concatenate([self.global_mean, self.mode_mean.ravel()])
+
+    @property
+    def parameter_precision(self) -> np.ndarray:
+        """Prior precisions of the scaled parameters as one vector ``[t, η_1, ..., η_I]``."""
+        return np.concatenate([self.global_precision, self.mode_precision.ravel()])
+
+    @property
     def full(self) -> bool:
         """Whether ``Δ_i`` is a full covariance matrix."""
         return self.noise_model == "full"

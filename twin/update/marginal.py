@@ -527,8 +527,7 @@ def run_chains(
     """
     mean = precision = None
     if prior is not None:
-        mean = np.concatenate([prior.global_mean, prior.mode_mean.ravel()])
-        precision = np.concatenate([prior.global_precision, prior.mode_precision.ravel()])
+        mean, precision = prior.parameter_mean, prior.parameter_precision
     seeds = np.random.SeedSequence(seed).spawn(chains)
     jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
     return mapper(tasks, progress=progress, desc="chains")(
