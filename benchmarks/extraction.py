@@ -20,6 +20,7 @@ unbalance, 5% sensor noise, simulated through the FMU):
    the RMS error over the records (which includes the bias).
 
 Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread shapes|all|none]
+                                     [--duration 3600] [--samples J]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
 Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
 """
@@ -54,10 +55,11 @@ def truth_modes(model):
     return lam, (ss.C @ right.T).T
 
 
-def record(cache: Path, seed: int) -> Path:
-    path = cache / f"hydro_paper_1h_seed{seed}.nc"
+def record(cache: Path, seed: int, duration_s: float = 3600.0) -> Path:
+    name = "1h" if duration_s == 3600.0 else f"{duration_s:g}s"
+    path = cache / f"hydro_paper_{name}_seed{seed}.nc"
     if not path.exists():
-        simulate(load_model(MODEL), duration_s=3600.0, fs_hz=256.0, seed=seed, truth=paper_truth(),
+        simulate(load_model(MODEL), duration_s=duration_s, fs_hz=256.0, seed=seed, truth=paper_truth(),
                  output=path, progress=False)  # fmt: skip
     return path
 
@@ -144,7 +146,7 @@ def run_pyoma(path, lam_t, phi_t, preset, calc_unc, complex_ok):
     return rows, dt, extra
 
 
-def spread(cache, seeds, lam_t, phi_t, **options):
+def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, **options):
     """Mean jackknife standard error against the std over independent records, and the total against the RMS error."""
     names = ("frequency", "damping_ratio", "frequency_se_jackknife", "damping_ratio_se_jackknife",
              "frequency_se", "damping_ratio_se")  # fmt: skip
@@ -152,14 +154,15 @@ def spread(cache, seeds, lam_t, phi_t, **options):
     for s in range(1, seeds + 1):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            m = extract(record(cache, s), progress=False, **options)
+            m = extract(record(cache, s, duration_s), progress=False, **options)
         rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
         ks = [None if g is None else int(np.argmin(np.abs(m.frequency.values - g[0]))) for _, _, g in rows]
         for n in names:
             got[n].append([np.nan if k is None else float(m[n][k]) for k in ks])
     f, z, jf, jz, tf, tz = (np.array(got[n]) for n in names)
-    obs = observability(load_model(MODEL), Excitation(duration_s=3600.0), truth=paper_truth())
-    print(f"\nspread over {seeds} independent 1 h records (seeds 1..{seeds}). Statistical part: the jackknife "
+    obs = observability(load_model(MODEL), Excitation(duration_s=duration_s), truth=paper_truth())
+    print(f"\nspread over {seeds} independent {duration_s:g} s records (seeds 1..{seeds}, {options}). Statistical "
+          "part: the jackknife "
           "standard error (SE) / the Monte Carlo std, and the Monte Carlo std / the Cramer-Rao bound (CRB, "
           "twin observe). Total: the samples' standard error (jackknife and model-order spread) / the RMS error "
           "against the truth (which includes SSI's bias)")  # fmt: skip
@@ -188,10 +191,15 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
+    ap.add_argument("--duration", type=float, default=3600.0,
+                    help="record length [s] of the spread's records (1200 with --samples 15: the loop's records)")
+    ap.add_argument("--samples", type=int, default=None, help="jackknife samples per mode (default: extract's)")
     ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
                     help="what the model-order spread is added to (as twin extract --order-spread)")
     args = ap.parse_args()
     options = {"delete_blocks": None if args.delete_half else 1, "order_spread": args.order_spread}
+    if args.samples:
+        options["samples"] = args.samples
     args.cache.mkdir(parents=True, exist_ok=True)
     model = load_model(MODEL)
     lam_t, phi_t = truth_modes(model)
@@ -219,7 +227,7 @@ def main() -> None:
                 continue
             table(name, rows, dt, extra)
     if args.seeds:
-        spread(args.cache, args.seeds, lam_t, phi_t, **options)
+        spread(args.cache, args.seeds, lam_t, phi_t, args.duration, **options)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from twin.errors import TwinWarning
 from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import summary, synthesize_modes, update
 from twin.update.marginal import (log_density, marginal_problem, posterior_mode, residual_moments, run_chain,
-                                  shrunk_covariance)
+                                  shrunk_covariance, tail_kernel)
 from twin.update.problem import build_problem, select_parameters
 
 
@@ -59,6 +59,23 @@ def test_residual_covariance_is_that_of_the_shape_and_pole_errors(small):
         np.testing.assert_allclose(r.mean(axis=0), m[i], atol=4 * np.sqrt(np.diag(V[i]).max() / n))
         scale = np.sqrt(np.outer(np.diag(V[i]), np.diag(V[i])))
         np.testing.assert_allclose(np.cov(r.T) / scale, V[i] / scale, atol=0.03)
+
+
+def test_tail_kernel_is_the_gaussian_inside_and_the_student_t_outside():
+    n_r, nu = 16, 5.0
+    q = np.linspace(0.0, 200.0, 2001)
+    kernel, weight = tail_kernel(q, n_r, nu)
+    inside = q <= n_r
+    np.testing.assert_allclose(kernel[inside], -0.5 * q[inside])
+    assert np.all(weight[inside] == 1.0) and np.all(weight <= 1.0)  # no mode weighs more than the Gaussian
+    # beyond n_r: the multivariate t's log kernel up to a constant, joined with the same value and slope
+    t = -0.5 * (nu + n_r) * np.log1p(q / nu)
+    np.testing.assert_allclose(np.diff(kernel[~inside]), np.diff(t[~inside]), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(-2 * np.gradient(kernel, q)[1:-1], weight[1:-1], atol=2e-3)
+    assert weight[-1] == pytest.approx((nu + n_r) / (nu + 200.0))
+    gauss, ones = tail_kernel(q, n_r, np.inf)
+    np.testing.assert_allclose(gauss, -0.5 * q)
+    np.testing.assert_array_equal(ones, 1.0)
 
 
 @pytest.mark.parametrize("nu", [5.0, np.inf])

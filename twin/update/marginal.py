@@ -26,10 +26,12 @@ what kept weakly determined parameters from mixing (issue 18).
 
 The covariances are estimated from ``J`` samples and the model is linear in
 the pole only to first order, so a mode's residual is heavier-tailed than
-the Gaussian: each mode enters through a multivariate Student t with
-:data:`STUDENT_DOF` degrees of freedom, ``log p_i = −(ν + n_r)/2 log(1 +
-m_iᵀ V_i⁻¹ m_i / ν) − ½ log |V_i|``. A mode that agrees with the model weighs
-as under the Gaussian; one whose residual is far out weighs less.
+the Gaussian: each mode enters through a Gaussian core with the tail of a
+multivariate Student t with :data:`STUDENT_DOF` degrees of freedom
+(:func:`tail_kernel`): ``log p_i = −q_i/2 − ½ log |V_i|`` up to ``q_i = m_iᵀ
+V_i⁻¹ m_i = n_r``, ``−n_r/2 − (ν + n_r)/2 log((ν + q_i)/(ν + n_r)) − ½ log
+|V_i|`` beyond. A mode that agrees with the model weighs as under the
+Gaussian; one whose residual is far out weighs less; none weighs more.
 
 The parameters ``θ = (t, η)`` are sampled by Hamiltonian Monte Carlo with
 the exact gradient, the Gauss-Newton precision at the posterior mode as mass
@@ -55,7 +57,7 @@ from twin.update.problem import Problem, UpdateError
 
 log = logging.getLogger(__name__)
 
-#: Degrees of freedom of each mode's multivariate Student t (see the module docstring).
+#: Degrees of freedom of the Student t tail of each mode's likelihood (see :func:`tail_kernel`).
 STUDENT_DOF = 5.0
 #: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
 WARMUP = 250
@@ -239,6 +241,37 @@ def _moments(marg: Marginal, theta: np.ndarray) -> tuple[np.ndarray, ...]:
     return m, V, H, B, LH
 
 
+def tail_kernel(q: np.ndarray, n_r: int, nu: float = STUDENT_DOF) -> tuple[np.ndarray, np.ndarray]:
+    """Each mode's log-likelihood kernel in its Mahalanobis residual ``q = mᵀ V⁻¹ m``, and its weight ``-2 ∂/∂q``.
+
+    Gaussian (``-q / 2``, weight 1) up to ``q = n_r``, the residual's
+    expected size; beyond it the multivariate Student t's tail with ``nu``
+    degrees of freedom, joined with the same value and slope:
+    ``-n_r / 2 - (nu + n_r) / 2 log((nu + q) / (nu + n_r))``, weight
+    ``(nu + n_r) / (nu + q)``. A mode whose residual is larger than its
+    covariances allow weighs less, as under the Student t; one whose residual
+    is smaller never weighs more than the Gaussian. The full t would raise
+    that mode's weight up to ``(nu + n_r) / nu`` (4.2 for ``n_r = 16``), as if
+    its covariance were too wide in every direction, while the shapes'
+    covariance is the wide part (delete-one jackknife and order spread) and
+    the poles' is not: on 20 FMU records with a hidden seal the full t made
+    the seal's posterior std 1.4% against an error spread of 2.5%.
+    ``nu = inf`` is the Gaussian everywhere.
+
+    Examples
+    --------
+    >>> kernel, weight = tail_kernel(np.array([4.0, 16.0, 64.0]), 16)
+    >>> np.round(kernel, 2), np.round(weight, 2)
+    (array([ -2.  ,  -8.  , -20.49]), array([1. , 1. , 0.3]))
+    """
+    q = np.asarray(q, dtype=float)
+    if not np.isfinite(nu):
+        return -0.5 * q, np.ones_like(q)
+    far = q > n_r
+    kernel = np.where(far, -0.5 * n_r - 0.5 * (nu + n_r) * np.log((nu + q) / (nu + n_r)), -0.5 * q)
+    return kernel, np.where(far, (nu + n_r) / (nu + q), 1.0)
+
+
 def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
                 prior_precision: np.ndarray | None = None, nu: float = STUDENT_DOF,
                 curvature: bool = True) -> Density:  # fmt: skip
@@ -270,12 +303,8 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     y = np.einsum("irs,is->ir", Vinv, m)
     q = np.einsum("ir,ir->i", m, y)
     logdet = np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1)
-    if np.isfinite(nu):
-        log_p = float(np.sum(-0.5 * (nu + n_r) * np.log1p(q / nu) - logdet))
-        weight = (nu + n_r) / (nu + q)
-    else:
-        log_p = float(np.sum(-0.5 * q - logdet))
-        weight = np.ones(I)
+    kernel, weight = tail_kernel(q, n_r, nu)
+    log_p = float(np.sum(kernel - logdet))
     A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
     dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
     quadratic = (-np.einsum("ikr,ir->ik", A, y)
