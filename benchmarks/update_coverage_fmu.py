@@ -29,7 +29,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "update_coverage_fmu.md"
@@ -57,6 +56,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, remove_harmonics: bool 
     from twin.loop.demo import DEMO_SAMPLES, posterior_table, truth_for_measured
     from twin.loop.scenarios import parse_scenario
     from twin.loop.twin import Twin
+    from twin.update.adjust import stretch
     from twin.update.posterior import parameter_draws
     from twin.update.problem import select_parameters
 
@@ -81,11 +81,9 @@ def one_dataset(job: tuple[str, int], duration_s: float, remove_harmonics: bool 
         post = tw.update(names, seed=seed, progress=False, adjust="jackknife")
     table = posterior_table(post, tw.model)
     factors = json.loads(post.attrs.get("spread_adjustment", "{}"))
-    draws = parameter_draws(post["posterior"].to_dataset()).stack(sample=("chain", "draw"))
-    mean = draws.mean("sample")
-    unstretched = mean + (draws - mean) / xr.DataArray([factors.get(str(p), 1.0) for p in draws["parameter"].values],
-                                                       dims="parameter", coords={"parameter": draws["parameter"]})
-    q_model = unstretched.quantile([0.05, 0.95], "sample")
+    draws = parameter_draws(post["posterior"].to_dataset()).stack(sample=("chain", "draw")).transpose("sample", ...)
+    inverse = np.array([1.0 / factors.get(str(p), 1.0) for p in draws["parameter"].values])
+    q_model = draws.copy(data=stretch(draws.values, inverse)).quantile([0.05, 0.95], "sample")
     elapsed = time.perf_counter() - started
     rows = []
     for k, p in enumerate(table["parameter"].values):

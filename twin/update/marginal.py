@@ -296,7 +296,7 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     True
     """
     p = marg.problem
-    I, _, n_r, n_z = p.H0.shape
+    n_r = p.H0.shape[2]
     m, V, H, B, LH = _moments(marg, theta)
     L = np.linalg.cholesky(V)
     Vinv = np.linalg.inv(V)
