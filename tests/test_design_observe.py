@@ -6,7 +6,7 @@ import scipy.signal as ss_signal
 
 from twin import load_model, shipped_model
 from twin.design import Excitation, observability
-from twin.design.observe import spectrum, target_modes
+from twin.design.observe import mode_clusters, spectrum, target_modes, target_summary, unobservable_text
 from twin.errors import ModelError
 from twin.fmu.excitation import sensor_noise, turbulence_force
 from twin.fmu.export import default_turbulence_node
@@ -52,6 +52,30 @@ def test_the_high_modes_are_not_observable_and_the_bearing_modes_are(table):
     assert (table.best_snr_db.values[f > 90] < -15).all()
     assert table.observable.values[(f > 40) & (f < 55)].all()
     assert all(r for r, ok in zip(table.reason.values, table.observable.values) if not ok)
+
+
+def test_close_modes_form_clusters_only_where_their_bands_overlap_and_their_stds_cannot_tell_them_apart():
+    """Two modes 0.16% apart with stds of 0.08 Hz join; 0.28 Hz apart with 0.03 Hz stds do not; nor do modes with
+    huge stds but disjoint half-power bands; a chain of close pairs is one cluster."""
+    f = np.array([53.1, 94.6, 97.06, 97.22, 97.5])
+    zeta = np.array([0.015, 0.026, 0.022, 0.022, 0.037])
+    assert mode_clusters(f, zeta, np.array([0.01, 0.1, 0.08, 0.03, 0.03])).tolist() == [0, 0, 1, 1, 0]
+    assert mode_clusters(f, zeta, np.array([0.01, 100.0, 0.08, 0.03, 0.03])).tolist() == [0, 1, 1, 1, 0]
+    assert mode_clusters(f, zeta, np.full(5, 1e3)).tolist() == [0, 1, 1, 1, 1]  # 53.1 Hz: 41 Hz from 94.6 Hz
+    assert mode_clusters(f, zeta, np.zeros(5)).tolist() == [0, 0, 0, 0, 0]
+
+
+def test_the_high_modes_are_one_cluster_reported_as_such(table):
+    """On the 8 sensors the four 94-97 Hz modes are one cluster; one extracted mode there counts for all four."""
+    f = table.frequency.values
+    assert (table.cluster.values[f > 90] == 1).all() and (table.cluster.values[f < 90] == 0).all()
+    rows = target_summary(table, [2.92, 10.15, 96.0])
+    high = [r for r in rows if r["cluster"]]
+    assert [r["found"] for r in high] == [True] * 4 and high[0]["in_cluster"] == 1
+    lines = unobservable_text(rows)
+    assert any("one cluster: 94.59, 97.48, 97.49, 97.63 Hz" in line and "1 extracted mode(s)" in line for line in lines)
+    none = unobservable_text(target_summary(table, [2.92]))  # nothing there: listed as not observable, cluster noted
+    assert any("0 extracted mode(s)" in line for line in none) and any("97.63 Hz (peak" in line for line in none)
 
 
 def test_noise_and_record_length_scale_as_they_must(unit, table):

@@ -21,11 +21,19 @@ def observe_text(obs, ident=None) -> str:
         f, z = float(r.frequency), float(r.damping_ratio)
         channel = str(obs.channel.values[int(np.argmax(r.snr_db.values))])
         verdict = "observable" if bool(r.observable) else f"not observable: {str(r.reason.values)}"
+        if "cluster" in r and int(r.cluster):
+            verdict += f" [cluster {int(r.cluster)}]"
         lines.append(f"{int(r.mode):4d} {f:8.2f} {100 * z:7.2f} {float(r.best_snr_db):11.1f} "
                      f"{100 * float(r.frequency_std) / f:8.3g} {100 * float(r.damping_ratio_std) / z:10.3g}  "
                      f"{channel:<12} {verdict}")  # fmt: skip
     lines.append(f"{int(obs.observable.sum())} of {obs.sizes['mode']} target modes observable ({obs.attrs['rule']}); "
                  "std: single-mode Whittle bound (what SSI reaches, about 2x in practice)")  # fmt: skip
+    for label in sorted(set(obs.cluster.values.tolist()) - {0}) if "cluster" in obs else []:
+        f = obs.frequency.values[obs.cluster.values == label]
+        lines.append(f"cluster {label}: {', '.join(f'{x:.2f}' for x in f)} Hz ({100 * (f.max() / f.min() - 1):.2g}% apart): "
+                     "half-power bands overlap and the frequencies are closer than "
+                     f"{obs.attrs.get('cluster_sigmas', 3):g} rss stds, so the record cannot tell them apart by "
+                     "frequency; the extraction reports them as one cluster")  # fmt: skip
     if ident is not None:
         lines += ["", f"expected posterior std of the parameters ({ident.attrs['method']}; modes used "
                       f"{ident.attrs['modes_used']}):",
