@@ -32,15 +32,20 @@ from twin.update.posterior import _arviz
 from twin.update.problem import build_problem, select_parameters
 
 
-def _ess(az, x: np.ndarray) -> np.ndarray:
-    """Bulk ESS of each column of draws ``x`` (chains, draws, k)."""
-    return np.array([az.ess(x[..., k], method="bulk") for k in range(x.shape[-1])])
+def _ess(az, x: np.ndarray, method: str = "bulk") -> np.ndarray:
+    """Bulk (or tail) ESS of each column of draws ``x`` (chains, draws, k)."""
+    return np.array([az.ess(x[..., k], method=method) for k in range(x.shape[-1])])
 
 
-def _report(label: str, seconds: float, ess: np.ndarray, names: list[str], n_bearings: int) -> None:
-    print(f"{label}: {seconds:.1f} s; bulk ESS of all {ess.size} parameters: median {np.median(ess):.0f}, "
-          f"min {ess.min():.0f} ({names[int(np.argmin(ess))]}); of the bearings: median "
-          f"{np.median(ess[:n_bearings]):.0f}, min {ess[:n_bearings].min():.0f}; min ESS/s {ess.min() / seconds:.1f}")
+def _report(label: str, seconds: float, ess: np.ndarray, names: list[str], n_bearings: int,
+            tail: np.ndarray | None = None) -> None:
+    line = (f"{label}: {seconds:.1f} s; bulk ESS of all {ess.size} parameters: median {np.median(ess):.0f}, "
+            f"min {ess.min():.0f} ({names[int(np.argmin(ess))]}); of the bearings: median "
+            f"{np.median(ess[:n_bearings]):.0f}, min {ess[:n_bearings].min():.0f}; min ESS/s {ess.min() / seconds:.1f}")
+    if tail is not None:  # the 5% and 95% quantiles' ESS: what the 90% intervals rest on
+        line += (f"; tail ESS median {np.median(tail):.0f}, min {tail.min():.0f} ({names[int(np.argmin(tail))]}), "
+                 f"min tail ESS/s {tail.min() / seconds:.1f}")
+    print(line)
 
 
 def main() -> None:
@@ -70,7 +75,8 @@ def main() -> None:
         seconds = time.perf_counter() - t0
         x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
         _report(f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{marginal_model.WARMUP} warm-up; "
-                f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}", seconds, _ess(az, x[None]), names, Kg)
+                f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}", seconds, _ess(az, x[None]), names, Kg,
+                tail=_ess(az, x[None], "tail"))
         _compare_marginal(az, marg, seconds, args, names, Kg, x)
         return
     setup = time.perf_counter() - t0
