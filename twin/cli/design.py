@@ -11,6 +11,8 @@ import numpy as np
 
 def observe_text(obs, ident=None) -> str:
     """The observability table (and the identifiability table when given) as text."""
+    from twin.design.observe import cluster_text
+
     ex = json.loads(obs.attrs["excitation"])
     lines = [f"{obs.attrs['model']}: {obs.sizes['mode']} target modes, {obs.sizes['channel']} channels, "
              f"{ex['duration_s']:g} s at {ex['fs_hz']:g} Hz, noise std {ex['noise_std_m']:.3g} m",
@@ -29,11 +31,9 @@ def observe_text(obs, ident=None) -> str:
     lines.append(f"{int(obs.observable.sum())} of {obs.sizes['mode']} target modes observable ({obs.attrs['rule']}); "
                  "std: single-mode Whittle bound (what SSI reaches, about 2x in practice)")  # fmt: skip
     for label in sorted(set(obs.cluster.values.tolist()) - {0}) if "cluster" in obs else []:
-        f = obs.frequency.values[obs.cluster.values == label]
-        lines.append(f"cluster {label}: {', '.join(f'{x:.2f}' for x in f)} Hz ({100 * (f.max() / f.min() - 1):.2g}% apart): "
-                     "half-power bands overlap and the frequencies are closer than "
-                     f"{obs.attrs.get('cluster_sigmas', 3):g} rss stds, so the record cannot tell them apart by "
-                     "frequency; the extraction reports them as one cluster")  # fmt: skip
+        lines.append(f"cluster {label}: {cluster_text(obs.frequency.values[obs.cluster.values == label])}, and "
+                     f"their frequencies are closer than {obs.attrs.get('cluster_sigmas', 3):g} rss stds: the record "
+                     "cannot tell them apart by frequency; the extraction reports them as one cluster")  # fmt: skip
     if ident is not None:
         lines += ["", f"expected posterior std of the parameters ({ident.attrs['method']}; modes used "
                       f"{ident.attrs['modes_used']}):",

@@ -43,8 +43,9 @@ is within the extraction targets: frequency std at most
 **Close modes.** Two target modes whose half-power bands overlap and whose
 frequencies lie closer than :data:`CLUSTER_SIGMAS` times the root sum of
 squares of their expected frequency stds cannot be told apart by their
-frequencies on such a record (:func:`mode_clusters`): the table and the extraction report them as one
-cluster, and an extracted mode in the cluster's span counts for it. Whether
+frequencies on such a record (:func:`mode_clusters`): the table and the
+extraction report them as one cluster, and an extracted mode in the
+cluster's span counts for it. Whether
 SSI separates them depends on their shapes too; the rule says only that the
 frequencies will not. On the hydro unit's 8 channels (20 min) the four modes
 at 94.6-97.6 Hz form one cluster; with a pair at the shaft's top (30 nm, 1 h,
@@ -632,6 +633,18 @@ def target_summary(obs: xr.Dataset, found_hz: np.ndarray, fmin_hz: float = 0.0) 
     return out
 
 
+def cluster_text(frequency_hz) -> str:
+    """The members of one cluster and how far apart they are, for the table and the extraction's lines.
+
+    Examples
+    --------
+    >>> cluster_text([97.06, 97.22])
+    '97.06, 97.22 Hz (0.16% apart, their half-power bands overlap)'
+    """
+    f = [float(x) for x in frequency_hz]
+    return f"{', '.join(f'{x:.2f}' for x in f)} Hz ({100 * (max(f) / min(f) - 1):.2g}% apart, their half-power bands overlap)"
+
+
 def unobservable_text(targets: list[dict]) -> list[str]:
     """Lines on the target modes a record cannot contain, the clusters, and those it contains but were not found."""
     lines = []
@@ -641,10 +654,9 @@ def unobservable_text(targets: list[dict]) -> list[str]:
                      + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in hidden))  # fmt: skip
     for label in sorted({t.get("cluster", 0) for t in targets} - {0}):
         members = [t for t in targets if t.get("cluster", 0) == label]
-        f = [t["frequency_hz"] for t in members]
         lines.append(f"modes the record cannot tell apart by frequency, reported as one cluster: "
-                     f"{', '.join(f'{x:.2f}' for x in f)} Hz ({100 * (max(f) / min(f) - 1):.2g}% apart, their "
-                     f"half-power bands overlap); {members[0].get('in_cluster', 0)} extracted mode(s) there")
+                     f"{cluster_text([t['frequency_hz'] for t in members])}; "
+                     f"{members[0].get('in_cluster', 0)} extracted mode(s) there")
     weak = [t for t in targets if not t["observable"] and t["found"]]
     if weak:
         lines.append("found although below the observability rule (their estimates may scatter beyond their "

@@ -36,9 +36,9 @@ Gaussian; one whose residual is far out weighs less; none weighs more.
 The parameters ``θ = (t, η)`` are sampled by Hamiltonian Monte Carlo with
 the exact gradient, the Gauss-Newton precision at the posterior mode as mass
 matrix, a jittered path length of about a quarter period and the step size
-tuned in the warm-up (dual averaging). Each kept draw is followed by the closed-form draw of the
-shapes given ``θ``, so the output has the same latent shapes as the Gibbs
-sampler's.
+tuned in the warm-up (dual averaging). Each kept draw is followed by the
+closed-form draw of the shapes given ``θ``, so the output has the same
+latent shapes as the Gibbs sampler's.
 """
 
 from __future__ import annotations
