@@ -11,7 +11,7 @@ import numpy as np
 
 def observe_text(obs, ident=None) -> str:
     """The observability table (and the identifiability table when given) as text."""
-    from twin.design.observe import cluster_text
+    from twin.design.observe import CLUSTER_SIGMAS, cluster_text
 
     ex = json.loads(obs.attrs["excitation"])
     lines = [f"{obs.attrs['model']}: {obs.sizes['mode']} target modes, {obs.sizes['channel']} channels, "
@@ -32,7 +32,7 @@ def observe_text(obs, ident=None) -> str:
                  "std: single-mode Whittle bound (what SSI reaches, about 2x in practice)")  # fmt: skip
     for label in sorted(set(obs.cluster.values.tolist()) - {0}) if "cluster" in obs else []:
         lines.append(f"cluster {label}: {cluster_text(obs.frequency.values[obs.cluster.values == label])}, and "
-                     f"their frequencies are closer than {obs.attrs.get('cluster_sigmas', 3):g} rss stds: the record "
+                     f"their frequencies are closer than {obs.attrs.get('cluster_sigmas', CLUSTER_SIGMAS):g} rss stds: the record "
                      "cannot tell them apart by frequency; the extraction reports them as one cluster")  # fmt: skip
     if ident is not None:
         lines += ["", f"expected posterior std of the parameters ({ident.attrs['method']}; modes used "
