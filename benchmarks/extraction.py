@@ -20,7 +20,8 @@ unbalance, 5% sensor noise, simulated through the FMU):
    the RMS error over the records (which includes the bias).
 
 Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread shapes|all|none]
-                                     [--duration 3600] [--samples J] [--fmax HZ] [--spread-only]
+                                     [--duration 3600] [--samples J] [--blocks B] [--orders-per-mode N]
+                                     [--keep-harmonics] [--fmax HZ] [--spread-only]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
 Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
 """
@@ -235,12 +236,24 @@ def main() -> None:
                     help="only the spread over --seeds records (skip the single-record tables)")
     ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
                     help="what the model-order spread is added to (as twin extract --order-spread)")
+    ap.add_argument("--keep-harmonics", action="store_true",
+                    help="leave the running-speed lines in the record (as twin extract --keep-harmonics)")
+    ap.add_argument("--orders-per-mode", type=int, default=None,
+                    help="lowest settled orders each mode is averaged over (default: extract's; 0: all)")
+    ap.add_argument("--blocks", type=int, default=None,
+                    help="blocks the record is cut into (default: --samples; fewer with --delete-half)")
     args = ap.parse_args()
     if args.spread_only and not args.seeds:
         ap.error("--spread-only needs --seeds N")
     options = {"delete_blocks": None if args.delete_half else 1, "order_spread": args.order_spread}
     if args.samples:
         options["samples"] = args.samples
+    if args.blocks:
+        options["blocks"] = args.blocks
+    if args.keep_harmonics:
+        options["remove_harmonics"] = False
+    if args.orders_per_mode is not None:
+        options["orders_per_mode"] = args.orders_per_mode or None
     if args.fmax:
         options["fmax_hz"] = args.fmax
     args.cache.mkdir(parents=True, exist_ok=True)

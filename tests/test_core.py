@@ -118,7 +118,7 @@ def test_bad_requests_are_clear_errors(make_record):
     ds = make_record(np.array([-0.1 + 2j * np.pi * 2.0]), np.array([[1.0, 1j]]), fs_hz=20.0, duration_s=100.0, seed=0)
     with pytest.raises(SignalError, match=r"too short for modes down to fmin = 0.5 Hz: it needs 200 s"):
         extract(ds, fmin_hz=0.5, progress=False)
-    with pytest.raises(SignalError, match="too short for 100 samples"):
+    with pytest.raises(SignalError, match="too short for 100 blocks"):
         extract(ds, samples=100, progress=False)
     with pytest.raises(SignalError, match="fmax = 20 Hz must be positive and at most Nyquist"):
         extract(ds, fmax_hz=20.0, progress=False)
@@ -175,7 +175,14 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     honest = tmp_path / "honest.nc"
     assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread", "all"]) == 0
     settings = json.loads(xr.load_dataset(honest).attrs["settings"])
-    assert settings["delete_blocks"] == 5 and settings["order_spread"] == "all"
+    assert settings["delete_blocks"] == 5 and settings["order_spread"] == "all" and settings["blocks"] == 10
+    assert main(["extract", str(signals), "-o", str(honest), "--samples", "12", "--blocks", "6", "--delete-half"]) == 0
+    raw = xr.load_dataset(honest)
+    settings = json.loads(raw.attrs["settings"])
+    assert (settings["blocks"], settings["samples"], settings["delete_blocks"], raw.sizes["sample"]) == (6, 12, 3, 12)
+    # delete-one gives one sample per block: asking for more is named, with nothing written
+    assert main(["extract", str(signals), "-o", str(tmp_path / "one.nc"), "--samples", "12", "--blocks", "6"]) == 2
+    assert "one sample per block" in capsys.readouterr().err and not (tmp_path / "one.nc").exists()
     # bad input: one line, exit status 2, no file left behind
     ds["displacement"][10, 0] = np.nan
     ds.to_netcdf(tmp_path / "bad.nc")
@@ -207,6 +214,8 @@ def test_orders_used_leave_out_unconverged_low_orders():
     use = _orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))
     assert len(use) == ORDERS_PER_MODE and 0 not in use and 3 not in use
     assert list(diag.order[use]) == [12, 14, 18, 20, 22, 24, 26, 28]  # the lowest settled ones
+    every = _orders_used(diag, SimpleNamespace(members=np.arange(len(orders))), None)  # all settled orders
+    assert len(every) == len(orders) - 2 and 0 not in every and 3 not in every
     # a cluster whose poles all agree keeps its lowest orders
     diag = SimpleNamespace(pole=np.full(len(orders), -0.15 + 2j * np.pi), order=orders)
     assert list(_orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))) == list(range(ORDERS_PER_MODE))

@@ -1,5 +1,6 @@
 """Jackknife samples: consistent complex normalisation, honest spread against Monte Carlo."""
 
+import json
 import warnings
 
 import numpy as np
@@ -82,6 +83,27 @@ def _spread_ratios(make_record, seeds, delete_blocks=1):
         se_f.append(float(m.frequency_se_jackknife[k])), se_z.append(float(m.damping_ratio_se_jackknife[k]))
     assert missed <= seeds // 10, f"no mode found in {missed} of {seeds} records"
     return np.mean(se_f) / np.std(f, ddof=1), np.mean(se_z) / np.std(z, ddof=1)
+
+
+def test_more_samples_than_blocks_estimate_the_same_standard_error(make_record):
+    """Delete-half: 60 random half-subsets of 20 blocks and 20 of them estimate one standard error (Shao-Wu
+    scaling with M samples); the 60 scatter less from record to record."""
+    poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
+    se = {20: [], 60: []}
+    for seed in range(6):
+        ds = make_record(poles, np.array([[1.0, 0.6j, 0.3, 0.8j]]), fs_hz=20.0, duration_s=1000.0, seed=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for m_samples in se:
+                m = extract(ds, samples=m_samples, blocks=20, max_order=16, progress=False, delete_blocks=None,
+                            order_spread="none")  # fmt: skip
+                assert m.sizes["sample"] == m_samples and json.loads(m.attrs["settings"])["blocks"] == 20
+                se[m_samples].append([float(m.frequency_se[0]), float(m.damping_ratio_se[0])])
+    a, b = np.array(se[20]), np.array(se[60])
+    # 6 records x 20 subsets know the mean SE to about +-7%: the two agree within 25%
+    assert np.all(np.abs(b.mean(axis=0) / a.mean(axis=0) - 1) < 0.25), (a.mean(axis=0), b.mean(axis=0))
+    with pytest.raises(SignalError, match="one sample per block"):
+        extract(ds, samples=40, blocks=20, max_order=16, progress=False, delete_blocks=1)
 
 
 def test_spread_ratio_against_independent_records(make_record):

@@ -114,6 +114,7 @@ def _add_design_inputs(p: argparse.ArgumentParser) -> None:
 
 
 def _add_stages(sub) -> None:
+    from twin.extract.core import ORDERS_PER_MODE
     from twin.fmu.simulate import DEFAULT_UNBALANCE_ME
 
     p = _command(sub, "modal", "complex modes of a model at a speed",
@@ -214,6 +215,8 @@ def _add_stages(sub) -> None:
     p.add_argument("signals", help="signals file (NetCDF, time x channel, from twin simulate or a measurement)")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
     p.add_argument("--samples", type=int, default=100, help="samples per mode J")
+    p.add_argument("--blocks", type=int, default=None,
+                   help="blocks the record is cut into (default: --samples; with --delete-half it may be fewer)")
     p.add_argument("--fmax", type=float, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
     p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz]")
     p.add_argument("--block-rows", type=int, default=None, help="Hankel block rows (default: from fmax)")
@@ -226,6 +229,9 @@ def _add_stages(sub) -> None:
     p.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
                    help="add each mode's spread over its model orders to the shape samples (the default), "
                         "to the pole samples too (all) or to neither (none)")
+    p.add_argument("--orders-per-mode", type=int, default=ORDERS_PER_MODE,
+                   help=f"average each mode over this many of its lowest settled model orders (default "
+                        f"{ORDERS_PER_MODE}; 0: all of them)")
     p.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                    help="leave the lines at the multiples of the record's running speed in the record (by "
                         "default they are subtracted before SSI); they are then rejected as modes by their "

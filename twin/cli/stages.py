@@ -104,7 +104,8 @@ def _extract(args: argparse.Namespace) -> int:
     ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
                  max_order=args.max_order, channels=channels, output=args.output, command=" ".join(sys.argv),
                  delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
-                 remove_harmonics=args.remove_harmonics)  # fmt: skip
+                 remove_harmonics=args.remove_harmonics, blocks=args.blocks,
+                 orders_per_mode=args.orders_per_mode or None)  # fmt: skip
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
           + (f"; running-speed lines removed at {removed} Hz" if removed else "")

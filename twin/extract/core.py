@@ -25,7 +25,7 @@ from twin.design.observe import record_observability, target_summary, unobservab
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test, remove_running_harmonics
 from twin.extract.modesfile import write_modes
-from twin.extract.samples import blocks_deleted, jackknife, normalise_at, order_deviations
+from twin.extract.samples import blocks_deleted, deleted_blocks, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import block_covariances, realise
 from twin.extract.stabilisation import Criteria, cluster_poles, diagram
@@ -100,6 +100,8 @@ def extract(
     delete_blocks: int | None = DELETE_BLOCKS,
     order_spread: str | bool = "shapes",
     remove_harmonics: bool = True,
+    blocks: int | None = None,
+    orders_per_mode: int | None = ORDERS_PER_MODE,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -108,9 +110,9 @@ def extract(
     signals : xarray.Dataset or path
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
     samples : int
-        J, samples per mode: the record is cut into J blocks and each sample
-        comes from the record without ``delete_blocks`` of them (delete-d
-        jackknife, see :mod:`twin.extract.samples`).
+        Samples per mode: each comes from the record without
+        ``delete_blocks`` of its ``blocks`` (delete-d jackknife, see
+        :mod:`twin.extract.samples`).
     fmax_hz : float, optional
         Highest frequency of interest [Hz] (default 40% of the sampling rate).
         The record is decimated to about ``2.5 fmax``.
@@ -147,6 +149,15 @@ def extract(
         error the same way on every record, and the update's intervals were
         too narrow with jackknife shapes alone; the poles' jackknife error
         is what the loop's comparison is calibrated to (see the README).
+    blocks : int, optional
+        J, contiguous blocks the record is cut into (default ``samples``).
+        The delete-one jackknife gives one sample per block; with more
+        blocks deleted, ``samples`` may exceed ``blocks`` (random subsets),
+        for a steadier spread from blocks that must stay long.
+    orders_per_mode : int or None
+        A mode is the average over this many of its lowest settled model
+        orders (default 8; None: all of them, less of SSI's bias and a wider
+        jackknife, see the README).
     remove_harmonics : bool
         When the record gives its running speed (attr ``speed_rpm``), subtract
         the sinusoids at its multiples before SSI
@@ -200,8 +211,13 @@ def extract(
         raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
     if samples < 2:
         raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
+    if orders_per_mode is not None and orders_per_mode < 1:
+        raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
+                          f"got {orders_per_mode}")  # fmt: skip
+    n_blocks = samples if blocks is None else int(blocks)
     try:
-        n_deleted = blocks_deleted(samples, delete_blocks)
+        n_deleted = blocks_deleted(n_blocks, delete_blocks)
+        deleted_blocks(n_blocks, delete_blocks, n_samples=samples)  # checked before the record is read
     except ValueError as exc:
         raise SignalError(f"delete_blocks: {exc}") from None
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
@@ -220,16 +236,16 @@ def extract(
     n_ch = y.shape[1]
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
-    block_len = y.shape[0] // samples
+    block_len = y.shape[0] // n_blocks
     if block_len < MIN_BLOCK_LAGS * 2 * i:
-        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {samples} samples with {i} block rows: "
-                          f"each block needs {MIN_BLOCK_LAGS * 2 * i / fs:g} s; ask for fewer samples "
+        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows: "
+                          f"each block needs {MIN_BLOCK_LAGS * 2 * i / fs:g} s; ask for fewer samples or blocks "
                           f"(at most {y.shape[0] // int(MIN_BLOCK_LAGS * 2 * i)})")  # fmt: skip
 
     log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows, orders up to %d",
              source, n_ch, rec.duration_s, fs, i, max_order)  # fmt: skip
-    blocks = block_covariances(y, 2 * i, samples)
-    real = realise(blocks.covariance(), i, max_order, fs)
+    covariances = block_covariances(y, 2 * i, n_blocks)
+    real = realise(covariances.covariance(), i, max_order, fs)
     orders = np.arange(2, real.max_order + 1, 2)
     diag = diagram(real, orders, fmin_hz, fmax, crit)
     diag, clusters = cluster_poles(diag, len(orders), crit)
@@ -259,9 +275,10 @@ def extract(
 
     members = []
     for c in modes:
-        use = _orders_used(diag, c)
+        use = _orders_used(diag, c, orders_per_mode)
         members.append((diag.order[use], diag.pole[use], diag.shape[use]))
-    poles, shapes, sample_p, sample_s, missing = jackknife(blocks, i, fs, members, progress, delete=delete_blocks)
+    poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
+                                                           delete=delete_blocks, n_samples=samples)
     jackknife_p = sample_p
     if order_spread != "none":
         d_p, d_s = order_deviations(members, shapes, samples)
@@ -292,15 +309,16 @@ def extract(
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, missing.shape[1])
+    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, n_blocks)
 
     out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                    [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
     settings = {
-        "samples": samples, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i, "max_order": int(real.max_order),
+        "samples": samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i,
+        "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
-        "delete_blocks": n_deleted, "order_spread": order_spread, "outlier_mads": OUTLIER_MADS,
+        "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode, "outlier_mads": OUTLIER_MADS,
         "remove_harmonics": bool(remove_harmonics),
     }  # fmt: skip
     out.attrs.update({
@@ -310,7 +328,7 @@ def extract(
         "settings": json.dumps(settings),
         "harmonics": json.dumps(harmonics),
         "undetermined_poles": json.dumps(undetermined),
-        "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {samples} blocks) "
+        "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {n_blocks} blocks, {samples} samples) "
                            "centred on the full-record estimate"
                            + {"none": "", "shapes": ", the shapes plus the mode's spread over its model orders",
                               "all": ", plus the mode's spread over its model orders"}[order_spread]
@@ -340,8 +358,9 @@ def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.nda
     return targets
 
 
-def _orders_used(diag, cluster) -> np.ndarray:
-    """The ORDERS_PER_MODE lowest model orders at which a cluster's mode is stable and settled.
+def _orders_used(diag, cluster, n_orders: int | None = ORDERS_PER_MODE) -> np.ndarray:
+    """The ``n_orders`` (default ORDERS_PER_MODE; None: all) lowest model orders at which a cluster's mode is
+    stable and settled.
 
     A mode's lowest stable orders are its parsimonious realisations. At orders
     well above the number of modes, the extra (noise) poles re-arrange from one
@@ -364,7 +383,7 @@ def _orders_used(diag, cluster) -> np.ndarray:
     scale = 1.4826 * np.median(dist)
     if scale > 0:
         m = m[dist <= OUTLIER_MADS * scale]
-    return m[np.argsort(diag.order[m], kind="stable")][:ORDERS_PER_MODE]
+    return m[np.argsort(diag.order[m], kind="stable")][:n_orders]
 
 
 def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: float | None) -> None:
@@ -391,7 +410,8 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
         warnings.warn(f"{source}: the samples come from {block_s:.3g} s blocks, shorter than "
                       f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode "
                       f"({MIN_BLOCK_TIME_CONSTANTS:g} x {tau[k]:.3g} s = {need:.3g} s): its sample spread "
-                      f"underestimates the uncertainty; ask for at most {most} samples", TwinWarning,
+                      f"underestimates the uncertainty; ask for at most {most} blocks (the samples, unless more than "
+                      "one block is deleted)", TwinWarning,
                       stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "

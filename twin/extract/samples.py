@@ -13,6 +13,16 @@ jackknife standard error of the full-record estimate (Shao and Wu 1989;
 ``d = 1`` is the classic delete-one jackknife, ``c = J - 1``). That is the
 spread the APerCEM likelihood expects from J samples treated as independent.
 
+Delete-one gives exactly one sample per block. With ``d > 1`` there are many
+more subsets than blocks, and ``M`` of them drawn at random (``M`` samples
+from ``J`` blocks, ``c = sqrt((M - 1)(J - d) / d)``, the samples' std over
+``sqrt(M)`` the standard error) estimate the same standard error with less
+scatter of their own: the blocks must stay longer
+than a few time constants of the slowest mode (15 blocks for the hydro
+unit's 20-min records), while the update estimates a shape covariance over
+16 real entries from the samples, which 15 samples leave singular
+(``extract(samples=45, blocks=15)``; the README has what it changes).
+
 Why not delete one block: a pole of SSI at a model order above the number of
 modes changes steeply with small changes of the covariances (the noise part
 of the subspace re-arranges), but the change saturates over the differences
@@ -126,9 +136,9 @@ def blocks_deleted(n_blocks: int, delete: int | None) -> int:
     return d
 
 
-def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0) -> list[np.ndarray]:
-    """The blocks each of the ``n_blocks`` samples leaves out: block ``m`` alone for ``delete = 1``, else
-    random subsets of :func:`blocks_deleted` blocks (fixed ``seed``).
+def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0, n_samples: int | None = None) -> list[np.ndarray]:
+    """The blocks each sample leaves out: block ``m`` alone for ``delete = 1`` (one sample per block), else
+    ``n_samples`` (default ``n_blocks``) random subsets of :func:`blocks_deleted` blocks (fixed ``seed``).
 
     Examples
     --------
@@ -136,12 +146,20 @@ def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0) -> list[np.
     [[0], [1], [2]]
     >>> [len(b) for b in deleted_blocks(4, None)]
     [2, 2, 2, 2]
+    >>> len(deleted_blocks(4, None, n_samples=12))
+    12
     """
     d = blocks_deleted(n_blocks, delete)
+    n_samples = n_blocks if n_samples is None else int(n_samples)
     if d == 1:
+        if n_samples != n_blocks:
+            raise ValueError(f"the delete-one jackknife gives one sample per block: {n_samples} samples need "
+                             f"{n_samples} blocks, not {n_blocks} (or delete more than one block)")  # fmt: skip
         return [np.array([m]) for m in range(n_blocks)]
+    if n_samples < 2:
+        raise ValueError(f"the spread needs at least 2 samples, got {n_samples}")
     rng = np.random.default_rng(seed)
-    return [np.sort(rng.permutation(n_blocks)[:d]) for _ in range(n_blocks)]
+    return [np.sort(rng.permutation(n_blocks)[:d]) for _ in range(n_samples)]
 
 
 def order_deviations(
@@ -206,6 +224,7 @@ def jackknife(
     members: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     progress: bool = True,
     delete: int | None = 1,
+    n_samples: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full-record estimates and delete-d jackknife samples of the given modes.
 
@@ -225,29 +244,32 @@ def jackknife(
         at the model orders the mode is averaged over.
     delete : int, optional
         Blocks each sample leaves out (None: ``J // 2``, delete-half; 1 is the delete-one jackknife).
+    n_samples : int, optional
+        M, samples per mode (default J, the number of blocks; only delete-d with ``d > 1`` may ask for
+        another number, see :func:`deleted_blocks`).
 
     Returns
     -------
     (poles, shapes, sample_poles, sample_shapes, missing)
         Full-record ``(n_modes,)`` poles and ``(n_modes, channels)`` shapes;
-        ``(n_modes, J)`` pole samples, ``(n_modes, J, channels)`` shape samples
+        ``(n_modes, M)`` pole samples, ``(n_modes, M, channels)`` shape samples
         (centred on the full-record estimate; phase-aligned, not yet
-        normalised); ``(n_modes, J)`` how many of the mode's orders had no pole
+        normalised); ``(n_modes, M)`` how many of the mode's orders had no pole
         within ``MATCH_DISTANCE`` in the reduced record (those orders keep
         their full-record value in that sample).
     """
     n_modes, n_ch, J = len(members), members[0][2].shape[1], blocks.n_blocks
-    left_out = deleted_blocks(J, delete)
-    d = len(left_out[0])
+    left_out = deleted_blocks(J, delete, n_samples=n_samples)
+    d, M = len(left_out[0]), len(left_out)
     full = [order_average(p, s, s[0]) for _, p, s in members]
     poles = np.array([f[0] for f in full])
     shapes = np.array([f[1] for f in full])
-    sub_p = np.empty((n_modes, J), dtype=complex)
-    sub_s = np.empty((n_modes, J, n_ch), dtype=complex)
-    missing = np.zeros((n_modes, J), dtype=int)
+    sub_p = np.empty((n_modes, M), dtype=complex)
+    sub_s = np.empty((n_modes, M, n_ch), dtype=complex)
+    missing = np.zeros((n_modes, M), dtype=int)
     all_orders = np.unique(np.concatenate([m[0] for m in members]))
     max_order = int(all_orders.max())
-    for j in bar(range(J), desc="jackknife", unit="sample", progress=progress, mininterval=0.5):
+    for j in bar(range(M), desc="jackknife", unit="sample", progress=progress, mininterval=0.5):
         real = realise(blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz)
         at = {}
         for n in all_orders:
@@ -265,7 +287,7 @@ def jackknife(
                 else:
                     p_k.append(lam[best]), s_k.append(phi[best])
             sub_p[k, j], sub_s[k, j] = order_average(np.array(p_k), np.array(s_k), shapes[k])
-    c = np.sqrt((J - 1) * (J - d) / d)
+    c = np.sqrt((M - 1) * (J - d) / d)
     sample_p = poles[:, None] - c * (sub_p - sub_p.mean(axis=1, keepdims=True))
     sample_s = shapes[:, None, :] - c * (sub_s - sub_s.mean(axis=1, keepdims=True))
     return poles, shapes, sample_p, sample_s, missing
