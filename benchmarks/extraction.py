@@ -46,6 +46,8 @@ from twin.fmu.statespace import state_modes
 from twin.fmu.truth import truth_state_space
 from twin.modes.shapes import mac
 
+from extraction_options import add_extraction_options, extraction_options
+
 MODEL = "models/hydro_unit.toml"
 #: The spread ratio is calibrated when within this fraction of one (issue 19).
 SPREAD_TOLERANCE = 0.3
@@ -226,34 +228,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
-    ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
     ap.add_argument("--duration", type=float, default=3600.0,
                     help="record length [s] of the spread's records (1200 with --samples 15: the loop's records)")
-    ap.add_argument("--samples", type=int, default=None, help="jackknife samples per mode (default: extract's)")
     ap.add_argument("--fmax", type=float, default=None,
                     help="fmax [Hz] of the spread's extractions (default extract's, 102.4 Hz; the loop uses 60)")
     ap.add_argument("--spread-only", action="store_true",
                     help="only the spread over --seeds records (skip the single-record tables)")
-    ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
-                    help="what the model-order spread is added to (as twin extract --order-spread)")
-    ap.add_argument("--keep-harmonics", action="store_true",
-                    help="leave the running-speed lines in the record (as twin extract --keep-harmonics)")
-    ap.add_argument("--orders-per-mode", type=int, default=None,
-                    help="lowest settled orders each mode is averaged over (default: extract's; 0: all)")
-    ap.add_argument("--blocks", type=int, default=None,
-                    help="blocks the record is cut into (default: --samples; fewer with --delete-half)")
+    add_extraction_options(ap)
     args = ap.parse_args()
     if args.spread_only and not args.seeds:
         ap.error("--spread-only needs --seeds N")
-    options = {"delete_blocks": None if args.delete_half else 1, "order_spread": args.order_spread}
-    if args.samples:
-        options["samples"] = args.samples
-    if args.blocks:
-        options["blocks"] = args.blocks
-    if args.keep_harmonics:
-        options["remove_harmonics"] = False
-    if args.orders_per_mode is not None:
-        options["orders_per_mode"] = args.orders_per_mode or None
+    options = extraction_options(args)
     if args.fmax:
         options["fmax_hz"] = args.fmax
     args.cache.mkdir(parents=True, exist_ok=True)

@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from extraction_options import add_extraction_options, extraction_flags, extraction_options
+
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "update_coverage_fmu.md"
 SCENARIOS = ("magnetic_pull", "seal_cross_coupling", "fsi", "fsi_per_mode", "bearings")
@@ -49,8 +51,7 @@ def group(name: str) -> str:
     return name
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, remove_harmonics: bool = True,
-                extraction: dict | None = None) -> list[dict]:
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
     update one dataset; one row per parameter."""
     from twin import load_model, shipped_model
@@ -71,7 +72,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, remove_harmonics: bool 
         warnings.simplefilter("ignore")
         signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(), progress=False)
         options = {"samples": DEMO_SAMPLES, **(extraction or {})}
-        modes = extract(signals, fmax_hz=60.0, progress=False, remove_harmonics=remove_harmonics, **options)
+        modes = extract(signals, fmax_hz=60.0, progress=False, **options)
         tw = Twin(model, modes)
         if name == "bearings":
             names = select_parameters(model, "bearings")
@@ -141,21 +142,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
-    ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
-                    help="extract with the running-speed lines left in the record (removed by default)")
-    ap.add_argument("--delete-half", action="store_true", help="extract delete-half samples (default delete-one)")
-    ap.add_argument("--samples", type=int, default=None, help="samples per mode (default: the demo's)")
-    ap.add_argument("--blocks", type=int, default=None, help="blocks of the record (default: --samples)")
-    ap.add_argument("--orders-per-mode", type=int, default=None, help="as twin extract's (0: all settled orders)")
-    ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default=None,
-                    help="as twin extract's (default: extract's)")
+    add_extraction_options(ap)
     args = ap.parse_args()
-    extraction = {k: v for k, v in (("samples", args.samples), ("blocks", args.blocks),
-                                    ("order_spread", args.order_spread)) if v is not None}  # fmt: skip
-    if args.delete_half:
-        extraction["delete_blocks"] = None
-    if args.orders_per_mode is not None:
-        extraction["orders_per_mode"] = args.orders_per_mode or None
     names = args.scenarios.split(",")
     unknown = [n for n in names if n not in SCENARIOS]
     if unknown:
@@ -164,20 +152,15 @@ def main() -> None:
     t0 = time.perf_counter()
     with dask_client("local" if args.workers > 1 else "sync", n_workers=args.workers) as client:
         results = mapper(client, progress=True, desc="datasets")(one_dataset, jobs, duration_s=args.duration,
-                                                                       remove_harmonics=args.remove_harmonics,
-                                                                       extraction=extraction)
+                                                                       extraction=extraction_options(args))
     rows = [r for rs in results for r in rs]
     if args.rows is not None:
         args.rows.write_text(json.dumps(rows))
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `python benchmarks/update_coverage_fmu.py --scenarios {args.scenarios} --seeds {args.seeds} "
              f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-             f"{'' if args.remove_harmonics else ' --keep-harmonics'}"
-             f"{' --delete-half' if args.delete_half else ''}"
-             + "".join(f" --{k.replace('_', '-')} {v}" for k, v in vars(args).items()
-                       if k in ("samples", "blocks", "orders_per_mode", "order_spread") and v is not None)
-             + "`; "
-             f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.", ""] + report(rows)  # fmt: skip
+             f"{extraction_flags(args)}`; {len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
+             ""] + report(rows)  # fmt: skip
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -87,7 +87,7 @@ def _spread_ratios(make_record, seeds, delete_blocks=1):
 
 def test_more_samples_than_blocks_estimate_the_same_standard_error(make_record):
     """Delete-half: 60 random half-subsets of 20 blocks and 20 of them estimate one standard error (Shao-Wu
-    scaling with M samples); the 60 scatter less from record to record."""
+    scaling with M samples); delete-one cannot give more samples than blocks."""
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
     se = {20: [], 60: []}
     for seed in range(6):

@@ -25,7 +25,7 @@ from twin.design.observe import record_observability, target_summary, unobservab
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test, remove_running_harmonics
 from twin.extract.modesfile import write_modes
-from twin.extract.samples import blocks_deleted, deleted_blocks, jackknife, normalise_at, order_deviations
+from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import block_covariances, realise
 from twin.extract.stabilisation import Criteria, cluster_poles, diagram
@@ -215,9 +215,8 @@ def extract(
         raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
                           f"got {orders_per_mode}")  # fmt: skip
     n_blocks = samples if blocks is None else int(blocks)
-    try:
-        n_deleted = blocks_deleted(n_blocks, delete_blocks)
-        deleted_blocks(n_blocks, delete_blocks, n_samples=samples)  # checked before the record is read
+    try:  # checked before the record is read
+        n_deleted = len(deleted_blocks(n_blocks, delete_blocks, n_samples=samples)[0])
     except ValueError as exc:
         raise SignalError(f"delete_blocks: {exc}") from None
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
@@ -318,8 +317,8 @@ def extract(
         "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
-        "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode, "outlier_mads": OUTLIER_MADS,
-        "remove_harmonics": bool(remove_harmonics),
+        "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
+        "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(remove_harmonics),
     }  # fmt: skip
     out.attrs.update({
         "title": f"modes identified from {Path(source).name}",

@@ -17,11 +17,11 @@ Delete-one gives exactly one sample per block. With ``d > 1`` there are many
 more subsets than blocks, and ``M`` of them drawn at random (``M`` samples
 from ``J`` blocks, ``c = sqrt((M - 1)(J - d) / d)``, the samples' std over
 ``sqrt(M)`` the standard error) estimate the same standard error with less
-scatter of their own: the blocks must stay longer
-than a few time constants of the slowest mode (15 blocks for the hydro
-unit's 20-min records), while the update estimates a shape covariance over
-16 real entries from the samples, which 15 samples leave singular
-(``extract(samples=45, blocks=15)``; the README has what it changes).
+scatter of their own. The blocks must stay longer than a few time constants
+of the slowest mode (15 blocks for the hydro unit's 20-min records), while
+the update estimates a shape covariance over 16 real entries from the
+samples, which 15 samples leave singular (``extract(samples=45, blocks=15)``;
+the README has what it changes).
 
 Why not delete one block: a pole of SSI at a model order above the number of
 modes changes steeply with small changes of the covariances (the noise part

@@ -1,0 +1,59 @@
+"""The extraction options the benchmarks share: their command-line flags and the ``extract`` keywords they give.
+
+Each flag left out keeps :func:`twin.extract.extract`'s default, so a benchmark run without them measures the
+twin's default extraction.
+
+Examples
+--------
+>>> import argparse
+>>> ap = argparse.ArgumentParser()
+>>> add_extraction_options(ap)
+>>> args = ap.parse_args(["--delete-half", "--samples", "45", "--blocks", "15", "--orders-per-mode", "0"])
+>>> extraction_options(args)
+{'samples': 45, 'blocks': 15, 'delete_blocks': None, 'orders_per_mode': None}
+>>> extraction_flags(args)
+' --delete-half --samples 45 --blocks 15 --orders-per-mode 0'
+"""
+
+from __future__ import annotations
+
+import argparse
+
+#: Flags whose value is passed on as given (flag name, ``extract`` keyword).
+VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"))
+
+
+def add_extraction_options(ap: argparse.ArgumentParser) -> None:
+    """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode`` and
+    ``--order-spread`` (as ``twin extract``'s) to a benchmark's parser."""
+    ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
+                    help="leave the running-speed lines in the record (removed by default)")
+    ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
+    ap.add_argument("--samples", type=int, default=None, help="jackknife samples per mode (default: the benchmark's)")
+    ap.add_argument("--blocks", type=int, default=None,
+                    help="blocks the record is cut into (default: --samples; fewer with --delete-half)")
+    ap.add_argument("--orders-per-mode", type=int, default=None,
+                    help="lowest settled orders each mode is averaged over (default: extract's; 0: all)")
+    ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default=None,
+                    help="what the model-order spread is added to (default: extract's)")  # fmt: skip
+
+
+def extraction_options(args: argparse.Namespace) -> dict:
+    """The ``extract`` keywords the flags ask for (none for a flag left out)."""
+    options = {key: getattr(args, flag) for flag, key in VALUED if getattr(args, flag) is not None}
+    if args.delete_half:
+        options["delete_blocks"] = None
+    if args.orders_per_mode is not None:
+        options["orders_per_mode"] = args.orders_per_mode or None
+    if not args.remove_harmonics:
+        options["remove_harmonics"] = False
+    return options
+
+
+def extraction_flags(args: argparse.Namespace) -> str:
+    """The flags given, as they would be typed (for a results file's command line)."""
+    flags = ("" if args.remove_harmonics else " --keep-harmonics") + (" --delete-half" if args.delete_half else "")
+    for flag in ("samples", "blocks", "orders_per_mode", "order_spread"):
+        if getattr(args, flag) is not None:
+            flags += f" --{flag.replace('_', '-')} {getattr(args, flag)}"
+    return flags
