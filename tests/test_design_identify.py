@@ -6,10 +6,18 @@ import pytest
 from twin import load_model, shipped_model
 from twin.cli import main
 from twin.design import identifiability
-from twin.design.identify import fisher_covariance, modal_jacobian, sample_covariance
+from twin.design.identify import (
+    _data_vector,
+    fisher_covariance,
+    modal_jacobian,
+    normalisation_jacobian,
+    sample_covariance,
+)
 from twin.errors import ModelError
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.loop.sensitivity import pole_jacobian, solve_modes
+from twin.modes.shapes import normalise_shapes
+from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +43,34 @@ def test_fisher_covariance_of_one_parameter_is_the_weighted_least_squares_varian
     assert fisher_covariance(J, covs, np.array([7.0]))[0, 0] == pytest.approx(expected, rel=1e-9)  # scale-free
 
 
-def test_sample_covariance_is_the_synthetic_noise_over_the_samples():
-    shape = np.array([0.8, 0.6j])
-    cov = sample_covariance(shape, 100)
-    assert np.allclose(np.diag(cov), np.array([1.58, 1.1, 0.04**2, 0, 0, 0.03**2]) / 100)
+def test_the_normalisation_jacobian_is_the_derivative_of_the_data_vector():
+    rng = np.random.default_rng(3)
+    shape = normalise_shapes((rng.standard_normal(6) + 0.3j * rng.standard_normal(6))[None, :])[0]
+    ref = int(np.argmax(np.abs(shape)))
+    N = normalisation_jacobian(shape)
+    h = 1e-6
+    for k in range(12):
+        x = np.zeros(12)
+        x[k] = h
+        step = x[:6] + 1j * x[6:]
+        plus, minus = (_data_vector(0j, shape + s * step, ref)[2:] for s in (1, -1))
+        assert np.allclose((plus - minus) / (2 * h), N[:, k], atol=1e-8)
+    assert np.linalg.matrix_rank(N) == 12 - 2  # the norm and the reference's phase
+
+
+def test_sample_covariance_is_the_covariance_of_renormalised_synthetic_samples():
+    """Monte Carlo: shapes perturbed as synthesize_modes does, then normalised as the data vector is."""
+    rng = np.random.default_rng(5)
+    shape = normalise_shapes(np.array([[0.7, 0.5 + 0.2j, -0.3 + 0.1j, 0.2 - 0.05j]]))[0]
+    ref = int(np.argmax(np.abs(shape)))
+    e = SHAPE_COV * rng.standard_normal((2, 200_000, 4))
+    noisy = shape.real * (1 + e[0]) + 1j * shape.imag * (1 + e[1])
+    data = np.array([_data_vector(0j, s, ref)[2:] for s in noisy])
+    expected = sample_covariance(shape, 1)
+    assert np.allclose(np.diag(expected)[:2], POLE_VARIANCE)
+    size = np.sqrt(np.outer(np.diag(expected)[2:], np.diag(expected)[2:])).max()
+    assert np.allclose(np.cov(data.T), expected[2:, 2:], atol=0.02 * size)  # 200000 draws, second order in 5%
+    assert np.allclose(sample_covariance(shape, 100), expected / 100)
 
 
 def test_the_lgb_direct_stiffnesses_are_undetermined_and_the_ugb_ones_determined(unit):
@@ -75,14 +107,17 @@ def test_observe_command_prints_both_tables(capsys):
 def test_the_fisher_std_is_the_samplers_on_case_b(unit, case_b_posterior):
     """Expected posterior std before any data against the default sampler's on paper Case B (J = 100, seed 1).
 
-    Both describe the same data (the poles and shapes of the 15 modes, their noise) linearised at the truth, so
-    for the determined parameters the ratio is about 1 (median 1.11 measured). Eight of the 43 are outside a
-    factor 1.5: LGB.cxy and LGB.cyx (the sampler 0.5-0.6 times the Fisher std, on every data seed tried), and
-    the FSI of modes 3, 4, 10 and 11 (1.52-1.89; added mass of modes 4 and 11 at 1.5-1.8 on every seed, and
-    with a Gaussian likelihood). The finite-difference Jacobian is the same for steps 1e-4 to 1e-6, so the
-    difference is in the two likelihoods (the sampler's shapes are scale-free, the Fisher's normalised), not in
-    the numerics. Before the Student t's weight was capped at one (:func:`twin.update.marginal.tail_kernel`)
-    the sampler's std was about 5% narrower on these data and 38 were within 1.5.
+    Both describe the same data (the poles and shapes of the 15 modes, their noise) linearised at the truth,
+    so for the determined parameters the ratio is about 1: median 1.03 measured, 1.06-1.09 on data seeds 5, 9
+    and 13 (``benchmarks/identifiability.py``). The Fisher carries the synthetic shape noise through the
+    normalisation of its data vector (:func:`twin.design.identify.normalisation_jacobian`); with the raw
+    entries' variances taken as the normalised shape's, 35 of 43 were within 1.5.
+
+    Three are outside here: LGB.cxy, LGB.cyx and the added damping of mode 12 (the sampler 0.53-0.64 times
+    the Fisher std; LGB.cyx on every data seed tried). They rest on the small imaginary shape entries, which
+    the relative synthetic noise leaves almost exact, and the Fisher's pseudo-inverse and the sampler's
+    variance floor and perturbation ``ε`` cut those at different levels. On data seed 13 the FSI of modes 6
+    and 8 are at 1.55-1.59 as well (39 of 43 within).
     """
     from twin.fem.truthfile import paper_truth
     from twin.update import summary
@@ -92,9 +127,9 @@ def test_the_fisher_std_is_the_samplers_on_case_b(unit, case_b_posterior):
     sampled = summary(case_b_posterior["posterior"].to_dataset())["std"].sel(parameter=ident.parameter)
     ratio = (sampled / ident["std"]).where(ident.determined, drop=True)
     assert ratio.sizes["parameter"] == 43
-    assert 0.9 <= float(ratio.median()) <= 1.25
+    assert 0.9 <= float(ratio.median()) <= 1.15
     within = np.abs(np.log(ratio)) <= np.log(1.5)
-    assert int(within.sum()) >= 35, ratio.parameter.values[~within.values]
-    assert float(ratio.min()) > 0.4 and float(ratio.max()) < 2.0
+    assert int(within.sum()) >= 40, ratio.parameter.values[~within.values]
+    assert float(ratio.min()) > 0.45 and float(ratio.max()) < 1.5
     undetermined = (sampled / ident["std"]).where(~ident.determined, drop=True)  # LGB.kxx, LGB.kyy, mass of mode 1
     assert ((undetermined > 0.67) & (undetermined < 1.5)).all()

@@ -279,11 +279,60 @@ def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -
     return keep
 
 
+def normalisation_jacobian(shape: np.ndarray) -> np.ndarray:
+    """Linear map of a raw shape error onto the normalised shape's, in real coordinates ``[Re, Im]``.
+
+    The data vector holds the shape normalised to unit norm with its largest
+    entry real and positive (:func:`_data_vector`). To first order, a raw
+    error ``δ`` of the normalised shape ``ψ`` (reference entry ``ψ_r``) moves
+    it by ``δ - Re(ψᴴδ) ψ - i (Im δ_r / ψ_r) ψ``: the part along ``ψ`` is
+    the norm's, the part along ``iψ`` the reference's phase. The map has
+    rank ``2m - 2``: a scale-free likelihood (the updater's) learns nothing
+    from those two directions either.
+
+    Parameters
+    ----------
+    shape : (m,) complex
+        Normalised shape (unit norm, largest entry real positive).
+
+    Returns
+    -------
+    (2m, 2m) real
+
+    Examples
+    --------
+    >>> psi = np.array([0.8, 0.6j])
+    >>> N = normalisation_jacobian(psi)
+    >>> np.allclose(N @ np.array([0.8, 0.0, 0.0, 0.6]), 0), np.allclose(N @ np.array([0.0, -0.6, 0.8, 0.0]), 0)
+    (True, True)
+    """
+    shape = np.asarray(shape, dtype=complex)
+    m = len(shape)
+    ref = int(np.argmax(np.abs(shape)))
+    a = np.concatenate([shape.real, shape.imag])
+    b = np.concatenate([shape.imag, -shape.real])
+    N = np.eye(2 * m) - np.outer(a, a)
+    N[:, m + ref] += b / shape[ref].real
+    return N
+
+
 def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = POLE_VARIANCE,
                       shape_cov: float = SHAPE_COV) -> np.ndarray:
-    """Error covariance of a mode's mean pole and shape over ``samples`` synthetic samples (diagonal)."""
-    var = np.concatenate([pole_variance, (shape_cov * shape.real) ** 2, (shape_cov * shape.imag) ** 2])
-    return np.diag(var / samples)
+    """Error covariance of a mode's mean pole and normalised shape over ``samples`` synthetic samples.
+
+    :func:`twin.update.synthesize_modes` perturbs each real entry of the
+    normalised shape ``shape`` independently (coefficient of variation
+    ``shape_cov``); the data vector renormalises, which carries that error
+    through :func:`normalisation_jacobian` (a singular covariance: the norm
+    and the reference's phase hold no error).
+    """
+    shape = np.asarray(shape, dtype=complex)
+    raw = np.concatenate([(shape_cov * shape.real) ** 2, (shape_cov * shape.imag) ** 2])
+    N = normalisation_jacobian(shape)
+    out = np.zeros((2 + len(raw), 2 + len(raw)))
+    out[:2, :2] = np.diag(pole_variance)
+    out[2:, 2:] = (N * raw) @ N.T
+    return out / samples
 
 
 def fisher_covariance(J: np.ndarray, covariances: Sequence[np.ndarray], scales: np.ndarray,
