@@ -52,7 +52,7 @@ def main() -> None:
         ratio = (sampled / ident["std"]).values
         r = ratio[determined]
         within = np.abs(np.log(r)) <= np.log(FACTOR)
-        outside = [f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[determined], r) if abs(np.log(x)) > np.log(FACTOR)]
+        outside = [f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[determined][~within], r[~within])]
         undetermined = ", ".join(f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[~determined], ratio[~determined]))
         print(f"| {seed} | {int(within.sum())} of {len(r)} | {np.median(r):.2f} | {r.min():.2f}-{r.max():.2f} | "
               f"{undetermined} | {', '.join(outside) or 'none'} |", flush=True)  # fmt: skip

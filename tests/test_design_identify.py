@@ -6,13 +6,7 @@ import pytest
 from twin import load_model, shipped_model
 from twin.cli import main
 from twin.design import identifiability
-from twin.design.identify import (
-    _data_vector,
-    fisher_covariance,
-    modal_jacobian,
-    normalisation_jacobian,
-    sample_covariance,
-)
+from twin.design.identify import _data_vector, fisher_covariance, modal_jacobian, sample_covariance
 from twin.errors import ModelError
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.loop.sensitivity import pole_jacobian, solve_modes
@@ -41,21 +35,6 @@ def test_fisher_covariance_of_one_parameter_is_the_weighted_least_squares_varian
     expected = 1.0 / (4 / 0.5 + 1 / 2.0 + 1 / 1.0 + 9 / 4.0)
     assert fisher_covariance(J, covs, np.array([1.0]))[0, 0] == pytest.approx(expected, rel=1e-9)
     assert fisher_covariance(J, covs, np.array([7.0]))[0, 0] == pytest.approx(expected, rel=1e-9)  # scale-free
-
-
-def test_the_normalisation_jacobian_is_the_derivative_of_the_data_vector():
-    rng = np.random.default_rng(3)
-    shape = normalise_shapes((rng.standard_normal(6) + 0.3j * rng.standard_normal(6))[None, :])[0]
-    ref = int(np.argmax(np.abs(shape)))
-    N = normalisation_jacobian(shape)
-    h = 1e-6
-    for k in range(12):
-        x = np.zeros(12)
-        x[k] = h
-        step = x[:6] + 1j * x[6:]
-        plus, minus = (_data_vector(0j, shape + s * step, ref)[2:] for s in (1, -1))
-        assert np.allclose((plus - minus) / (2 * h), N[:, k], atol=1e-8)
-    assert np.linalg.matrix_rank(N) == 12 - 2  # the norm and the reference's phase
 
 
 def test_sample_covariance_is_the_covariance_of_renormalised_synthetic_samples():
@@ -110,7 +89,7 @@ def test_the_fisher_std_is_the_samplers_on_case_b(unit, case_b_posterior):
     Both describe the same data (the poles and shapes of the 15 modes, their noise) linearised at the truth,
     so for the determined parameters the ratio is about 1: median 1.03 measured, 1.06-1.09 on data seeds 5, 9
     and 13 (``benchmarks/identifiability.py``). The Fisher carries the synthetic shape noise through the
-    normalisation of its data vector (:func:`twin.design.identify.normalisation_jacobian`); with the raw
+    normalisation of its data vector (:func:`twin.modes.shapes.normalisation_jacobian`); with the raw
     entries' variances taken as the normalised shape's, 35 of 43 were within 1.5.
 
     Three are outside here: LGB.cxy, LGB.cyx and the added damping of mode 12 (the sampler 0.53-0.64 times

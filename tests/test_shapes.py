@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from twin.modes.shapes import mac, normalise_shapes
+from twin.modes.shapes import mac, normalisation_jacobian, normalise_shapes
 
 
 def test_normalise_is_invariant_to_complex_scaling():
@@ -16,6 +16,21 @@ def test_normalise_is_invariant_to_complex_scaling():
     pivot = a[np.arange(5), np.abs(a).argmax(axis=1)]
     assert np.all(pivot.real > 0) and np.allclose(pivot.imag, 0.0)
     assert np.all(normalise_shapes(np.zeros((2, 3))) == 0)
+
+
+def test_the_normalisation_jacobian_is_the_derivative_of_normalise_shapes():
+    rng = np.random.default_rng(3)
+    shape = normalise_shapes(rng.standard_normal(6) + 0.3j * rng.standard_normal(6))
+    N = normalisation_jacobian(shape)
+    h = 1e-6
+    for k in range(12):
+        x = np.zeros(12)
+        x[k] = h
+        step = x[:6] + 1j * x[6:]
+        plus, minus = (normalise_shapes(shape + s * step) for s in (1, -1))
+        slope = (plus - minus) / (2 * h)
+        assert np.allclose(np.concatenate([slope.real, slope.imag]), N[:, k], atol=1e-8)
+    assert np.linalg.matrix_rank(N) == 12 - 2  # the norm and the reference's phase
 
 
 def test_mac_properties():

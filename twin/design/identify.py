@@ -47,7 +47,7 @@ from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.loop.fit import effect_priors
-from twin.modes.shapes import mac, normalise_shapes
+from twin.modes.shapes import mac, normalisation_jacobian, normalise_shapes
 from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
 
 #: Finite-difference step, as a fraction of each parameter's scale.
@@ -279,43 +279,6 @@ def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -
     return keep
 
 
-def normalisation_jacobian(shape: np.ndarray) -> np.ndarray:
-    """Linear map of a raw shape error onto the normalised shape's, in real coordinates ``[Re, Im]``.
-
-    The data vector holds the shape normalised to unit norm with its largest
-    entry real and positive (:func:`_data_vector`). To first order, a raw
-    error ``δ`` of the normalised shape ``ψ`` (reference entry ``ψ_r``) moves
-    it by ``δ - Re(ψᴴδ) ψ - i (Im δ_r / ψ_r) ψ``: the part along ``ψ`` is
-    the norm's, the part along ``iψ`` the reference's phase. The map has
-    rank ``2m - 2``: a scale-free likelihood (the updater's) learns nothing
-    from those two directions either.
-
-    Parameters
-    ----------
-    shape : (m,) complex
-        Normalised shape (unit norm, largest entry real positive).
-
-    Returns
-    -------
-    (2m, 2m) real
-
-    Examples
-    --------
-    >>> psi = np.array([0.8, 0.6j])
-    >>> N = normalisation_jacobian(psi)
-    >>> np.allclose(N @ np.array([0.8, 0.0, 0.0, 0.6]), 0), np.allclose(N @ np.array([0.0, -0.6, 0.8, 0.0]), 0)
-    (True, True)
-    """
-    shape = np.asarray(shape, dtype=complex)
-    m = len(shape)
-    ref = int(np.argmax(np.abs(shape)))
-    a = np.concatenate([shape.real, shape.imag])
-    b = np.concatenate([shape.imag, -shape.real])
-    N = np.eye(2 * m) - np.outer(a, a)
-    N[:, m + ref] += b / shape[ref].real
-    return N
-
-
 def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = POLE_VARIANCE,
                       shape_cov: float = SHAPE_COV) -> np.ndarray:
     """Error covariance of a mode's mean pole and normalised shape over ``samples`` synthetic samples.
@@ -323,8 +286,8 @@ def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[floa
     :func:`twin.update.synthesize_modes` perturbs each real entry of the
     normalised shape ``shape`` independently (coefficient of variation
     ``shape_cov``); the data vector renormalises, which carries that error
-    through :func:`normalisation_jacobian` (a singular covariance: the norm
-    and the reference's phase hold no error).
+    through :func:`twin.modes.shapes.normalisation_jacobian` (a singular
+    covariance: the norm and the reference's phase hold no error).
     """
     shape = np.asarray(shape, dtype=complex)
     raw = np.concatenate([(shape_cov * shape.real) ** 2, (shape_cov * shape.imag) ** 2])

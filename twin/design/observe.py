@@ -73,6 +73,7 @@ from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, sensor_noise_std, system_f
 from twin.fmu.statespace import StateSpace
 from twin.fmu.truth import MAX_TARGET_DAMPING
 from twin.modes.analysis import damping_ratio
+from twin.modes.shapes import normalisation_jacobian
 
 log = logging.getLogger(__name__)
 
@@ -284,13 +285,10 @@ def mode_covariance(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray
     c = sp.c[:, k]
     m, ref = len(c), int(np.argmax(np.abs(c)))
     c = c * abs(c[ref]) / c[ref] / abs(c[ref])  # in units of its largest entry, which is real positive
-    x = np.concatenate([c.real, np.delete(c.imag, ref)])
-    norm = np.linalg.norm(x)
+    norm = np.linalg.norm(c)
     shape = c / norm
-    xn = x / norm
-    to_psi = np.zeros((2 * m, 2 * m - 1))  # ψ = x / |x|: ∂ψ/∂x = (I - x̂ x̂ᵀ) / |x|, Im ψ_ref = 0
-    rows = np.delete(np.arange(2 * m), m + ref)
-    to_psi[rows] = (np.eye(2 * m - 1) - np.outer(xn, xn)) / norm
+    # the Fisher's coordinates are x = [Re c, Im c without Im c_ref]; ψ = x / |x| (Im ψ_ref = 0 throughout)
+    to_psi = np.delete(normalisation_jacobian(shape), m + ref, axis=1) / norm
     G = np.zeros((2 + 2 * m, 2 + 2 * m - 1))
     G[:2, :2] = np.eye(2)
     G[2:, 2:] = to_psi

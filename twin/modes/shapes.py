@@ -39,6 +39,44 @@ def normalise_shapes(shapes: np.ndarray) -> np.ndarray:
     return np.where(nonzero, shapes / scale, 0.0)
 
 
+def normalisation_jacobian(shape: np.ndarray) -> np.ndarray:
+    """Linear map of a raw shape error onto the normalised shape's, in real coordinates ``[Re, Im]``.
+
+    :func:`normalise_shapes` scales a shape to unit norm with its largest
+    entry real and positive. To first order, a raw error ``δ`` of the
+    normalised shape ``ψ`` (reference entry ``ψ_r``) moves it by
+    ``δ - Re(ψᴴδ) ψ - i (Im δ_r / ψ_r) ψ``: the part along ``ψ`` is the
+    norm's, the part along ``iψ`` the reference's phase. The map has rank
+    ``2m - 2``: a scale-free likelihood (the updater's) learns nothing from
+    those two directions either.
+
+    Parameters
+    ----------
+    shape : (m,) complex
+        Normalised shape (unit norm, largest entry real positive).
+
+    Returns
+    -------
+    (2m, 2m) real
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> psi = np.array([0.8, 0.6j])
+    >>> N = normalisation_jacobian(psi)
+    >>> np.allclose(N @ np.array([0.8, 0.0, 0.0, 0.6]), 0), np.allclose(N @ np.array([0.0, -0.6, 0.8, 0.0]), 0)
+    (True, True)
+    """
+    shape = np.asarray(shape, dtype=complex)
+    m = len(shape)
+    ref = int(np.argmax(np.abs(shape)))
+    a = np.concatenate([shape.real, shape.imag])
+    b = np.concatenate([shape.imag, -shape.real])
+    N = np.eye(2 * m) - np.outer(a, a)
+    N[:, m + ref] += b / shape[ref].real
+    return N
+
+
 def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Complex modal assurance criterion between two sets of shapes.
 
