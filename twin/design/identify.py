@@ -8,7 +8,9 @@ information of the parameters and the expected posterior covariance are
 
     F = Σ_k J_kᵀ Σ_k⁺ J_k,        Cov(θ | data) ≈ (F + P₀)⁻¹
 
-(``P₀`` the prior precision; flat by default, as the updater's). ``J_k`` is
+(``P₀`` the prior precision; flat by default, as the updater's; ``Σ_k⁺`` is
+singular where the normalised shape cannot move and is taken there by
+:func:`data_precision`, with no coordinate cut for its size). ``J_k`` is
 taken by finite differences of the model's modes (a relative step of
 :data:`STEP`); ``Σ_k`` comes from either
 
@@ -260,14 +262,14 @@ def record_data(poles: np.ndarray, sp, frequency_hz: np.ndarray, observable: np.
     Each pole is matched to the table's row of nearest ``frequency_hz`` and to the spectrum's nearest pole;
     ``ratios`` (by the spectrum's pole index) fixes the :func:`record_ratio` of a mode.
     """
-    used, covs = [], []
+    used, precisions = [], []
     for i, pole in enumerate(poles):
         row = int(np.argmin(np.abs(frequency_hz - pole.imag / (2 * np.pi))))
         if bool(observable[row]):
             k = int(np.argmin(np.abs(sp.poles - pole)))
             used.append(i)
-            covs.append(record_covariance(sp, k, duration_s, (ratios or {}).get(k))[0])
-    return used, covs
+            precisions.append(data_precision(*record_covariance(sp, k, duration_s, (ratios or {}).get(k))))
+    return used, precisions
 
 
 def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -> np.ndarray:
@@ -298,13 +300,50 @@ def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[floa
     return out / samples
 
 
-def fisher_covariance(J: np.ndarray, covariances: Sequence[np.ndarray], scales: np.ndarray,
+def data_precision(cov: np.ndarray, shape: np.ndarray) -> np.ndarray:
+    """Precision of a mode's data vector ``[Re λ, Im λ, Re ψ, Im ψ]`` from its covariance (both ``2 + 2m`` square).
+
+    The normalised shape ``ψ`` (unit norm, reference entry real) moves only
+    in the ``2m - 2`` directions its normalisation leaves free (the range of
+    :func:`twin.modes.shapes.normalisation_jacobian`): along ``ψ`` itself and
+    the reference's imaginary part its covariance is zero by construction. The covariance is
+    inverted on the poles and that range, after scaling every coordinate to
+    unit variance, so that no coordinate is cut for being small beside another:
+    a pole's variance [1/s²] and a shape entry's can differ by ten orders of
+    magnitude, and a relative cut on the raw matrix discards the precise
+    small entries (the small imaginary parts of the shapes) as if they were
+    its structural zeros.
+
+    Examples
+    --------
+    A two-channel shape: the precision on its one free shape direction, poles ``1/variance``:
+
+    >>> psi = np.array([0.8, 0.6j])
+    >>> cov = sample_covariance(psi, 1)
+    >>> P = data_precision(cov, psi)
+    >>> np.allclose(np.diag(P)[:2], 1 / np.array(POLE_VARIANCE)), int(np.linalg.matrix_rank(P))
+    (True, 3)
+    """
+    m = len(shape)
+    U = np.linalg.svd(normalisation_jacobian(shape))[0][:, : 2 * m - 2]
+    P = np.zeros((2 + 2 * m, 2 * m))
+    P[:2, :2] = np.eye(2)
+    P[2:, 2:] = U
+    S = P.T @ cov @ P
+    d = np.sqrt(np.clip(np.diag(S), 0, None))
+    d = np.where(d > 0, d, 1.0)
+    inner = np.linalg.pinv(S / np.outer(d, d), rcond=1e-10, hermitian=True) / np.outer(d, d)
+    return P @ inner @ P.T
+
+
+def fisher_covariance(J: np.ndarray, precisions: Sequence[np.ndarray], scales: np.ndarray,
                       prior_std: np.ndarray | None = None) -> np.ndarray:
-    """``(Σ_k J_kᵀ Σ_k⁺ J_k + P₀)⁻¹`` [SI]; directions the data do not reach get a std of 10⁶ scales."""
+    """``(Σ_k J_kᵀ P_k J_k + P₀)⁻¹`` [SI], ``P_k`` each mode's data precision (:func:`data_precision`);
+    directions the data do not reach get a std of 10⁶ scales."""
     Js = J * scales[None, None, :]
     F = np.zeros((len(scales), len(scales)))
-    for Jk, cov in zip(Js, covariances):
-        F += Jk.T @ np.linalg.pinv(cov, rcond=1e-10, hermitian=True) @ Jk
+    for Jk, Pk in zip(Js, precisions):
+        F += Jk.T @ Pk @ Jk
     if prior_std is not None:
         F += np.diag((scales / prior_std) ** 2)
     F += 1e-12 * np.eye(len(scales))
@@ -401,13 +440,13 @@ def identifiability(
         if samples < 1:
             raise ModelError(f"samples must be at least 1, got {samples}")
         used = list(range(len(targets)))
-        covs = [sample_covariance(shapes[i], samples) for i in used]
+        precisions = [data_precision(sample_covariance(shapes[i], samples), shapes[i]) for i in used]
         method = (f"{samples} synthetic samples per mode (pole variances {POLE_VARIANCE[0]:g}, {POLE_VARIANCE[1]:g} "
                   f"rad^2/s^2; shape CoV {SHAPE_COV:.0%})")  # fmt: skip
     else:
         obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
         sp = spectrum(system_for(model, truth, "full", None), model, excitation)
-        used, covs = record_data(poles, sp, obs.frequency.values, obs.observable.values, excitation.duration_s)
+        used, precisions = record_data(poles, sp, obs.frequency.values, obs.observable.values, excitation.duration_s)
         method = (f"poles and shapes of the observable modes from a {excitation.duration_s:g} s record "
                   "(Cramer-Rao covariance raised to the single-mode bound of each pole)")  # fmt: skip
     if not used:
@@ -417,7 +456,7 @@ def identifiability(
     J = J[used][:, :, keep]
     columns = [c for c, k in zip(columns, keep) if k]
     scales = scales[keep]
-    cov = fisher_covariance(J, covs, scales)
+    cov = fisher_covariance(J, precisions, scales)
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     return xr.Dataset(
         {

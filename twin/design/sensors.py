@@ -217,14 +217,14 @@ def design_sensors(
             margin = -0.5 * np.log(rel).sum(axis=0)  # a mode the layout is blind to counts as std = 10^6 limits
             out.update(n_determined=0, criterion=float(np.mean(margin)))
             return out
-        used, covs = record_data(pert.poles, sub, freq, observable, fixed.duration_s, ratios)
+        used, precisions = record_data(pert.poles, sub, freq, observable, fixed.duration_s, ratios)
         rel = np.full(len(pert.columns), np.inf)
         if used:
             keep = judged_columns(len(names), len(pert.poles), used, fsi)
             J = pert.jacobian(rows)[used][:, :, keep]
-            cov = fisher_covariance(J, covs, pert.scales[keep])
+            cov = fisher_covariance(J, precisions, pert.scales[keep])
             rel[keep] = np.sqrt(np.clip(np.diag(cov), 0, None)) / pert.scales[keep]
-            prior = fisher_covariance(J, covs, pert.scales[keep], prior_std=pert.scales[keep])
+            prior = fisher_covariance(J, precisions, pert.scales[keep], prior_std=pert.scales[keep])
             rel_prior = prior / np.outer(pert.scales[keep], pert.scales[keep])
             # columns not judged keep their unit prior: log det contribution 0
             criterion = -0.5 * np.linalg.slogdet(rel_prior)[1] / len(pert.columns)
