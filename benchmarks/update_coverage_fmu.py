@@ -15,6 +15,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--seeds 20] [--first-seed 101] [--workers 2] [--duration 1200]
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
+                                             [--shape-covariance {shrunk,sample}]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -51,9 +52,10 @@ def group(name: str) -> str:
     return name
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
+                shape_covariance: str = "shrunk") -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset; one row per parameter."""
+    update one dataset (``shape_covariance`` as :func:`twin.update.update`'s); one row per parameter."""
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
@@ -83,7 +85,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
             names = tw.added_parameters()
             truth = truth_for_measured(scenario.truth_values(model), tw.measured,
                                        json.loads(modes.attrs.get("truth_modes", "[]")))  # fmt: skip
-        post = tw.update(names, seed=seed, progress=False, adjust="jackknife")
+        post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance)
     table = posterior_table(post, tw.model)
     factors = json.loads(post.attrs.get("spread_adjustment", "{}"))
     draws = parameter_draws(post["posterior"].to_dataset()).stack(sample=("chain", "draw")).transpose("sample", ...)
@@ -142,6 +144,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
+    ap.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
+                    help="the update's shape covariance (sample: needs --delete-half with more blocks than entries)")
     add_extraction_options(ap)
     args = ap.parse_args()
     names = args.scenarios.split(",")
@@ -152,14 +156,17 @@ def main() -> None:
     t0 = time.perf_counter()
     with dask_client("local" if args.workers > 1 else "sync", n_workers=args.workers) as client:
         results = mapper(client, progress=True, desc="datasets")(one_dataset, jobs, duration_s=args.duration,
-                                                                       extraction=extraction_options(args))
+                                                                       extraction=extraction_options(args),
+                                                                       shape_covariance=args.shape_covariance)
     rows = [r for rs in results for r in rs]
     if args.rows is not None:
         args.rows.write_text(json.dumps(rows))
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `python benchmarks/update_coverage_fmu.py --scenarios {args.scenarios} --seeds {args.seeds} "
              f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-             f"{extraction_flags(args)}`; {len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
+             f"{extraction_flags(args)}"
+             f"{'' if args.shape_covariance == 'shrunk' else ' --shape-covariance ' + args.shape_covariance}`; "
+             f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")

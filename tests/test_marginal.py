@@ -10,7 +10,7 @@ from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import summary, synthesize_modes, update
 from twin.update.marginal import (log_density, marginal_problem, posterior_mode, residual_moments, run_chain,
                                   shrunk_covariance, tail_kernel)
-from twin.update.problem import build_problem, select_parameters
+from twin.update.problem import UpdateError, build_problem, select_parameters
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +42,29 @@ def test_shrunk_covariance_keeps_real_correlations_and_drops_chance_ones():
     # many samples: the sample covariance
     z = rng.standard_normal((20000, 3)) @ np.array([[1.0, 0.5, 0.0], [0.0, 1.0, 0.3], [0.0, 0.0, 1.0]])
     np.testing.assert_allclose(shrunk_covariance(z, np.var(z, axis=0, ddof=1)), np.cov(z.T), atol=0.01)
+
+
+def test_the_sample_shape_covariance_is_the_samples_own_and_refuses_too_few(hydro_unit, small):
+    marg, data = small
+    p = marg.problem
+    own = marginal_problem(p, data["pole"].values, "sample")
+    J = p.psi_hat.shape[1]
+    for i in range(p.n_modes):  # J = 30 samples of 16 entries: their covariance (variances floored as the model's)
+        expected = np.cov(p.psi_hat[i].T)
+        np.fill_diagonal(expected, p.psi_var[i])  # Im of the reference entry: no scatter, the floor
+        got = own.cov_z[i][np.ix_(p.data_index, p.data_index)] * J
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+    shrunk = marg.cov_z[0][np.ix_(p.data_index, p.data_index)]
+    assert np.allclose(np.diag(shrunk), np.diag(own.cov_z[0][np.ix_(p.data_index, p.data_index)]))
+    assert own.shape_covariance == "sample" and marg.shape_covariance == "shrunk"
+    few = synthesize_modes(hydro_unit, samples=12, seed=7).isel(mode=[2, 3, 9])  # 12 samples span 11 of 15
+    problem = build_problem(hydro_unit, few, select_parameters(hydro_unit, "LGB.k*"), pole_model="marginal")
+    with pytest.raises(UpdateError, match=r"mode\(s\) 3 \(rank 11 of 15\), 4 \(rank 11 of 15\), 10 \(rank 11 of 15\)"):
+        marginal_problem(problem, few["pole"].values, "sample")
+    with pytest.raises(UpdateError, match="shape_covariance must be one of shrunk, sample"):
+        update(hydro_unit, few, "LGB.k*", shape_covariance="full", progress=False)
+    with pytest.raises(UpdateError, match="needs pole_model='marginal'"):
+        update(hydro_unit, few, "LGB.k*", shape_covariance="sample", pole_model="linear", progress=False)
 
 
 def test_residual_covariance_is_that_of_the_shape_and_pole_errors(small):

@@ -197,6 +197,10 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     settings = json.loads(read_posterior(paper).attrs["settings"])
     assert {k: settings[k] for k in PAPER} == PAPER
     assert not read_posterior(paper)["sample_stats"]["accepted"].any()
+    own = tmp_path / "own.nc"  # 20 samples span the 15 shape entries that scatter: their own covariance
+    assert main(["update", "hydro_unit", str(sub), "-o", str(own), "--fsi", "--draws", "10", "--chains", "1",
+                 "--shape-covariance", "sample", "-q"]) == 0  # fmt: skip
+    assert json.loads(read_posterior(own).attrs["settings"])["shape_covariance"] == "sample"
     assert main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi", "--paper",
                  "--noise-model", "diagonal"]) == 2  # fmt: skip
     assert "--paper sets the sampler; leave out --noise-model" in capsys.readouterr().err

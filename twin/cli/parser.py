@@ -293,6 +293,10 @@ def _add_loop(sub) -> None:
                         "the correlation of the modes adds to the spread of its posterior mode over perturbations "
                         "of the data by its own samples, where that is more than one (modes from one record are "
                         "correlated); none: the model's posterior")
+    p.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
+                   help="marginal model only: each mode's shape covariance from its samples, correlations shrunk "
+                        "toward zero (the default) or the samples' own (needs samples spanning every shape entry: "
+                        "twin extract --delete-half --samples J --blocks B with B above the entries)")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

@@ -72,7 +72,8 @@ def correlation_factors(marg: Marginal, model: RotorModel, modes: xr.Dataset, na
                         eps_std: float, prior_mean: np.ndarray, prior_precision: np.ndarray) -> np.ndarray | None:  # fmt: skip
     """Per parameter, the spread of the posterior mode with the modes' samples joint over that with them shuffled.
 
-    ``marg`` is the marginal problem of ``modes`` itself. Parameters in the
+    ``marg`` is the marginal problem of ``modes`` itself (the perturbed data's take its shape covariance
+    estimator). Parameters in the
     order of the posterior (shared, then per mode); ``None`` when fewer than
     :data:`MIN_PERTURBATIONS` perturbations of either kind give a mode.
     """
@@ -114,8 +115,9 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
         data["pole"], data["shape"] = perturbed(modes["pole"], j), perturbed(modes["shape"], j)
         try:
             problem = build_problem(model, data, names, fsi=fsi, eps_std=eps_std, pole_model="marginal")
-            theta, _ = posterior_mode(marginal_problem(problem, data["pole"].transpose("mode", "sample").values),
-                                      prior_mean, prior_precision, start=centre)  # fmt: skip
+            perturbed_marg = marginal_problem(problem, data["pole"].transpose("mode", "sample").values,
+                                              marg.shape_covariance)  # fmt: skip
+            theta, _ = posterior_mode(perturbed_marg, prior_mean, prior_precision, start=centre)
         except (UpdateError, np.linalg.LinAlgError):
             continue
         moves.append((theta - centre) * scales)

@@ -24,7 +24,7 @@ from twin.netcdf import check_writable
 from twin.update.adjust import ADJUSTMENTS, correlation_factors, stretch
 from twin.update.gibbs import (NOISE_PRIOR_SHAPE, Chain, Prior, check_noise_model, initial_state, not_identifiable,
                                run_chains, stack, weak_parameters)  # fmt: skip
-from twin.update.marginal import Marginal, marginal_precision, marginal_problem
+from twin.update.marginal import SHAPE_COVARIANCES, Marginal, marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import check_pole_model
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
@@ -166,6 +166,7 @@ def update(
     collapsed: bool = True,
     pole_model: str = CALIBRATED["pole_model"],
     adjust: str | None = None,
+    shape_covariance: str = "shrunk",
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -223,6 +224,11 @@ def update(
         (:mod:`twin.update.adjust`: modes extracted from one record are
         correlated, the model's modes independent); the factors are in the
         attr ``spread_adjustment``.
+    shape_covariance : {"shrunk", "sample"}
+        Marginal model only: each mode's shape covariance from its samples,
+        its correlations shrunk toward zero by Schäfer and Strimmer's intensity
+        (the default), or the samples' own, which needs samples spanning every
+        shape entry (:func:`twin.update.marginal.shape_covariance_of`).
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -259,6 +265,11 @@ def update(
         raise UpdateError(f"adjust must be one of {', '.join(ADJUSTMENTS)}, got {adjust!r}")
     if adjust != "none" and pole_model != "marginal":
         raise UpdateError(f"adjust={adjust!r} needs pole_model='marginal' (it searches the marginal's mode)")
+    if shape_covariance not in SHAPE_COVARIANCES:
+        raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {shape_covariance!r}")
+    if shape_covariance != "shrunk" and pole_model != "marginal":
+        raise UpdateError(f"shape_covariance={shape_covariance!r} needs pole_model='marginal' (the Gibbs sampler "
+                          "learns its residual noise instead)")  # fmt: skip
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -271,7 +282,7 @@ def update(
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
     if pole_model == "marginal":
-        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values)
+        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, shape_covariance)
         bad = weak_parameters(problem.parameter_labels, marginal_precision(marg))
     else:
         bad = not_identifiable(problem, initial_state(problem))
@@ -290,7 +301,7 @@ def update(
     elapsed = time.perf_counter() - started
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
-                "adjust": adjust,
+                "adjust": adjust, "shape_covariance": shape_covariance,
                 "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",

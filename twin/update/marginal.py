@@ -57,6 +57,8 @@ from twin.update.problem import Problem, UpdateError
 
 log = logging.getLogger(__name__)
 
+#: How each mode's shape covariance is estimated from its samples (see :func:`shape_covariance_of`); the default first.
+SHAPE_COVARIANCES = ("shrunk", "sample")
 #: Degrees of freedom of the Student t tail of each mode's likelihood (see :func:`tail_kernel`).
 STUDENT_DOF = 5.0
 #: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
@@ -94,6 +96,8 @@ class Marginal:
         ``H_k μ`` for each basis ``k`` and "sample" (value, two slopes).
     bases : (I, K, n_r, n_z)
         The parameters' bases at the mean pole, dense.
+    shape_covariance : str
+        How ``cov_z``'s shape block was estimated (:data:`SHAPE_COVARIANCES`).
     """
 
     problem: Problem
@@ -102,6 +106,7 @@ class Marginal:
     cov_z: np.ndarray
     columns: np.ndarray
     bases: np.ndarray
+    shape_covariance: str = "shrunk"
 
     @property
     def size(self) -> int:
@@ -110,7 +115,7 @@ class Marginal:
         return p.n_global + p.n_modes * p.n_per_mode
 
 
-def shrunk_covariance(samples: np.ndarray, variance: np.ndarray) -> np.ndarray:
+def shrunk_covariance(samples: np.ndarray, variance: np.ndarray, intensity: float | None = None) -> np.ndarray:
     """Covariance of the samples' entries with their correlations shrunk toward zero by the data's own weight.
 
     The shape samples of a mode are strongly correlated across channels (one
@@ -129,6 +134,8 @@ def shrunk_covariance(samples: np.ndarray, variance: np.ndarray) -> np.ndarray:
         Real samples of each group (e.g. per mode) on the second-to-last axis.
     variance : (..., n)
         The entries' variances (the diagonal of the result; may be floored).
+    intensity : float, optional
+        ``λ`` itself instead of Schäfer and Strimmer's (0: the samples' own correlations).
 
     Returns
     -------
@@ -160,13 +167,19 @@ def shrunk_covariance(samples: np.ndarray, variance: np.ndarray) -> np.ndarray:
     total = np.sum(np.where(off, r**2, 0.0), axis=(-2, -1))
     lam = np.clip(np.divide(np.sum(np.where(off, var_r, 0.0), axis=(-2, -1)), total,
                             out=np.ones_like(total), where=total > 0), 0.0, 1.0)  # fmt: skip
+    if intensity is not None:
+        lam = np.full_like(lam, float(intensity))
     corr = np.where(off, (1.0 - lam[..., None, None]) * r, 1.0)
     s = np.sqrt(np.asarray(variance, dtype=float))
     return corr * s[..., :, None] * s[..., None, :]
 
 
-def marginal_problem(problem: Problem, poles: np.ndarray) -> Marginal:
+def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = "shrunk") -> Marginal:
     """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
+
+    ``shape_covariance`` is one of :data:`SHAPE_COVARIANCES`: the mean shape's covariance from the samples
+    with their correlations shrunk (:func:`shrunk_covariance`, the default), or their own (``"sample"``),
+    which needs samples that span every entry of every mode's shape.
 
     Examples
     --------
@@ -193,7 +206,7 @@ def marginal_problem(problem: Problem, poles: np.ndarray) -> Marginal:
     pole_cov = np.einsum("ija,ijb->iab", d, d) / (J - 1) / J
     mean_z, cov_z = np.zeros((I, n_z)), np.zeros((I, n_z, n_z))
     mean_z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
-    cov_z[:, problem.data_index[:, None], problem.data_index] = shrunk_covariance(problem.psi_hat, problem.psi_var) / J
+    cov_z[:, problem.data_index[:, None], problem.data_index] = shape_covariance_of(problem, shape_covariance) / J
     cov_z[:, problem.eps_index, problem.eps_index] = problem.eps_std**2
     K = problem.n_global + problem.n_per_mode
     bases = np.zeros((I, K, n_r, n_z))
@@ -201,7 +214,48 @@ def marginal_problem(problem: Problem, poles: np.ndarray) -> Marginal:
         for a, k in enumerate(b.columns):
             bases[:, k][:, b.rows] = b.H[:, a, 0]
     columns = design(problem, mean_z).reshape(I, 1 + K, 3, n_r)
-    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases)
+    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance)
+
+
+def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
+    """Each mode's covariance of its real shape entries from its samples, ``(I, n, n)``, by ``method``.
+
+    ``"shrunk"``: :func:`shrunk_covariance` (Schäfer and Strimmer's intensity).
+    ``"sample"``: the samples' own correlations; an :class:`UpdateError`
+    names the modes whose samples do not span every entry that scatters
+    (delete-one samples of ``B`` blocks span at most ``B - 1`` directions).
+    The diagonal is the problem's floored variances in both.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes
+    >>> from twin.update.problem import build_problem
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(m, samples=30, seed=0).isel(mode=[2])
+    >>> p = build_problem(m, data, ["LGB.kxx"], pole_model="marginal")
+    >>> own, shrunk = shape_covariance_of(p, "sample"), shape_covariance_of(p)
+    >>> own.shape, bool(np.allclose(np.diagonal(own, axis1=1, axis2=2), np.diagonal(shrunk, axis1=1, axis2=2)))
+    ((1, 16, 16), True)
+    """
+    if method not in SHAPE_COVARIANCES:
+        raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {method!r}")
+    if method == "shrunk":
+        return shrunk_covariance(problem.psi_hat, problem.psi_var)
+    x = problem.psi_hat - problem.psi_hat.mean(axis=1, keepdims=True)
+    spread = np.sqrt(np.mean(x**2, axis=1))
+    moving = spread > 1e-12 * spread.max(axis=1, keepdims=True)  # the reference's Im is zero in every sample
+    short = []
+    for m, xi, mi in zip(problem.modes, x, moving):
+        rank, n = int(np.linalg.matrix_rank(xi[:, mi])), int(mi.sum())
+        if rank < n:
+            short.append(f"{int(m)} (rank {rank} of {n})")
+    if short:
+        raise UpdateError("shape_covariance='sample' needs shape samples spanning every entry that scatters; "
+                          f"mode(s) {', '.join(short)} do not: take more samples of more blocks "
+                          "(twin extract --delete-half --samples J --blocks B, B above the entries) or the "
+                          "shrunk covariance")  # fmt: skip
+    return shrunk_covariance(problem.psi_hat, problem.psi_var, intensity=0.0)
 
 
 @dataclass(frozen=True)
