@@ -306,9 +306,10 @@ def data_precision(cov: np.ndarray, shape: np.ndarray) -> np.ndarray:
     The normalised shape ``ψ`` (unit norm, reference entry real) moves only
     in the ``2m - 2`` directions its normalisation leaves free (the range of
     :func:`twin.modes.shapes.normalisation_jacobian`): along ``ψ`` itself and
-    the reference's imaginary part its covariance is zero by construction. The covariance is
-    inverted on the poles and that range, after scaling every coordinate to
-    unit variance, so that no coordinate is cut for being small beside another:
+    the reference's imaginary part its covariance is zero by construction.
+    The covariance is inverted on the poles and that range, after scaling
+    every coordinate to unit variance, so that no coordinate is cut for being
+    small beside another:
     a pole's variance [1/s²] and a shape entry's can differ by ten orders of
     magnitude, and a relative cut on the raw matrix discards the precise
     small entries (the small imaginary parts of the shapes) as if they were
