@@ -24,7 +24,7 @@ from twin.netcdf import check_writable
 from twin.update.adjust import ADJUSTMENTS, correlation_factors, stretch
 from twin.update.gibbs import (NOISE_PRIOR_SHAPE, Chain, Prior, check_noise_model, initial_state, not_identifiable,
                                run_chains, stack, weak_parameters)  # fmt: skip
-from twin.update.marginal import SHAPE_COVARIANCES, Marginal, marginal_precision, marginal_problem
+from twin.update.marginal import Marginal, check_shape_covariance, marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import check_pole_model
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
@@ -265,8 +265,7 @@ def update(
         raise UpdateError(f"adjust must be one of {', '.join(ADJUSTMENTS)}, got {adjust!r}")
     if adjust != "none" and pole_model != "marginal":
         raise UpdateError(f"adjust={adjust!r} needs pole_model='marginal' (it searches the marginal's mode)")
-    if shape_covariance not in SHAPE_COVARIANCES:
-        raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {shape_covariance!r}")
+    check_shape_covariance(shape_covariance)
     if shape_covariance != "shrunk" and pole_model != "marginal":
         raise UpdateError(f"shape_covariance={shape_covariance!r} needs pole_model='marginal' (the Gibbs sampler "
                           "learns its residual noise instead)")  # fmt: skip

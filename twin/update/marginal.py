@@ -217,6 +217,12 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
     return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance)
 
 
+def check_shape_covariance(name: str) -> None:
+    """Raise :class:`~twin.errors.UpdateError` unless ``name`` is one of :data:`SHAPE_COVARIANCES`."""
+    if name not in SHAPE_COVARIANCES:
+        raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {name!r}")
+
+
 def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
     """Each mode's covariance of its real shape entries from its samples, ``(I, n, n)``, by ``method``.
 
@@ -238,8 +244,7 @@ def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
     >>> own.shape, bool(np.allclose(np.diagonal(own, axis1=1, axis2=2), np.diagonal(shrunk, axis1=1, axis2=2)))
     ((1, 16, 16), True)
     """
-    if method not in SHAPE_COVARIANCES:
-        raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {method!r}")
+    check_shape_covariance(method)
     if method == "shrunk":
         return shrunk_covariance(problem.psi_hat, problem.psi_var)
     x = problem.psi_hat - problem.psi_hat.mean(axis=1, keepdims=True)
