@@ -16,7 +16,8 @@ def observe_text(obs, ident=None) -> str:
     ex = json.loads(obs.attrs["excitation"])
     lines = [f"{obs.attrs['model']}: {obs.sizes['mode']} target modes, {obs.sizes['channel']} channels, "
              f"{ex['duration_s']:g} s at {ex['fs_hz']:g} Hz, noise std {ex['noise_std_m']:.3g} m",
-             f"{'mode':>4} {'f [Hz]':>8} {'zeta %':>7} {'best SNR dB':>11} {'std f %':>8} {'std zeta %':>10}  "
+             f"{'mode':>4} {'f [Hz]':>8} {'zeta %':>7} {'best SNR dB':>11} {'vs others dB':>12} {'std f %':>8} "
+             f"{'std zeta %':>10}  "
              f"{'best channel':<12} verdict"]  # fmt: skip
     for i in range(obs.sizes["mode"]):
         r = obs.isel(mode=i)
@@ -25,11 +26,13 @@ def observe_text(obs, ident=None) -> str:
         verdict = "observable" if bool(r.observable) else f"not observable: {str(r.reason.values)}"
         if "cluster" in r and int(r.cluster):
             verdict += f" [cluster {int(r.cluster)}]"
-        lines.append(f"{int(r.mode):4d} {f:8.2f} {100 * z:7.2f} {float(r.best_snr_db):11.1f} "
+        prominence = float(r.best_prominence_db) if "best_prominence_db" in r else np.nan
+        lines.append(f"{int(r.mode):4d} {f:8.2f} {100 * z:7.2f} {float(r.best_snr_db):11.1f} {prominence:12.1f} "
                      f"{100 * float(r.frequency_std) / f:8.3g} {100 * float(r.damping_ratio_std) / z:10.3g}  "
                      f"{channel:<12} {verdict}")  # fmt: skip
     lines.append(f"{int(obs.observable.sum())} of {obs.sizes['mode']} target modes observable ({obs.attrs['rule']}); "
-                 "std: single-mode Whittle bound (what SSI reaches, about 2x in practice)")  # fmt: skip
+                 "std: single-mode Whittle bound (what SSI reaches, about 2x in practice); vs others: the "
+                 "mode's peak against the other modes' response and the noise at its frequency (best channel)")  # fmt: skip
     for label in sorted(set(obs.cluster.values.tolist()) - {0}) if "cluster" in obs else []:
         lines.append(f"cluster {label}: {cluster_text(obs.frequency.values[obs.cluster.values == label])}, and "
                      f"their frequencies are closer than {obs.attrs.get('cluster_sigmas', CLUSTER_SIGMAS):g} rss stds: the record "
@@ -83,7 +86,7 @@ def _observe(args: argparse.Namespace) -> int:
 def sensors_text(design) -> str:
     """A sensor design (:func:`twin.design.design_sensors`) as text: the pairs with their gains, then per mode."""
     from twin.design.identify import DETERMINED_LIMIT  # here, not at import: the command line starts fast
-    from twin.design.observe import SNR_LIMIT_DB
+    from twin.design.observe import PROMINENCE_LIMIT_DB, SNR_LIMIT_DB
 
     judged = "relative_std" in design
     lines = [f"{design.attrs['model']}: {design.sizes['mode']} target modes; sensor noise std "
@@ -107,6 +110,9 @@ def sensors_text(design) -> str:
         best = f"node {int(design.best_node[k])}: {float(design.best_node_snr_db[k]):.0f} dB"
         if not after and float(design.best_node_snr_db[k]) < SNR_LIMIT_DB:
             best += f"; {SNR_LIMIT_DB:g} dB there with a noise std <= {float(design.noise_std_needed_m[k]):.2g} m"
+        if not after and "most_prominent_db" in design and float(design.most_prominent_db[k]) < PROMINENCE_LIMIT_DB:
+            best += (f"; masked at every node by the other modes' response, whatever the noise (at best "
+                     f"{float(design.most_prominent_db[k]):.1f} dB, node {int(design.most_prominent_node[k])})")
         lines.append(f"{k + 1:4d} {float(design.frequency[k]):8.2f} {'yes' if now else 'no':>4} "
                      f"{'yes' if after else 'no':>5} {100 * float(last.frequency_rel_std[k]):8.3g} "
                      f"{100 * float(last.damping_rel_std[k]):10.3g} {float(last.best_snr_db[k]):7.1f}  {best}")  # fmt: skip

@@ -57,6 +57,7 @@ from twin.design.observe import (
     band_top,
     SNR_LIMIT_DB,
     mode_bounds,
+    mode_prominence,
     mode_snr,
     spectrum,
     target_modes,
@@ -205,13 +206,16 @@ def design_sensors(
             if (r := record_ratio(now, k, fixed.duration_s)) is not None:
                 ratios[k] = r
 
+    prominence_all = mode_prominence(sp, targets)  # a channel's own: the same in any layout
+
     def judge(rows: list[int]) -> dict:
         sub = sp.select(rows)
         snr, f_std, z_std, _, _ = mode_bounds(sub, targets, fixed.duration_s, crb=False)
         best = snr.max(axis=1)
-        observable, _ = verdicts(best, f_std / freq, z_std / zeta)
+        prominence = prominence_all[:, rows].max(axis=1)
+        observable, _ = verdicts(best, f_std / freq, z_std / zeta, prominence)
         out = {"observable": observable, "f_rel": f_std / freq, "z_rel": z_std / zeta, "snr": best,
-               "n_observable": int(observable.sum())}  # fmt: skip
+               "prominence": prominence, "n_observable": int(observable.sum())}  # fmt: skip
         if pert is None:
             rel = np.clip([f_std / (FREQUENCY_STD_LIMIT * freq), z_std / (DAMPING_STD_LIMIT * zeta)], 1e-6, 1e6)
             margin = -0.5 * np.log(rel).sum(axis=0)  # a mode the layout is blind to counts as std = 10^6 limits
@@ -256,6 +260,9 @@ def design_sensors(
     best_snr = snr_all[np.arange(len(targets)), best_row]
     best_node = np.array([everything.sensors[r].node for r in best_row])
     noise_needed = noise_std * 10 ** ((best_snr - SNR_LIMIT_DB) / 20)
+    noiseless = mode_prominence(replace(sp, noise_psd=1e-300), targets)  # the other modes' response alone
+    best_prominence_row = np.argmax(noiseless, axis=1)
+    best_prominence = noiseless[np.arange(len(targets)), best_prominence_row]
 
     def stack(key: str) -> np.ndarray:
         return np.array([r[key] for r in steps])
@@ -271,6 +278,13 @@ def design_sensors(
         "frequency_rel_std": (("step", "mode"), stack("f_rel"), {"units": "1", "long_name": "expected frequency std / frequency"}),
         "damping_rel_std": (("step", "mode"), stack("z_rel"), {"units": "1", "long_name": "expected damping std / damping ratio"}),
         "best_snr_db": (("step", "mode"), stack("snr"), {"units": "dB"}),
+        "best_prominence_db": (("step", "mode"), stack("prominence"), {"units": "dB", "long_name":
+                               "peak against the other modes' response and the noise, best channel"}),
+        "most_prominent_node": ("mode", np.array([everything.sensors[r].node for r in best_prominence_row]),
+                                {"long_name": "node (current or candidate) where the mode stands out most from the "
+                                              "other modes' response"}),
+        "most_prominent_db": ("mode", best_prominence, {"units": "dB", "long_name": "its prominence there "
+                                                                              "without sensor noise"}),
         "best_node": ("mode", best_node, {"long_name": "node (current or candidate) where the mode's peak is highest"}),
         "best_node_snr_db": ("mode", best_snr, {"units": "dB", "long_name": "peak-to-noise ratio there"}),
         "noise_std_needed_m": ("mode", noise_needed, {"units": "m", "long_name":
