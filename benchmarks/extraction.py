@@ -21,7 +21,7 @@ unbalance, 5% sensor noise, simulated through the FMU):
 
 Run:  python benchmarks/extraction.py [--seeds 10] [--cache DIR] [--delete-half] [--order-spread shapes|all|none]
                                      [--duration 3600] [--samples J] [--blocks B] [--orders-per-mode N]
-                                     [--keep-harmonics] [--fmax HZ] [--spread-only]
+                                     [--keep-harmonics] [--fmax HZ] [--spread-only] [--workers N]
 (simulated records are kept in DIR, default ``~/.cache/twin/bench``).
 Needs ``pip install pyOMA-2`` for part 2 (skipped with a note otherwise).
 """
@@ -32,6 +32,8 @@ import argparse
 import json
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -151,20 +153,28 @@ def run_pyoma(path, lam_t, phi_t, preset, calc_unc, complex_ok):
     return rows, dt, extra
 
 
-def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, **options):
+def _record_estimates(seed, *, cache, duration_s, names, lam_t, phi_t, options):
+    """Each truth mode's estimates ``names`` from the record of ``seed`` (NaN where it was not found)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = extract(record(cache, seed, duration_s), progress=False, **options)
+    rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
+    ks = [None if g is None else int(np.argmin(np.abs(m.frequency.values - g[0]))) for _, _, g in rows]
+    return {n: [np.nan if k is None else float(m[n][k]) for k in ks] for n in names}
+
+
+def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, workers=1, **options):
     """Mean jackknife standard error against the std over independent records, and the total against the RMS error."""
     names = ("frequency", "damping_ratio", "frequency_se_jackknife", "damping_ratio_se_jackknife",
              "frequency_se", "damping_ratio_se")  # fmt: skip
-    got = {n: [] for n in names}
-    for s in range(1, seeds + 1):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            m = extract(record(cache, s, duration_s), progress=False, **options)
-        rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
-        ks = [None if g is None else int(np.argmin(np.abs(m.frequency.values - g[0]))) for _, _, g in rows]
-        for n in names:
-            got[n].append([np.nan if k is None else float(m[n][k]) for k in ks])
-    f, z, jf, jz, tf, tz = (np.array(got[n]) for n in names)
+    task = partial(_record_estimates, cache=cache, duration_s=duration_s, names=names, lam_t=lam_t, phi_t=phi_t,
+                   options=options)  # fmt: skip
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            per_record = list(pool.map(task, range(1, seeds + 1)))
+    else:
+        per_record = [task(s) for s in range(1, seeds + 1)]
+    f, z, jf, jz, tf, tz = (np.array([r[n] for r in per_record]) for n in names)
     obs = observability(load_model(MODEL), Excitation(duration_s=duration_s), truth=paper_truth())
     print(f"\nspread over {seeds} independent {duration_s:g} s records (seeds 1..{seeds}, {options}). Statistical "
           "part: the jackknife "
@@ -232,6 +242,7 @@ def main() -> None:
                     help="record length [s] of the spread's records (1200 with --samples 15: the loop's records)")
     ap.add_argument("--fmax", type=float, default=None,
                     help="fmax [Hz] of the spread's extractions (default extract's, 102.4 Hz; the loop uses 60)")
+    ap.add_argument("--workers", type=int, default=1, help="records extracted at once for the spread (processes)")
     ap.add_argument("--spread-only", action="store_true",
                     help="only the spread over --seeds records (skip the single-record tables)")
     add_extraction_options(ap)
@@ -247,7 +258,7 @@ def main() -> None:
     if not args.spread_only:
         single_record(args.cache, lam_t, phi_t)
     if args.seeds:
-        spread(args.cache, args.seeds, lam_t, phi_t, args.duration, **options)
+        spread(args.cache, args.seeds, lam_t, phi_t, args.duration, args.workers, **options)
 
 
 if __name__ == "__main__":
