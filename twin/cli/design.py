@@ -26,8 +26,8 @@ def observe_text(obs, ident=None) -> str:
         verdict = "observable" if bool(r.observable) else f"not observable: {str(r.reason.values)}"
         if "cluster" in r and int(r.cluster):
             verdict += f" [cluster {int(r.cluster)}]"
-        prominence = float(r.best_prominence_db) if "best_prominence_db" in r else np.nan
-        lines.append(f"{int(r.mode):4d} {f:8.2f} {100 * z:7.2f} {float(r.best_snr_db):11.1f} {prominence:12.1f} "
+        lines.append(f"{int(r.mode):4d} {f:8.2f} {100 * z:7.2f} {float(r.best_snr_db):11.1f} "
+                     f"{float(r.best_prominence_db):12.1f} "
                      f"{100 * float(r.frequency_std) / f:8.3g} {100 * float(r.damping_ratio_std) / z:10.3g}  "
                      f"{channel:<12} {verdict}")  # fmt: skip
     lines.append(f"{int(obs.observable.sum())} of {obs.sizes['mode']} target modes observable ({obs.attrs['rule']}); "
@@ -110,7 +110,7 @@ def sensors_text(design) -> str:
         best = f"node {int(design.best_node[k])}: {float(design.best_node_snr_db[k]):.0f} dB"
         if not after and float(design.best_node_snr_db[k]) < SNR_LIMIT_DB:
             best += f"; {SNR_LIMIT_DB:g} dB there with a noise std <= {float(design.noise_std_needed_m[k]):.2g} m"
-        if not after and "most_prominent_db" in design and float(design.most_prominent_db[k]) < PROMINENCE_LIMIT_DB:
+        if not after and float(design.most_prominent_db[k]) < PROMINENCE_LIMIT_DB:
             best += (f"; masked at every node by the other modes' response, whatever the noise (at best "
                      f"{float(design.most_prominent_db[k]):.1f} dB, node {int(design.most_prominent_node[k])})")
         lines.append(f"{k + 1:4d} {float(design.frequency[k]):8.2f} {'yes' if now else 'no':>4} "

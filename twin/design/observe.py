@@ -455,7 +455,8 @@ def observability(
     freq, zeta = lam.imag / (2 * np.pi), damping_ratio(lam)
     best = snr.max(axis=1)
     prominence = mode_prominence(sp, targets)
-    observable, reasons = verdicts(best, f_std / freq, z_std / zeta, prominence.max(axis=1))
+    best_prominence = prominence.max(axis=1)
+    observable, reasons = verdicts(best, f_std / freq, z_std / zeta, best_prominence)
     cluster = mode_clusters(freq, zeta, f_std)
     settings = {"turbulence_asd": excitation.turbulence_asd, "noise_ratio": excitation.noise_ratio,
                 "noise_std_m": sp.noise_std_m, "duration_s": excitation.duration_s, "fs_hz": excitation.fs_hz,
@@ -468,7 +469,7 @@ def observability(
             "prominence_db": (("mode", "channel"), prominence,
                               {"units": "dB", "long_name": "peak response of the mode alone against the PSD of "
                                                            "the other modes and the noise at its frequency"}),
-            "best_prominence_db": ("mode", prominence.max(axis=1),
+            "best_prominence_db": ("mode", best_prominence,
                                    {"units": "dB", "long_name": "prominence on the channel where it is largest"}),
             "frequency": ("mode", freq, {"units": "Hz", "long_name": "damped natural frequency"}),
             "damping_ratio": ("mode", zeta, {"units": "1", "long_name": "damping ratio"}),
@@ -604,15 +605,13 @@ def mode_bounds(sp: Spectrum, targets: np.ndarray, duration_s: float, *, crb: bo
 
 
 def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.ndarray,
-             best_prominence_db: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:  # fmt: skip
+             best_prominence_db: np.ndarray) -> tuple[np.ndarray, list[str]]:  # fmt: skip
     """Observable or not per mode, with the reasons it is not (see the module docstring).
 
-    ``best_prominence_db`` (:func:`mode_prominence` on the best channel) adds the test against the other
-    modes' response; without it only the noise is judged.
+    ``best_prominence_db`` is :func:`mode_prominence` on the channel where it is largest.
     """
     ok, reasons = [], []
-    prominence = np.full(len(best_snr_db), np.inf) if best_prominence_db is None else best_prominence_db
-    for snr, fr, zr, pr in zip(best_snr_db, f_rel_std, zeta_rel_std, prominence):
+    for snr, fr, zr, pr in zip(best_snr_db, f_rel_std, zeta_rel_std, best_prominence_db):
         why = []
         if snr < SNR_LIMIT_DB:
             why.append(f"peak {snr:.0f} dB against the noise")
