@@ -31,6 +31,7 @@ def test_marginal_is_the_joint_density_with_the_shapes_integrated_out(toy, full)
     np.testing.assert_allclose(np.diff(got), np.diff(ref), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.slow  # 20-30 s: a non-default option, run in CI's slow pass
 def test_collapsed_chain_samples_the_same_posterior_as_plain_gibbs(toy):
     problem, _, _ = toy
     n = 6000

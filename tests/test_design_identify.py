@@ -81,12 +81,18 @@ def test_sample_covariance_is_the_covariance_of_renormalised_synthetic_samples()
     assert np.allclose(sample_covariance(shape, 100), expected / 100)
 
 
-def test_the_lgb_direct_stiffnesses_are_undetermined_and_the_ugb_ones_determined(unit):
-    """Case B (16 bearings + per-mode FSI, paper truth, 100 samples): LGB.kxx and LGB.kyy are left undetermined."""
+@pytest.fixture(scope="module")
+def case_b_ident(unit):
+    """Case B's identifiability (16 bearings + per-mode FSI, paper truth, 100 samples); 30 s, computed once."""
     from twin.fem.truthfile import paper_truth
     from twin.update.problem import select_parameters
 
-    ident = identifiability(unit, select_parameters(unit, "bearings"), fsi=True, samples=100, truth=paper_truth())
+    return identifiability(unit, select_parameters(unit, "bearings"), fsi=True, samples=100, truth=paper_truth())
+
+
+def test_the_lgb_direct_stiffnesses_are_undetermined_and_the_ugb_ones_determined(case_b_ident):
+    """Case B: LGB.kxx and LGB.kyy are left undetermined."""
+    ident = case_b_ident
     assert bool(ident.determined.sel(parameter="UGB.kxx")) and bool(ident.determined.sel(parameter="UGB.kyy"))
     assert not ident.determined.sel(parameter="LGB.kxx") and not ident.determined.sel(parameter="LGB.kyy")
     assert ident.relative_std.sel(parameter="UGB.kxx") < 0.01
@@ -112,7 +118,7 @@ def test_observe_command_prints_both_tables(capsys):
     assert out.count("not observable") >= 4
 
 
-def test_the_fisher_std_is_the_samplers_on_case_b(unit, case_b_posterior):
+def test_the_fisher_std_is_the_samplers_on_case_b(case_b_ident, case_b_posterior):
     """Expected posterior std before any data against the default sampler's on paper Case B (J = 100, seed 1).
 
     Both describe the same data (the poles and shapes of the 15 modes, their noise) linearised at the truth,
@@ -126,11 +132,9 @@ def test_the_fisher_std_is_the_samplers_on_case_b(unit, case_b_posterior):
     Outside 1.5 here: the added damping of mode 12 (94.6 Hz; 2.2-2.8 on the four seeds), which the
     sampler's perturbation ``ε`` (std 1e-6, the paper's) widens: with ``eps_std=1e-8`` its std halves.
     """
-    from twin.fem.truthfile import paper_truth
     from twin.update import summary
-    from twin.update.problem import select_parameters
 
-    ident = identifiability(unit, select_parameters(unit, "bearings"), fsi=True, samples=100, truth=paper_truth())
+    ident = case_b_ident
     sampled = summary(case_b_posterior["posterior"].to_dataset())["std"].sel(parameter=ident.parameter)
     ratio = (sampled / ident["std"]).where(ident.determined, drop=True)
     assert ratio.sizes["parameter"] == 43

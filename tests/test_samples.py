@@ -85,6 +85,7 @@ def _spread_ratios(make_record, seeds, delete_blocks=1):
     return np.mean(se_f) / np.std(f, ddof=1), np.mean(se_z) / np.std(z, ddof=1)
 
 
+@pytest.mark.slow  # 20-30 s: a non-default option, run in CI's slow pass
 def test_more_samples_than_blocks_estimate_the_same_standard_error(make_record):
     """Delete-half: 60 random half-subsets of 20 blocks and 20 of them estimate one standard error (Shao-Wu
     scaling with M samples); delete-one cannot give more samples than blocks."""
