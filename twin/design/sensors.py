@@ -255,14 +255,15 @@ def design_sensors(
                  len(chosen), best, steps[-1]["n_observable"], steps[-1]["n_determined"], steps[-1]["criterion"])
 
     # where each mode is seen best over every candidate, and the noise that would make its peak enough
-    snr_all = mode_snr(sp, targets)
-    best_row = np.argmax(snr_all, axis=1)
-    best_snr = snr_all[np.arange(len(targets)), best_row]
-    best_node = np.array([everything.sensors[r].node for r in best_row])
+    def best_channel(per_channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per mode, the node of the channel (current or candidate) where ``per_channel`` is largest, and that value."""
+        row = np.argmax(per_channel, axis=1)
+        return np.array([everything.sensors[r].node for r in row]), per_channel[np.arange(len(targets)), row]
+
+    best_node, best_snr = best_channel(mode_snr(sp, targets))
     noise_needed = noise_std * 10 ** ((best_snr - SNR_LIMIT_DB) / 20)
-    noiseless = mode_prominence(replace(sp, noise_psd=1e-300), targets)  # the other modes' response alone
-    best_prominence_row = np.argmax(noiseless, axis=1)
-    best_prominence = noiseless[np.arange(len(targets)), best_prominence_row]
+    # the other modes' response alone
+    best_prominence_node, best_prominence = best_channel(mode_prominence(replace(sp, noise_psd=1e-300), targets))
 
     def stack(key: str) -> np.ndarray:
         return np.array([r[key] for r in steps])
@@ -280,7 +281,7 @@ def design_sensors(
         "best_snr_db": (("step", "mode"), stack("snr"), {"units": "dB"}),
         "best_prominence_db": (("step", "mode"), stack("prominence"), {"units": "dB", "long_name":
                                "peak against the other modes' response and the noise, best channel"}),
-        "most_prominent_node": ("mode", np.array([everything.sensors[r].node for r in best_prominence_row]),
+        "most_prominent_node": ("mode", best_prominence_node,
                                 {"long_name": "node (current or candidate) where the mode stands out most from the "
                                               "other modes' response"}),
         "most_prominent_db": ("mode", best_prominence, {"units": "dB", "long_name": "its prominence there "
