@@ -52,39 +52,55 @@ def group(name: str) -> str:
     return name
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str = "shrunk") -> list[dict]:  # fmt: skip
-    """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset (``shape_covariance`` as :func:`twin.update.update`'s); one row per parameter."""
+def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | None = None):
+    """Simulate and extract one dataset of a scenario (``extraction``: options of :func:`twin.extract.extract`
+    other than its defaults); the twin with the hidden effect added, the names to update and their truths.
+
+    Returns ``(twin, names, truth)``: a :class:`twin.loop.twin.Twin` on the extracted modes, the parameter
+    names (the 16 bearing coefficients for ``bearings``, else the added effect's, per-mode ones by measured
+    mode) and ``{name: true value}``.
+    """
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import DEMO_SAMPLES, posterior_table, truth_for_measured
+    from twin.loop.demo import DEMO_SAMPLES, truth_for_measured
     from twin.loop.scenarios import parse_scenario
     from twin.loop.twin import Twin
-    from twin.update.adjust import stretch
-    from twin.update.posterior import parameter_draws
-    from twin.update.problem import UpdateError, select_parameters
+    from twin.update.problem import select_parameters
 
     name, seed = job
     model = load_model(shipped_model("hydro_unit"))
     scenario = parse_scenario("none" if name == "bearings" else name)
-    started = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(), progress=False)
-        options = {"samples": DEMO_SAMPLES, **(extraction or {})}
-        modes = extract(signals, fmax_hz=60.0, progress=False, **options)
+        signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(),
+                           progress=False)  # fmt: skip
+        modes = extract(signals, fmax_hz=60.0, progress=False, **{"samples": DEMO_SAMPLES, **(extraction or {})})
         tw = Twin(model, modes)
         if name == "bearings":
             names = select_parameters(model, "bearings")
-            truth = {n: model.parameter(n).nominal for n in names}
-        else:
-            for label in scenario.labels:
-                tw.add_effect(label)
-            names = tw.added_parameters()
-            truth = truth_for_measured(scenario.truth_values(model), tw.measured,
-                                       json.loads(modes.attrs.get("truth_modes", "[]")))  # fmt: skip
+            return tw, names, {n: model.parameter(n).nominal for n in names}
+        for label in scenario.labels:
+            tw.add_effect(label)
+    truth = truth_for_measured(scenario.truth_values(model), tw.measured,
+                               json.loads(modes.attrs.get("truth_modes", "[]")))  # fmt: skip
+    return tw, tw.added_parameters(), truth
+
+
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
+                shape_covariance: str = "shrunk") -> list[dict]:  # fmt: skip
+    """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
+    update one dataset (``shape_covariance`` as :func:`twin.update.update`'s); one row per parameter."""
+    from twin.loop.demo import posterior_table
+    from twin.update.adjust import stretch
+    from twin.update.posterior import parameter_draws
+    from twin.update.problem import UpdateError
+
+    name, seed = job
+    started = time.perf_counter()
+    tw, names, truth = scenario_record(job, duration_s, extraction)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         try:
             post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance)
         except UpdateError as err:  # e.g. shape samples that do not span every entry, for shape_covariance="sample"
@@ -137,46 +153,71 @@ def report(rows: list[dict]) -> list[str]:
     return lines
 
 
-def main() -> None:
-    from twin.tasks import dask_client, mapper
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenarios", default=",".join(SCENARIOS))
-    ap.add_argument("--seeds", type=int, default=20)
-    ap.add_argument("--first-seed", type=int, default=101)
+def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int, first_seed: int) -> None:
+    """``--scenarios``, ``--seeds``, ``--first-seed``, ``--workers``, ``--duration`` and ``--rows`` (with these
+    defaults): the options of the benchmarks over FMU datasets."""
+    ap.add_argument("--scenarios", default=scenarios)
+    ap.add_argument("--seeds", type=int, default=seeds)
+    ap.add_argument("--first-seed", type=int, default=first_seed)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
-    ap.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
-                    help="the update's shape covariance (sample: needs --delete-half with more blocks than entries)")
-    add_extraction_options(ap)
-    args = ap.parse_args()
+
+
+def dataset_jobs(args: argparse.Namespace) -> list[tuple[str, int]]:
+    """``(scenario, seed)`` of every dataset the options ask for; exits naming an unknown scenario."""
     names = args.scenarios.split(",")
     unknown = [n for n in names if n not in SCENARIOS]
     if unknown:
         raise SystemExit(f"unknown scenario(s) {', '.join(unknown)}; choose from {', '.join(SCENARIOS)}")
-    jobs = [(n, args.first_seed + k) for n in names for k in range(args.seeds)]
+    return [(n, args.first_seed + k) for n in names for k in range(args.seeds)]
+
+
+def run_datasets(function, jobs: list[tuple[str, int]], workers: int, **shared) -> list:
+    """``function(job, **shared)`` for every job, as Dask tasks on ``workers`` local processes (in this
+    process for one)."""
+    from twin.tasks import dask_client, mapper
+
+    with dask_client("local" if workers > 1 else "sync", n_workers=workers) as client:
+        return mapper(client, progress=True, desc="datasets")(function, jobs, **shared)
+
+
+def dataset_command(script: str, args: argparse.Namespace) -> str:
+    """The command line of a benchmark over FMU datasets with the options of :func:`add_dataset_options`."""
+    return (f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
+            f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}")  # fmt: skip
+
+
+def write_results(path: Path, lines: list[str], rows: list[dict], rows_path: Path | None) -> None:
+    """The report ``lines`` to ``path`` and the terminal, and every row as JSON to ``rows_path`` when given."""
+    if rows_path is not None:
+        rows_path.write_text(json.dumps(rows))
+    path.parent.mkdir(exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_dataset_options(ap, scenarios=",".join(SCENARIOS), seeds=20, first_seed=101)
+    ap.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
+                    help="the update's shape covariance (sample: needs --delete-half with more blocks than entries)")
+    add_extraction_options(ap)
+    args = ap.parse_args()
+    jobs = dataset_jobs(args)
     t0 = time.perf_counter()
-    with dask_client("local" if args.workers > 1 else "sync", n_workers=args.workers) as client:
-        results = mapper(client, progress=True, desc="datasets")(one_dataset, jobs, duration_s=args.duration,
-                                                                       extraction=extraction_options(args),
-                                                                       shape_covariance=args.shape_covariance)
+    results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
+                           extraction=extraction_options(args), shape_covariance=args.shape_covariance)
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
-    if args.rows is not None:
-        args.rows.write_text(json.dumps(rows))
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
-             f"Command: `python benchmarks/update_coverage_fmu.py --scenarios {args.scenarios} --seeds {args.seeds} "
-             f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-             f"{extraction_flags(args)}"
+             f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
              f"{'' if args.shape_covariance == 'shrunk' else ' --shape-covariance ' + args.shape_covariance}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"
               for r in refused]  # fmt: skip
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results(RESULTS, lines, rows, args.rows)
 
 
 if __name__ == "__main__":
