@@ -77,7 +77,6 @@ def one_dataset(job: tuple[str, int], duration_s: float) -> list[dict]:
 
     name, seed = job
     tw, names, truth = scenario_record(job, duration_s)
-    base = Twin(tw.model, tw.modes)
     target = truth_shapes(tw, truth)
     datasets = {"default": tw.modes, "true shapes": moved(tw.modes, target, "all"),
                 "true Re": moved(tw.modes, target, "re"), "true Im": moved(tw.modes, target, "im")}  # fmt: skip
@@ -87,7 +86,7 @@ def one_dataset(job: tuple[str, int], duration_s: float) -> list[dict]:
         for variant, modes in datasets.items():
             post = Twin(tw.model, modes).update(names, seed=seed, progress=False)
             tables[variant] = posterior_table(post, tw.model)
-        tables["poles only"] = posterior_table(base.update(names, method="laplace"), tw.model)
+        tables["poles only"] = posterior_table(Twin(tw.model, tw.modes).update(names, method="laplace"), tw.model)
         shared = [n for n in names if not PER_MODE_NAME.match(n)]
         fsi = len(shared) < len(names)
         problem = build_problem(tw.model, tw.modes, shared, fsi=fsi, pole_model="marginal")

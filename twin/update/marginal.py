@@ -59,6 +59,9 @@ log = logging.getLogger(__name__)
 
 #: How each mode's shape covariance is estimated from its samples (see :func:`shape_covariance_of`); the default first.
 SHAPE_COVARIANCES = ("shrunk", "sample")
+#: An entry whose scatter over the samples is below this fraction of the largest in its group (a mode's
+#: shape) has none: the reference channel's imaginary part, zero up to round-off (see :func:`scatters`).
+NO_SCATTER = 1e-12
 #: Degrees of freedom of the Student t tail of each mode's likelihood (see :func:`tail_kernel`).
 STUDENT_DOF = 5.0
 #: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
@@ -158,7 +161,7 @@ def shrunk_covariance(samples: np.ndarray, variance: np.ndarray, intensity: floa
     J = x.shape[-2]
     x = x - x.mean(axis=-2, keepdims=True)
     sd = np.sqrt(np.sum(x**2, axis=-2, keepdims=True) / (J - 1))
-    x = np.divide(x, sd, out=np.zeros_like(x), where=sd > 0)  # an entry without scatter correlates with nothing
+    x = np.divide(x, sd, out=np.zeros_like(x), where=scatters(sd))  # an entry without scatter correlates with nothing
     w = x[..., :, None] * x[..., None, :]  # (..., J, n, n)
     w_bar = w.mean(axis=-3)
     r = J / (J - 1) * w_bar
@@ -172,6 +175,21 @@ def shrunk_covariance(samples: np.ndarray, variance: np.ndarray, intensity: floa
     corr = np.where(off, (1.0 - lam[..., None, None]) * r, 1.0)
     s = np.sqrt(np.asarray(variance, dtype=float))
     return corr * s[..., :, None] * s[..., None, :]
+
+
+def scatters(spread: np.ndarray) -> np.ndarray:
+    """Which entries scatter: a spread above :data:`NO_SCATTER` times the largest of its group (last axis).
+
+    Round-off is no scatter: the reference entry's imaginary part of a normalised shape is zero up to it,
+    and its "correlations" with the other entries would be noise.
+
+    Examples
+    --------
+    >>> scatters(np.array([[1.0, 0.5, 3e-17, 0.0]]))
+    array([[ True,  True, False, False]])
+    """
+    spread = np.asarray(spread, dtype=float)
+    return spread > NO_SCATTER * spread.max(axis=-1, keepdims=True)
 
 
 def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = "shrunk") -> Marginal:
@@ -248,8 +266,7 @@ def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
     if method == "shrunk":
         return shrunk_covariance(problem.psi_hat, problem.psi_var)
     x = problem.psi_hat - problem.psi_hat.mean(axis=1, keepdims=True)
-    spread = np.sqrt(np.mean(x**2, axis=1))
-    moving = spread > 1e-12 * spread.max(axis=1, keepdims=True)  # the reference's Im is zero in every sample
+    moving = scatters(np.sqrt(np.mean(x**2, axis=1)))  # the reference's Im is zero in every sample
     short = []
     for m, xi, mi in zip(problem.modes, x, moving):
         rank, n = int(np.linalg.matrix_rank(xi[:, mi])), int(mi.sum())
