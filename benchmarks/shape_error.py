@@ -44,15 +44,14 @@ Z95 = 1.6448536269514722
 
 def truth_shapes(tw, truth: dict[str, float]) -> np.ndarray:
     """The truth's shape of every measured mode on the sensors, ``(mode, channel)``, normalised as its samples
-    are (unit norm, the channel that is real in every sample real and positive)."""
+    are (unit norm, the extraction's ``reference_channel`` real and positive)."""
     from twin.extract.samples import normalise_at
     from twin.loop.compare import channel_dofs, model_modes
 
     partners = model_modes(tw.model, tw.measured, truth)
     shapes = partners.shapes[:, channel_dofs(tw.model, tw.measured.channels)]
-    samples = tw.modes["shape"].transpose("mode", "sample", "channel").values
-    reference = np.argmax(np.all(np.abs(samples.imag) < 1e-12, axis=1), axis=1)
-    return normalise_at(shapes, reference)
+    reference = [tw.measured.channels.index(str(c)) for c in tw.modes["reference_channel"].values]
+    return normalise_at(shapes, np.array(reference))
 
 
 def moved(modes, target: np.ndarray, part: str):
