@@ -24,15 +24,12 @@ Results go to ``benchmarks/results/shape_error.md``.
 
 from __future__ import annotations
 
-import argparse
-import time
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from update_coverage_fmu import (SCENARIOS, add_dataset_options, dataset_command, dataset_jobs, group, run_datasets,
-                                 scenario_record, write_results)
+from update_coverage_fmu import SCENARIOS, dataset_benchmark, group, scenario_record
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "shape_error.md"
@@ -132,18 +129,10 @@ def report(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_dataset_options(ap, scenarios="seal_cross_coupling,bearings", seeds=16, first_seed=601)
-    args = ap.parse_args()
-    jobs = dataset_jobs(args)
-    t0 = time.perf_counter()
-    results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration)
-    rows = [r for rs in results for r in rs]
-    lines = ["# Where the updated parameters' error comes from on FMU data (issue 18)", "",
-             f"Command: `{dataset_command('shape_error.py', args)}`; {len(jobs)} datasets in "
-             f"{time.perf_counter() - t0:.0f} s. Over the values the default update determines; "
-             "z = (MAP - truth) / std, the std from the 90% interval's width.", ""] + report(rows)  # fmt: skip
-    write_results(RESULTS, lines, rows, args.rows)
+    dataset_benchmark(__doc__.splitlines()[0], "shape_error.py", one_dataset, report, RESULTS,
+                      "Where the updated parameters' error comes from on FMU data (issue 18)",
+                      "Over the values the default update determines; z = (MAP - truth) / std, the std from the 90% "
+                      "interval's width.", scenarios="seal_cross_coupling,bearings", seeds=16, first_seed=601)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ coverage of the 90% credible intervals over all seeds.
 
     python benchmarks/update_cases.py --case B [--seeds 20] [--first-seed 1] [--draws 500] [--chains 1] [--burn-in 20]
                                       [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear]
-                                      [--adjust jackknife|none]
+                                      [--adjust jackknife|none] [--combine intersection|independent]
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def paper_figure(name: str) -> str:
 
 
 def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN,
-        collapsed: bool = False, pole_model: str = "samples", adjust: str | None = None):
+        collapsed: bool = False, pole_model: str = "samples", adjust: str | None = None, combine: str | None = None):
     ds = synthesize_modes(model, samples=100, seed=seed)
     params = "bearings" if case == "B" else None
     t0 = time.perf_counter()
@@ -58,7 +58,7 @@ def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str =
         warnings.simplefilter("always", TwinWarning)
         tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False,
                       noise_model=noise_model, burn_in=burn_in, collapsed=collapsed, pole_model=pole_model,
-                      adjust=adjust)
+                      adjust=adjust, combine=combine)
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -78,12 +78,15 @@ def main() -> None:
     ap.add_argument("--pole-model", choices=POLE_MODELS, default="samples")
     ap.add_argument("--adjust", choices=("jackknife", "none"), default=None,
                     help="marginal model only: the spread adjustment (twin update --adjust; default: update's)")
+    ap.add_argument("--combine", choices=("intersection", "independent"), default=None,
+                    help="marginal model only: how each mode's pole and shape errors are combined (twin update "
+                         "--combine; default: update's)")
     args = ap.parse_args()
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax, rows = [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in,
-                                           args.collapsed, args.pole_model, args.adjust)
+                                           args.collapsed, args.pole_model, args.adjust, args.combine)
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])

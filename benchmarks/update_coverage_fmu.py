@@ -15,7 +15,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--seeds 20] [--first-seed 101] [--workers 2] [--duration 1200]
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
-                                             [--shape-covariance {shrunk,sample}]
+                                             [--shape-covariance {shrunk,sample}] [--combine {intersection,independent}]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -88,9 +88,10 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str = "shrunk") -> list[dict]:  # fmt: skip
+                shape_covariance: str = "shrunk", combine: str | None = None) -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset (``shape_covariance`` as :func:`twin.update.update`'s); one row per parameter."""
+    update one dataset (``shape_covariance`` and ``combine`` as :func:`twin.update.update`'s); one row per
+    parameter."""
     from twin.loop.demo import posterior_table
     from twin.update.adjust import stretch
     from twin.update.posterior import parameter_draws
@@ -102,7 +103,8 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance)
+            post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance,
+                             combine=combine)  # fmt: skip
         except UpdateError as err:  # e.g. shape samples that do not span every entry, for shape_covariance="sample"
             return [{"scenario": name, "seed": seed, "refused": str(err)}]
     table = posterior_table(post, tw.model)
@@ -188,6 +190,23 @@ def dataset_command(script: str, args: argparse.Namespace) -> str:
             f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}")  # fmt: skip
 
 
+def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
+                      scenarios: str, seeds: int, first_seed: int) -> None:  # fmt: skip
+    """The whole run of a benchmark over FMU datasets without options of its own: parse the options of
+    :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s)`` for every
+    dataset, and write ``title``, the command, ``note`` and ``report(rows)`` to ``results``."""
+    ap = argparse.ArgumentParser(description=description)
+    add_dataset_options(ap, scenarios=scenarios, seeds=seeds, first_seed=first_seed)
+    args = ap.parse_args()
+    jobs = dataset_jobs(args)
+    t0 = time.perf_counter()
+    results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration)
+    rows = [r for rs in results_ for r in rs]
+    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
+             f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
+    write_results(results, lines, rows, args.rows)
+
+
 def write_results(path: Path, lines: list[str], rows: list[dict], rows_path: Path | None) -> None:
     """The report ``lines`` to ``path`` and the terminal, and every row as JSON to ``rows_path`` when given."""
     if rows_path is not None:
@@ -202,17 +221,21 @@ def main() -> None:
     add_dataset_options(ap, scenarios=",".join(SCENARIOS), seeds=20, first_seed=101)
     ap.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
                     help="the update's shape covariance (sample: needs --delete-half with more blocks than entries)")
+    ap.add_argument("--combine", choices=("intersection", "independent"), default="intersection",
+                    help="how the update combines each mode's pole and shape errors (twin update --combine)")
     add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
-                           extraction=extraction_options(args), shape_covariance=args.shape_covariance)
+                           extraction=extraction_options(args), shape_covariance=args.shape_covariance,
+                           combine=args.combine)  # fmt: skip
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
-             f"{'' if args.shape_covariance == 'shrunk' else ' --shape-covariance ' + args.shape_covariance}`; "
+             f"{'' if args.shape_covariance == 'shrunk' else ' --shape-covariance ' + args.shape_covariance}"
+             f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"

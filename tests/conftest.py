@@ -154,3 +154,16 @@ def toy():
     state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_PSI + N_E)),
                   rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
     return problem, state, H
+
+
+@pytest.fixture(scope="module")
+def small(hydro_unit):
+    """The marginal model of modes 3, 4 and 10 of paper-style data (J = 30) for the LGB stiffnesses and per-mode
+    FSI, and the data: ``(marginal, modes)``."""
+    from twin.update import synthesize_modes
+    from twin.update.marginal import marginal_problem
+    from twin.update.problem import build_problem, select_parameters
+
+    data = synthesize_modes(hydro_unit, samples=30, seed=7).isel(mode=[2, 3, 9])
+    problem = build_problem(hydro_unit, data, select_parameters(hydro_unit, "LGB.k*"), fsi=True, pole_model="marginal")
+    return marginal_problem(problem, data["pole"].values), data

@@ -13,14 +13,6 @@ from twin.update.marginal import (log_density, marginal_problem, posterior_mode,
 from twin.update.problem import UpdateError, build_problem, select_parameters
 
 
-@pytest.fixture(scope="module")
-def small(hydro_unit):
-    """Modes 3, 4 and 10 of paper-style data, J = 30: the LGB stiffnesses and per-mode FSI."""
-    data = synthesize_modes(hydro_unit, samples=30, seed=7).isel(mode=[2, 3, 9])
-    problem = build_problem(hydro_unit, data, select_parameters(hydro_unit, "LGB.k*"), fsi=True, pole_model="marginal")
-    return marginal_problem(problem, data["pole"].values), data
-
-
 def test_shrunk_covariance_keeps_real_correlations_and_drops_chance_ones():
     rng = np.random.default_rng(5)
     # J = 15 samples of 16 entries, all driven by one common error plus their own: correlation 0.8

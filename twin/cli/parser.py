@@ -293,6 +293,10 @@ def _add_loop(sub) -> None:
                         "the correlation of the modes adds to the spread of its posterior mode over perturbations "
                         "of the data by its own samples, where that is more than one (modes from one record are "
                         "correlated); none: the model's posterior")
+    p.add_argument("--combine", choices=("intersection", "independent"), default=None,
+                   help="marginal model only (default there: intersection): each mode's pole and shape errors, "
+                        "correlated by an unknown amount, combined by covariance intersection; independent: as if "
+                        "uncorrelated")
     p.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
                    help="marginal model only: each mode's shape covariance from its samples, correlations shrunk "
                         "toward zero (the default) or the samples' own (needs samples spanning every shape entry: "

@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from twin.fem.model import RotorModel
+from twin.update.intersection import intersected
 from twin.update.marginal import Marginal, marginal_problem, posterior_mode
 from twin.update.problem import UpdateError, build_problem
 
@@ -117,6 +118,8 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
             problem = build_problem(model, data, names, fsi=fsi, eps_std=eps_std, pole_model="marginal")
             perturbed_marg = marginal_problem(problem, data["pole"].transpose("mode", "sample").values,
                                               marg.shape_covariance)  # fmt: skip
+            if marg.weights is not None:  # the same combination of each mode's pole and shapes as the data's
+                perturbed_marg = intersected(perturbed_marg, marg.weights)
             theta, _ = posterior_mode(perturbed_marg, prior_mean, prior_precision, start=centre)
         except (UpdateError, np.linalg.LinAlgError):
             continue

@@ -101,6 +101,11 @@ class Marginal:
         The parameters' bases at the mean pole, dense.
     shape_covariance : str
         How ``cov_z``'s shape block was estimated (:data:`SHAPE_COVARIANCES`).
+    weights : (I,) or None
+        Each mode's shape share ``ω_i`` when its pole and shape errors are
+        combined by covariance intersection (:mod:`twin.update.intersection`:
+        ``cov_z``'s shape block is over ``ω_i``, ``pole_cov`` over ``1 - ω_i``);
+        None when they are taken as independent.
     """
 
     problem: Problem
@@ -110,6 +115,7 @@ class Marginal:
     columns: np.ndarray
     bases: np.ndarray
     shape_covariance: str = "shrunk"
+    weights: np.ndarray | None = None
 
     @property
     def size(self) -> int:
