@@ -83,8 +83,12 @@ def test_each_mode_is_read_mostly_from_whichever_of_pole_and_shape_carries_the_i
         assert np.linalg.slogdet(A[i] @ np.linalg.solve(S / w[i] + P / (1 - w[i]), A[i].T) + ridge)[1] == max(kept)
 
 
-def test_intersected_refuses_weights_outside_the_open_interval(small):
+def test_intersected_refuses_weights_outside_the_open_interval_and_a_singular_mode(small):
     marg, _ = small
+    cov_z, pole_cov = marg.cov_z.copy(), marg.pole_cov.copy()
+    cov_z[1], pole_cov[1] = 0.0, 0.0  # mode 4 without any scatter
+    with pytest.raises(UpdateError, match="residual covariance of mode 4 is singular"):
+        intersected(dataclasses.replace(marg, cov_z=cov_z, pole_cov=pole_cov))
     with pytest.raises(ValueError, match=r"one weight strictly between 0 and 1 per mode \(3\)"):
         intersected(marg, np.array([0.5, 1.0, 0.5]))
     with pytest.raises(ValueError, match="per mode"):

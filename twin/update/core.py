@@ -336,7 +336,7 @@ def update(
     }
     if pole_model == "marginal" and marg.weights is not None:
         attrs["intersection_weights"] = json.dumps({str(int(m)): round(float(w), 4)
-                                                    for m, w in zip(modes["mode"].values, marg.weights)})
+                                                    for m, w in zip(problem.modes, marg.weights)})
     if factors is not None:
         attrs["spread_adjustment"] = json.dumps(dict(zip(problem.parameter_labels, np.round(factors, 4).tolist())))
     if "truth" in modes.attrs:

@@ -77,9 +77,15 @@ def intersection_weights(marg: Marginal, theta: np.ndarray | None = None) -> np.
     K = slopes.shape[1]
     weights = np.empty(len(slopes))
     for i, (A, S, P) in enumerate(zip(slopes, shape_part, pole_part)):
-        both = A @ np.linalg.solve(S + P, A.T)
-        ridge = INFORMATION_RIDGE * max(float(np.trace(both)) / K, np.finfo(float).tiny) * np.eye(K)
-        kept = [np.linalg.slogdet(A @ np.linalg.solve(S / w + P / (1.0 - w), A.T) + ridge)[1] for w in WEIGHT_GRID]
+        try:
+            both = A @ np.linalg.solve(S + P, A.T)
+            ridge = INFORMATION_RIDGE * max(float(np.trace(both)) / K, np.finfo(float).tiny) * np.eye(K)
+            kept = [np.linalg.slogdet(A @ np.linalg.solve(S / w + P / (1.0 - w), A.T) + ridge)[1]
+                    for w in WEIGHT_GRID]  # fmt: skip
+        except np.linalg.LinAlgError:
+            raise UpdateError(f"the residual covariance of mode {int(marg.problem.modes[i])} is singular at the "
+                              "nominal parameters (no shape or pole scatter?): its pole and shapes cannot be "
+                              "combined") from None  # fmt: skip
         weights[i] = WEIGHT_GRID[int(np.argmax(kept))]
     return weights
 
