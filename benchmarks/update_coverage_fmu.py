@@ -15,7 +15,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--seeds 20] [--first-seed 101] [--workers 2] [--duration 1200]
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
-                                             [--shape-covariance {shrunk,sample}] [--combine {intersection,independent}]
+                                             [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from extraction_options import add_extraction_options, extraction_flags, extraction_options
+
+from twin.update.marginal import SHAPE_COVARIANCES
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "update_coverage_fmu.md"
@@ -88,7 +90,7 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str = "shrunk", combine: str | None = None) -> list[dict]:  # fmt: skip
+                shape_covariance: str | None = None, combine: str | None = None) -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
     update one dataset (``shape_covariance`` and ``combine`` as :func:`twin.update.update`'s); one row per
     parameter."""
@@ -219,8 +221,9 @@ def write_results(path: Path, lines: list[str], rows: list[dict], rows_path: Pat
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_dataset_options(ap, scenarios=",".join(SCENARIOS), seeds=20, first_seed=101)
-    ap.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
-                    help="the update's shape covariance (sample: needs --delete-half with more blocks than entries)")
+    ap.add_argument("--shape-covariance", choices=SHAPE_COVARIANCES, default=SHAPE_COVARIANCES[0],
+                    help="the update's shape covariance (twin update --shape-covariance; sample: needs "
+                         "--delete-half with more blocks than entries)")
     ap.add_argument("--combine", choices=("intersection", "independent"), default="intersection",
                     help="how the update combines each mode's pole and shape errors (twin update --combine)")
     add_extraction_options(ap)
@@ -234,7 +237,7 @@ def main() -> None:
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
-             f"{'' if args.shape_covariance == 'shrunk' else ' --shape-covariance ' + args.shape_covariance}"
+             f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
              f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip

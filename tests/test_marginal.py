@@ -8,35 +8,12 @@ import pytest
 from twin.errors import TwinWarning
 from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import summary, synthesize_modes, update
-from twin.update.marginal import (log_density, marginal_problem, posterior_mode, residual_moments, run_chain,
-                                  shrunk_covariance, tail_kernel)
+from twin.update.marginal import log_density, marginal_problem, posterior_mode, residual_moments, run_chain, tail_kernel
 from twin.update.problem import UpdateError, build_problem, select_parameters
+from twin.update.shrinkage import held_out_intensity
 
 
-def test_shrunk_covariance_keeps_real_correlations_and_drops_chance_ones():
-    rng = np.random.default_rng(5)
-    # J = 15 samples of 16 entries, all driven by one common error plus their own: correlation 0.8
-    common = rng.standard_normal((400, 15, 1))
-    x = 2.0 * common + rng.standard_normal((400, 15, 16))
-    cov = shrunk_covariance(x, np.var(x, axis=1, ddof=1))
-    corr = cov / np.sqrt(np.diagonal(cov, axis1=1, axis2=2)[:, :, None] * np.diagonal(cov, axis1=1, axis2=2)[:, None, :])
-    off = ~np.eye(16, dtype=bool)
-    assert np.mean(corr[:, off]) == pytest.approx(0.8 * (1 - 0.15), abs=0.06)  # kept, shrunk by about 0.15 at J = 15
-    assert np.all(np.linalg.eigvalsh(cov) > 0)  # positive definite although J - 1 < 16
-    # the variance of the mean along the common direction: the samples' covariance, not their variances alone
-    u = np.ones(16)
-    assert np.median(u @ cov @ u / (u @ (np.diagonal(cov, axis1=1, axis2=2) * u).T)) > 10
-    # independent entries: the chance correlations of 15 samples (std 0.26) are mostly shrunk away
-    y = rng.standard_normal((400, 15, 16))
-    cy = shrunk_covariance(y, np.var(y, axis=1, ddof=1))
-    r = cy / np.sqrt(np.diagonal(cy, axis1=1, axis2=2)[:, :, None] * np.diagonal(cy, axis1=1, axis2=2)[:, None, :])
-    assert np.sqrt(np.mean(r[:, off] ** 2)) < 0.1
-    # many samples: the sample covariance
-    z = rng.standard_normal((20000, 3)) @ np.array([[1.0, 0.5, 0.0], [0.0, 1.0, 0.3], [0.0, 0.0, 1.0]])
-    np.testing.assert_allclose(shrunk_covariance(z, np.var(z, axis=0, ddof=1)), np.cov(z.T), atol=0.01)
-
-
-def test_the_sample_shape_covariance_is_the_samples_own_and_refuses_too_few(hydro_unit, small):
+def test_the_shape_covariances_are_the_samples_own_shrunk_by_each_modes_intensity_and_refuse_too_few(hydro_unit, small):
     marg, data = small
     p = marg.problem
     own = marginal_problem(p, data["pole"].values, "sample")
@@ -49,11 +26,21 @@ def test_the_sample_shape_covariance_is_the_samples_own_and_refuses_too_few(hydr
     shrunk = marg.cov_z[0][np.ix_(p.data_index, p.data_index)]
     assert np.allclose(np.diag(shrunk), np.diag(own.cov_z[0][np.ix_(p.data_index, p.data_index)]))
     assert own.shape_covariance == "sample" and marg.shape_covariance == "shrunk"
+    # held-out: the samples' correlations times 1 - λ_i, each mode's λ_i by its samples held out in turn
+    held = marginal_problem(p, data["pole"].values, "held-out")
+    for i, lam in enumerate(held_out_intensity(p.psi_hat)):
+        blocks = [m.cov_z[i][np.ix_(p.data_index, p.data_index)] for m in (held, own, marg)]
+        d = np.sqrt(np.outer(np.diag(blocks[1]), np.diag(blocks[1])))
+        off = ~np.eye(len(d), dtype=bool)
+        np.testing.assert_allclose((blocks[0] / d)[off], (1 - lam) * (blocks[1] / d)[off], atol=1e-9)
+        # the paper's shape errors are independent entries: the chance correlations of 30 samples are shrunk away
+        assert lam > 0.9
+        assert np.abs((blocks[2] / d)[off]).max() < 0.1
     few = synthesize_modes(hydro_unit, samples=12, seed=7).isel(mode=[2, 3, 9])  # 12 samples span 11 of 15
     problem = build_problem(hydro_unit, few, select_parameters(hydro_unit, "LGB.k*"), pole_model="marginal")
     with pytest.raises(UpdateError, match=r"mode\(s\) 3 \(rank 11 of 15\), 4 \(rank 11 of 15\), 10 \(rank 11 of 15\)"):
         marginal_problem(problem, few["pole"].values, "sample")
-    with pytest.raises(UpdateError, match="shape_covariance must be one of shrunk, sample"):
+    with pytest.raises(UpdateError, match="shape_covariance must be one of shrunk, held-out, sample"):
         update(hydro_unit, few, "LGB.k*", shape_covariance="full", progress=False)
     with pytest.raises(UpdateError, match="needs pole_model='marginal'"):
         update(hydro_unit, few, "LGB.k*", shape_covariance="sample", pole_model="linear", progress=False)

@@ -201,6 +201,10 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     assert main(["update", "hydro_unit", str(sub), "-o", str(own), "--fsi", "--draws", "10", "--chains", "1",
                  "--shape-covariance", "sample", "-q"]) == 0  # fmt: skip
     assert json.loads(read_posterior(own).attrs["settings"])["shape_covariance"] == "sample"
+    held = tmp_path / "held.nc"
+    assert main(["update", "hydro_unit", str(sub), "-o", str(held), "--fsi", "--draws", "10", "--chains", "1",
+                 "--shape-covariance", "held-out", "-q"]) == 0  # fmt: skip
+    assert json.loads(read_posterior(held).attrs["settings"])["shape_covariance"] == "held-out"
     assert main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi", "--paper",
                  "--noise-model", "diagonal"]) == 2  # fmt: skip
     assert "--paper sets the sampler; leave out --noise-model" in capsys.readouterr().err

@@ -297,10 +297,12 @@ def _add_loop(sub) -> None:
                    help="marginal model only (default there: intersection): each mode's pole and shape errors, "
                         "correlated by an unknown amount, combined by covariance intersection; independent: as if "
                         "uncorrelated")
-    p.add_argument("--shape-covariance", choices=("shrunk", "sample"), default="shrunk",
+    p.add_argument("--shape-covariance", choices=("shrunk", "held-out", "sample"), default="shrunk",
                    help="marginal model only: each mode's shape covariance from its samples, correlations shrunk "
-                        "toward zero (the default) or the samples' own (needs samples spanning every shape entry: "
-                        "twin extract --delete-half --samples J --blocks B with B above the entries)")
+                        "toward zero by Schafer and Strimmer's intensity (the default) or by the one that best "
+                        "predicts each sample held out of the others (held-out: bearings calibrated, a pull or a "
+                        "seal too narrow on FMU records), or the samples' own (sample: needs samples spanning every "
+                        "shape entry: twin extract --delete-half --samples J --blocks B with B above the entries)")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

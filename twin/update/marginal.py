@@ -54,14 +54,12 @@ from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import combined, design, joint_parameters, joint_vector
 from twin.update.problem import Problem, UpdateError
+from twin.update.shrinkage import held_out_intensity, scatters, shrunk_covariance
 
 log = logging.getLogger(__name__)
 
 #: How each mode's shape covariance is estimated from its samples (see :func:`shape_covariance_of`); the default first.
-SHAPE_COVARIANCES = ("shrunk", "sample")
-#: An entry whose scatter over the samples is below this fraction of the largest in its group (a mode's
-#: shape) has none: the reference channel's imaginary part, zero up to round-off (see :func:`scatters`).
-NO_SCATTER = 1e-12
+SHAPE_COVARIANCES = ("shrunk", "held-out", "sample")
 #: Degrees of freedom of the Student t tail of each mode's likelihood (see :func:`tail_kernel`).
 STUDENT_DOF = 5.0
 #: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
@@ -114,7 +112,7 @@ class Marginal:
     cov_z: np.ndarray
     columns: np.ndarray
     bases: np.ndarray
-    shape_covariance: str = "shrunk"
+    shape_covariance: str = SHAPE_COVARIANCES[0]
     weights: np.ndarray | None = None
 
     @property
@@ -124,81 +122,7 @@ class Marginal:
         return p.n_global + p.n_modes * p.n_per_mode
 
 
-def shrunk_covariance(samples: np.ndarray, variance: np.ndarray, intensity: float | None = None) -> np.ndarray:
-    """Covariance of the samples' entries with their correlations shrunk toward zero by the data's own weight.
-
-    The shape samples of a mode are strongly correlated across channels (one
-    source of error moves every entry), and a parameter is informed by a
-    combination of entries: their variances alone understate its error (3-5
-    times in variance along the magnetic pull's direction of the hydro
-    unit's generator mode). With ``J`` not much larger than the number of
-    entries, the sample correlation matrix is singular, so each mode's is
-    shrunk toward the identity with the intensity of Schäfer and Strimmer
-    (2005, target "D"): ``λ = Σ_{a≠b} Var(r_ab) / Σ_{a≠b} r_ab²``, clipped to
-    [0, 1], from the same samples.
-
-    Parameters
-    ----------
-    samples : (..., J, n)
-        Real samples of each group (e.g. per mode) on the second-to-last axis.
-    variance : (..., n)
-        The entries' variances (the diagonal of the result; may be floored).
-    intensity : float, optional
-        ``λ`` itself instead of Schäfer and Strimmer's (0: the samples' own correlations).
-
-    Returns
-    -------
-    (..., n, n)
-        Covariance with the given diagonal and correlations ``(1 - λ) r_ab``.
-
-    Examples
-    --------
-    Two entries that move together, and one on its own:
-
-    >>> rng = np.random.default_rng(0)
-    >>> a, b = rng.standard_normal((2, 200))
-    >>> x = np.stack([a, a + 0.1 * b, rng.standard_normal(200)], axis=-1)
-    >>> np.round(shrunk_covariance(x, np.var(x, axis=0, ddof=1)), 1)
-    array([[0.9, 0.9, 0.1],
-           [0.9, 0.9, 0.1],
-           [0.1, 0.1, 1. ]])
-    """
-    x = np.asarray(samples, dtype=float)
-    J = x.shape[-2]
-    x = x - x.mean(axis=-2, keepdims=True)
-    sd = np.sqrt(np.sum(x**2, axis=-2, keepdims=True) / (J - 1))
-    x = np.divide(x, sd, out=np.zeros_like(x), where=scatters(sd))  # an entry without scatter correlates with nothing
-    w = x[..., :, None] * x[..., None, :]  # (..., J, n, n)
-    w_bar = w.mean(axis=-3)
-    r = J / (J - 1) * w_bar
-    var_r = J / (J - 1) ** 3 * np.sum((w - w_bar[..., None, :, :]) ** 2, axis=-3)
-    off = ~np.eye(x.shape[-1], dtype=bool)
-    total = np.sum(np.where(off, r**2, 0.0), axis=(-2, -1))
-    lam = np.clip(np.divide(np.sum(np.where(off, var_r, 0.0), axis=(-2, -1)), total,
-                            out=np.ones_like(total), where=total > 0), 0.0, 1.0)  # fmt: skip
-    if intensity is not None:
-        lam = np.full_like(lam, float(intensity))
-    corr = np.where(off, (1.0 - lam[..., None, None]) * r, 1.0)
-    s = np.sqrt(np.asarray(variance, dtype=float))
-    return corr * s[..., :, None] * s[..., None, :]
-
-
-def scatters(spread: np.ndarray) -> np.ndarray:
-    """Which entries scatter: a spread above :data:`NO_SCATTER` times the largest of its group (last axis).
-
-    Round-off is no scatter: the reference entry's imaginary part of a normalised shape is zero up to it,
-    and its "correlations" with the other entries would be noise.
-
-    Examples
-    --------
-    >>> scatters(np.array([[1.0, 0.5, 3e-17, 0.0]]))
-    array([[ True,  True, False, False]])
-    """
-    spread = np.asarray(spread, dtype=float)
-    return spread > NO_SCATTER * spread.max(axis=-1, keepdims=True)
-
-
-def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = "shrunk") -> Marginal:
+def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = SHAPE_COVARIANCES[0]) -> Marginal:
     """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
 
     ``shape_covariance`` is one of :data:`SHAPE_COVARIANCES`: the mean shape's covariance from the samples
@@ -247,10 +171,11 @@ def check_shape_covariance(name: str) -> None:
         raise UpdateError(f"shape_covariance must be one of {', '.join(SHAPE_COVARIANCES)}, got {name!r}")
 
 
-def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
+def shape_covariance_of(problem: Problem, method: str = SHAPE_COVARIANCES[0]) -> np.ndarray:
     """Each mode's covariance of its real shape entries from its samples, ``(I, n, n)``, by ``method``.
 
-    ``"shrunk"``: :func:`shrunk_covariance` (Schäfer and Strimmer's intensity).
+    ``"shrunk"``: :func:`shrunk_covariance` with Schäfer and Strimmer's intensity (the default).
+    ``"held-out"``: :func:`shrunk_covariance` with each mode's :func:`held_out_intensity`.
     ``"sample"``: the samples' own correlations; an :class:`UpdateError`
     names the modes whose samples do not span every entry that scatters
     (delete-one samples of ``B`` blocks span at most ``B - 1`` directions).
@@ -271,6 +196,8 @@ def shape_covariance_of(problem: Problem, method: str = "shrunk") -> np.ndarray:
     check_shape_covariance(method)
     if method == "shrunk":
         return shrunk_covariance(problem.psi_hat, problem.psi_var)
+    if method == "held-out":
+        return shrunk_covariance(problem.psi_hat, problem.psi_var, intensity=held_out_intensity(problem.psi_hat))
     x = problem.psi_hat - problem.psi_hat.mean(axis=1, keepdims=True)
     moving = scatters(np.sqrt(np.mean(x**2, axis=1)))  # the reference's Im is zero in every sample
     short = []
