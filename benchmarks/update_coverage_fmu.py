@@ -90,7 +90,7 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str | None = None, combine: str | None = None) -> list[dict]:  # fmt: skip
+                shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None) -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
     update one dataset (``shape_covariance`` and ``combine`` as :func:`twin.update.update`'s); one row per
     parameter."""

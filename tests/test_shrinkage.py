@@ -53,6 +53,7 @@ def test_held_out_intensity_is_its_definition_and_ignores_entries_without_scatte
         # the reference channel's imaginary part: zero up to round-off in every sample, left out
         still = np.concatenate([x, 1e-20 * rng.standard_normal((15, 1))], axis=1)
         assert held_out_intensity(still) == held_out_intensity(x)
+    assert held_out_intensity(np.ones((6, 3))) == 1.0  # nothing scatters: nothing to shrink
     batch = rng.standard_normal((2, 3, 10, 5))
     assert held_out_intensity(batch).shape == (2, 3)
     with pytest.raises(ValueError, match="at least 4 samples"):

@@ -160,6 +160,9 @@ def held_out_intensity(samples: np.ndarray, grid: np.ndarray = INTENSITY_GRID) -
     rest = ~np.eye(J, dtype=bool)
     for g, xg in enumerate(x):
         xg = xg[:, scatters(xg.std(axis=0))]
+        if xg.shape[1] < 2:  # no correlations to shrink
+            out[g] = 1.0
+            continue
         others = np.stack([xg[keep] for keep in rest])  # (J, J - 1, n): sample j left out
         z, sd = _standardised(others)
         sd = np.where(scatters(sd), sd, 1.0)
