@@ -57,7 +57,7 @@ def truth_modes(tw, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
 
 def mode_terms(tw, truth: dict[str, float], name: str) -> list[dict]:
     """Per measured mode, the linearised estimates of ``name`` from the mode's shapes and from its pole."""
-    from twin.update.marginal import scatters, shrunk_covariance
+    from twin.update.shrinkage import scatters, shrunk_covariance
 
     shapes_t, poles_t = truth_modes(tw, truth)
     h = STEP * abs(truth[name])
