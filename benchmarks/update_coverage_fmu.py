@@ -16,6 +16,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
                                              [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
+                                             [--pole-error {samples+orders,samples}] [--logdet]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -90,10 +91,11 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None) -> list[dict]:  # fmt: skip
+                shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None,
+                pole_error: str | None = None, logdet: bool = False) -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset (``shape_covariance`` and ``combine`` as :func:`twin.update.update`'s); one row per
-    parameter."""
+    update one dataset (``shape_covariance``, ``combine``, ``pole_error`` and ``logdet`` as
+    :func:`twin.update.update`'s); one row per parameter."""
     from twin.loop.demo import posterior_table
     from twin.update.adjust import stretch
     from twin.update.posterior import parameter_draws
@@ -106,7 +108,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         warnings.simplefilter("ignore")
         try:
             post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance,
-                             combine=combine)  # fmt: skip
+                             combine=combine, pole_error=pole_error, logdet=logdet)  # fmt: skip
         except UpdateError as err:  # e.g. shape samples that do not span every entry, for shape_covariance="sample"
             return [{"scenario": name, "seed": seed, "refused": str(err)}]
     table = posterior_table(post, tw.model)
@@ -226,19 +228,24 @@ def main() -> None:
                          "--delete-half with more blocks than entries)")
     ap.add_argument("--combine", choices=("intersection", "independent"), default="intersection",
                     help="how the update combines each mode's pole and shape errors (twin update --combine)")
+    ap.add_argument("--pole-error", choices=("samples+orders", "samples"), default="samples+orders",
+                    help="each mean pole's error (twin update --pole-error)")
+    ap.add_argument("--logdet", action="store_true", help="keep the marginal's -1/2 log|V| (twin update --logdet)")
     add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
                            extraction=extraction_options(args), shape_covariance=args.shape_covariance,
-                           combine=args.combine)  # fmt: skip
+                           combine=args.combine, pole_error=args.pole_error, logdet=args.logdet)  # fmt: skip
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
              f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
              f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
-             f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}`; "
+             f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
+             f"{'' if args.pole_error == 'samples+orders' else ' --pole-error ' + args.pole_error}"
+             f"{' --logdet' if args.logdet else ''}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"

@@ -1,5 +1,6 @@
 """twin.update.marginal: the errors-in-variables PerCEM marginal and its HMC sampler."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -80,9 +81,37 @@ def test_tail_kernel_is_the_gaussian_inside_and_the_student_t_outside():
     np.testing.assert_array_equal(ones, 1.0)
 
 
-@pytest.mark.parametrize("nu", [5.0, np.inf])
-def test_gradient_matches_finite_differences(small, nu):
+def test_density_is_the_errors_in_variables_likelihood_and_logdet_keeps_the_gaussian_term(small):
+    # log p = sum_i kernel(q_i), q_i = m_i' V_i^-1 m_i, by direct solves; logdet=True also has -1/2 log|V_i|
     marg, _ = small
+    theta = np.random.default_rng(5).normal(0.0, 0.3, marg.size)
+    m, V, _, _ = residual_moments(marg, theta)
+    q = np.array([mi @ np.linalg.solve(Vi, mi) for mi, Vi in zip(m, V)])
+    kernel, _ = tail_kernel(q, V.shape[1])
+    assert log_density(marg, theta).log_p == pytest.approx(kernel.sum(), rel=1e-10)
+    assert not marg.logdet
+    with_det = dataclasses.replace(marg, logdet=True)
+    half_logdet = 0.5 * sum(np.linalg.slogdet(Vi)[1] for Vi in V)
+    assert log_density(with_det, theta).log_p == pytest.approx(kernel.sum() - half_logdet, rel=1e-10)
+    # no mode's term exceeds 0: the density cannot spike where a V_i nearly loses rank (the log-det's trap)
+    assert np.all(kernel <= 0.0)
+
+
+def test_order_covariance_is_added_to_each_mean_poles(small):
+    marg, data = small
+    extra = np.array([[[4.0, 1.0], [1.0, 9.0]]] * marg.problem.n_modes) * 1e-4
+    more = marginal_problem(marg.problem, data["pole"].values, order_cov=extra)
+    np.testing.assert_allclose(more.pole_cov - marg.pole_cov, extra)
+    np.testing.assert_array_equal(more.order_cov, extra)
+    with pytest.raises(UpdateError, match=r"order_cov must be one 2 x 2 matrix per mode \(3, 2, 2\), got \(2, 2, 2\)"):
+        marginal_problem(marg.problem, data["pole"].values, order_cov=extra[:2])
+
+
+@pytest.mark.parametrize("logdet", [False, True])
+@pytest.mark.parametrize("nu", [5.0, np.inf])
+def test_gradient_matches_finite_differences(small, nu, logdet):
+    marg, _ = small
+    marg = dataclasses.replace(marg, logdet=logdet)
     rng = np.random.default_rng(3)
     theta = rng.normal(0.0, 0.3, marg.size)
     mean, prec = rng.normal(size=marg.size), rng.uniform(0.0, 2.0, marg.size)

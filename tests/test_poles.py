@@ -2,9 +2,11 @@
 
 import numpy as np
 import pytest
+import xarray as xr
 
+from twin.errors import UpdateError
 from twin.update.condense import condense
-from twin.update.poles import condense_samples
+from twin.update.poles import condense_samples, order_covariance
 
 # a 4-DOF chain on springs, DOFs 0-2 observed, a parametrised spring at DOF 3: |o'| = 3 > |q| = 1,
 # so stage 2 keeps two extra parameter-free rows
@@ -70,3 +72,18 @@ def test_exact_pole_gives_zero_residual_in_both_models():
 def test_unknown_pole_model_is_named():
     with pytest.raises(ValueError, match="unknown pole model 'mean'.*samples, linear"):
         condense_samples(FIXED, [SPRING], OBSERVED, _poles(1e-3), 0.0, pole_model="mean")
+
+
+def test_order_covariance_is_the_modes_own_unless_absent_or_already_in_the_samples():
+    cov = np.array([[[4.0, 1.0], [1.0, 9.0]], [[1.0, 0.0], [0.0, 2.0]]])
+    modes = xr.Dataset({"pole_order_cov": (("mode", "pole_part", "pole_part_2"), cov)},
+                       coords={"mode": [1, 2]}, attrs={"settings": '{"order_spread": "shapes"}'})
+    np.testing.assert_array_equal(order_covariance(modes), cov)
+    np.testing.assert_array_equal(order_covariance(modes.isel(mode=[1])), cov[1:])  # follows a mode selection
+    # synthetic modes carry none, and samples extracted with order_spread="all" carry it already
+    np.testing.assert_array_equal(order_covariance(modes.drop_vars("pole_order_cov")), np.zeros((2, 2, 2)))
+    np.testing.assert_array_equal(order_covariance(modes.assign_attrs(settings='{"order_spread": "all"}')), 0.0)
+    bad = modes.copy()
+    bad["pole_order_cov"] = bad["pole_order_cov"].where(bad["pole_part"] == "real")
+    with pytest.raises(UpdateError, match="pole_order_cov must be finite"):
+        order_covariance(bad)

@@ -62,6 +62,10 @@ def test_extraction_standard_error_has_its_two_parts(make_record):
         # the two parts are drawn independently: their cross term is of order 1/sqrt(J) of the sum
         assert abs(total**2 / (jk**2 + order**2) - 1) < 3 / np.sqrt(40), (q, total, jk, order)
     assert np.isclose(float(m.frequency[0]), float(plain.frequency[0]))  # same estimate
+    # the pole's covariance over the orders, whose Im-Im part is the frequency's order spread
+    cov = plain["pole_order_cov"].values[0]
+    assert np.isclose(np.sqrt(cov[1, 1]) / (2 * np.pi), float(plain["frequency_order_std"][0]), rtol=1e-9)
+    assert cov[0, 1] == cov[1, 0] and np.all(np.linalg.eigvalsh(cov) >= -1e-12 * cov.max())  # PSD to rounding
 
 
 def _spread_ratios(make_record, seeds, delete_blocks=1):

@@ -154,6 +154,12 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
         update(hydro_unit, renamed, None, fsi=True, progress=False)
     with pytest.raises(UpdateError, match="unknown pole model 'mean'; choose one of samples, linear"):
         update(hydro_unit, sub, None, fsi=True, pole_model="mean", progress=False)
+    with pytest.raises(UpdateError, match="pole_error must be one of samples\\+orders, samples, got 'orders'"):
+        update(hydro_unit, sub, None, fsi=True, pole_error="orders", progress=False)
+    for setting, kwargs in (("pole_error='samples\\+orders'", {"pole_error": "samples+orders"}),
+                            ("logdet=True", {"logdet": True})):
+        with pytest.raises(UpdateError, match=f"{setting} needs pole_model='marginal'"):
+            update(hydro_unit, sub, None, fsi=True, pole_model="linear", progress=False, **kwargs)
     with pytest.raises(UpdateError, match="prior given for 'UGB.kxx', which is not updated"):
         update(hydro_unit, sub, None, fsi=True, priors={"UGB.kxx": (1e9, 1e8)}, progress=False)
     # the runner mass and the per-mode added mass have the same footprint: not identifiable together
@@ -205,6 +211,8 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     assert main(["update", "hydro_unit", str(sub), "-o", str(held), "--fsi", "--draws", "10", "--chains", "1",
                  "--shape-covariance", "held-out", "-q"]) == 0  # fmt: skip
     assert json.loads(read_posterior(held).attrs["settings"])["shape_covariance"] == "held-out"
+    assert _pole_error_and_logdet(tmp_path, sub, []) == ("samples+orders", False)
+    assert _pole_error_and_logdet(tmp_path, sub, ["--pole-error", "samples", "--logdet"]) == ("samples", True)
     assert main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi", "--paper",
                  "--noise-model", "diagonal"]) == 2  # fmt: skip
     assert "--paper sets the sampler; leave out --noise-model" in capsys.readouterr().err
@@ -214,3 +222,12 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
                  "--fsi"]) == 2  # fmt: skip
     assert "no such modes file" in capsys.readouterr().err
     assert not (tmp_path / "x.nc").exists()
+
+
+def _pole_error_and_logdet(tmp_path, modes, flags: list[str]) -> tuple[str, bool]:
+    """``pole_error`` and ``logdet`` of a short ``twin update`` with ``flags``, from its posterior's settings."""
+    out = tmp_path / "flags.nc"
+    assert main(["update", "hydro_unit", str(modes), "-o", str(out), "--fsi", "--draws", "10", "--chains", "1",
+                 "-q", *flags]) == 0  # fmt: skip
+    settings = json.loads(read_posterior(out).attrs["settings"])
+    return settings["pole_error"], settings["logdet"]

@@ -303,6 +303,13 @@ def _add_loop(sub) -> None:
                         "predicts each sample held out of the others (held-out: bearings calibrated, a pull or a "
                         "seal too narrow on FMU records), or the samples' own (sample: needs samples spanning every "
                         "shape entry: twin extract --delete-half --samples J --blocks B with B above the entries)")
+    p.add_argument("--pole-error", choices=("samples+orders", "samples"), default=None,
+                   help="marginal model only (default there: samples+orders): each mean pole's error is its "
+                        "samples' plus its spread over the model orders the extraction averaged it over "
+                        "(modes.nc pole_order_cov), or the samples' alone")
+    p.add_argument("--logdet", action="store_true",
+                   help="marginal model only: keep each mode's -1/2 log|V(theta)| in the density (the model "
+                        "before stop 44; it biased the lower guide bearing and trapped chains)")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

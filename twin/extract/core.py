@@ -175,7 +175,9 @@ def extract(
         stabilisation diagram): complex ``pole`` [1/s] and ``shape`` samples;
         per mode the full-record ``frequency`` (damped) and ``natural_frequency``
         [Hz], ``damping_ratio``, their sample std and standard error (and
-        its two parts: ``*_se_jackknife`` and ``*_order_std``),
+        its two parts: ``*_se_jackknife`` and ``*_order_std``), the
+        covariance of the pole's real and imaginary parts over the model
+        orders ``pole_order_cov`` [1/s²] (dims ``pole_part``, ``pole_part_2``),
         ``sensor_shape``, ``MPC``, ``MPD`` [deg], ``model_order``.
 
     Examples
@@ -464,6 +466,8 @@ def _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n
     f_std, z_std = _frequency_damping_std(sample_p)
     f_jk, z_jk = (x / np.sqrt(J) for x in _frequency_damping_std(jackknife_p))
     f_order, z_order = np.array([_frequency_damping_std(p) if len(p) > 1 else (0.0, 0.0) for _, p, _ in members]).T
+    order_cov = np.array([np.cov(np.stack([p.real, p.imag])) if len(p) > 1 else np.zeros((2, 2))
+                          for _, p, _ in members])  # fmt: skip
     ch_coords = {"channel": ("channel", list(rec.channels))}
     if "displacement" in ds:
         src = ds["displacement"]
@@ -492,6 +496,9 @@ def _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n
                                 "long_name": "std of the frequency over the model orders the mode is averaged over"}),
         "damping_ratio_order_std": ("mode", z_order, {"units": "1",
                                     "long_name": "std of the damping ratio over the model orders the mode is averaged over"}),
+        "pole_order_cov": (("mode", "pole_part", "pole_part_2"), order_cov,
+                           {"units": "1/s^2", "long_name": "covariance of the pole's real and imaginary parts over "
+                            "the model orders the mode is averaged over"}),
         "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "full-record mode shape"}),
         "MPC": ("mode", mpc(shapes), {"units": "1", "long_name": "modal phase collinearity (1 real, 0 circular)"}),
         "MPD": ("mode", mpd(shapes), {"units": "deg", "long_name": "mean phase deviation (0 real, 45 circular)"}),
@@ -511,5 +518,6 @@ def _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n
     }  # fmt: skip
     return xr.Dataset(
         {**mode_vars, **diagram_vars},
-        coords={"mode": ("mode", np.arange(1, n_modes + 1)), "sample": ("sample", np.arange(J)), **ch_coords},
+        coords={"mode": ("mode", np.arange(1, n_modes + 1)), "sample": ("sample", np.arange(J)), **ch_coords,
+                "pole_part": ("pole_part", ["real", "imag"]), "pole_part_2": ("pole_part_2", ["real", "imag"])},
     )

@@ -117,7 +117,8 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
         try:
             problem = build_problem(model, data, names, fsi=fsi, eps_std=eps_std, pole_model="marginal")
             perturbed_marg = marginal_problem(problem, data["pole"].transpose("mode", "sample").values,
-                                              marg.shape_covariance)  # fmt: skip
+                                              marg.shape_covariance, logdet=marg.logdet,
+                                              order_cov=marg.order_cov)  # fmt: skip
             if marg.weights is not None:  # the same combination of each mode's pole and shapes as the data's
                 perturbed_marg = intersected(perturbed_marg, marg.weights)
             theta, _ = posterior_mode(perturbed_marg, prior_mean, prior_precision, start=centre)

@@ -27,7 +27,7 @@ from twin.update.gibbs import (NOISE_PRIOR_SHAPE, Chain, Prior, check_noise_mode
 from twin.update.intersection import check_combination, intersected
 from twin.update.marginal import Marginal, check_shape_covariance, marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
-from twin.update.poles import check_pole_model
+from twin.update.poles import POLE_ERRORS, check_pole_model, order_covariance
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
 
@@ -171,6 +171,8 @@ def update(
     adjust: str | None = None,
     shape_covariance: str = "shrunk",
     combine: str | None = None,
+    pole_error: str | None = None,
+    logdet: bool = False,
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -245,6 +247,18 @@ def update(
         share is in the attr ``intersection_weights``); ``"independent"``: as
         if uncorrelated, which overstates what a mode says when its pole and
         its shape inform the same parameter.
+    pole_error : {"samples+orders", "samples"}, optional
+        Marginal model only (its default there: ``"samples+orders"``): each
+        mean pole's error is its samples' covariance over ``J`` plus the
+        pole's spread over the model orders the extraction averaged it over
+        (``modes.nc``'s ``pole_order_cov``,
+        :func:`twin.update.poles.order_covariance`: zero for synthetic modes),
+        or the samples' alone.
+    logdet : bool
+        Marginal model only: keep each mode's ``-½ log |V_i(θ)|`` in the
+        density (the Gaussian marginal of the residual, the model before
+        stop 44). By default the density is the errors-in-variables
+        likelihood ``exp(-q_i / 2)`` alone (:mod:`twin.update.marginal`).
     output : path, optional
         ``posterior.nc`` to write (atomically).
     progress : bool
@@ -290,6 +304,13 @@ def update(
     if shape_covariance != "shrunk" and pole_model != "marginal":
         raise UpdateError(f"shape_covariance={shape_covariance!r} needs pole_model='marginal' (the Gibbs sampler "
                           "learns its residual noise instead)")  # fmt: skip
+    pole_error = pole_error or ("samples+orders" if pole_model == "marginal" else "samples")
+    if pole_error not in POLE_ERRORS:
+        raise UpdateError(f"pole_error must be one of {', '.join(POLE_ERRORS)}, got {pole_error!r}")
+    for asked, setting in ((pole_error != "samples", f"pole_error={pole_error!r}"), (logdet, "logdet=True")):
+        if asked and pole_model != "marginal":
+            raise UpdateError(f"{setting} needs pole_model='marginal' (the Gibbs sampler's likelihood is the "
+                              "paper's, on the pole samples themselves)")  # fmt: skip
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -302,7 +323,9 @@ def update(
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
     if pole_model == "marginal":
-        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, shape_covariance)
+        order_cov = order_covariance(modes) if pole_error == "samples+orders" else None
+        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, shape_covariance,
+                                logdet=logdet, order_cov=order_cov)  # fmt: skip
         if combine == "intersection":
             marg = intersected(marg)
         bad = weak_parameters(problem.parameter_labels, marginal_precision(marg))
@@ -324,6 +347,7 @@ def update(
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
                 "adjust": adjust, "shape_covariance": shape_covariance, "combine": combine,
+                "pole_error": pole_error, "logdet": logdet,
                 "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",

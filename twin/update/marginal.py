@@ -1,7 +1,9 @@
 """The errors-in-variables PerCEM: the parameters' marginal posterior, sampled by HMC.
 
 The data of mode ``i`` are its mean pole ``λ̄_i`` with the covariance ``C_i``
-of that mean (the pole samples' covariance over ``J``) and its mean shape
+of that mean (the pole samples' covariance over ``J``, plus the pole's spread
+over its model orders where the extraction gives it:
+:func:`twin.update.poles.order_covariance`) and its mean shape
 ``ψ̄_i`` with the covariance ``Σ_i / J`` of its real entries (the samples'
 covariance, its correlations shrunk by :func:`shrunk_covariance`). The true pole is
 ``λ̄_i + δ_i`` and the true shape ``ψ_i``; with the condensed eigen-model
@@ -18,6 +20,19 @@ with variance ``σ²``) and ``δ_i ~ N(0, C_i)``, and ``B_i`` taken at ``μ_i``
 
     V_i(θ) = H_i(θ) Λ_i H_i(θ)ᵀ + B_i(θ) C_i B_i(θ)ᵀ.
 
+A mode's density is ``exp(-q_i / 2)`` with ``q_i = m_iᵀ V_i⁻¹ m_i``, without
+the Gaussian's ``|V_i(θ)|^(-1/2)``: with a flat prior on the true shape and
+pole over the solutions of the mode's equations, measured in the data's own
+metric, the integral is ``exp(-q_i / 2)`` alone (the approximated maximum
+likelihood of errors-in-variables fitting). The equations say the same after
+any invertible recombination of their rows, which leaves ``q_i`` as it is but
+not ``log |V_i|``; and ``-½ log |V_i(θ)|`` peaks wherever ``V_i(θ)`` nearly
+loses rank. On FMU records that term pulled the lower guide bearing's
+coefficients by 0.3-0.6 posterior std, and on a record with two barely
+observed modes it made a narrow spike that trapped an HMC chain (acceptance
+7%, R-hat up to 1.23 for determined parameters; README, stop 44).
+``logdet=True`` (:func:`marginal_problem`) keeps it.
+
 This is the likelihood a Fisher analysis of poles and shapes assumes
 (:mod:`twin.design.identify`): no residual noise to learn, so none of the
 Gibbs sampler's ``Δ``, whose full version was set by the prior in all but
@@ -28,10 +43,10 @@ The covariances are estimated from ``J`` samples and the model is linear in
 the pole only to first order, so a mode's residual is heavier-tailed than
 the Gaussian: each mode enters through a Gaussian core with the tail of a
 multivariate Student t with :data:`STUDENT_DOF` degrees of freedom
-(:func:`tail_kernel`): ``log p_i = −q_i/2 − ½ log |V_i|`` up to ``q_i = m_iᵀ
-V_i⁻¹ m_i = n_r``, ``−n_r/2 − (ν + n_r)/2 log((ν + q_i)/(ν + n_r)) − ½ log
-|V_i|`` beyond. A mode that agrees with the model weighs as under the
-Gaussian; one whose residual is far out weighs less; none weighs more.
+(:func:`tail_kernel`): ``log p_i = −q_i/2`` up to ``q_i = n_r``,
+``−n_r/2 − (ν + n_r)/2 log((ν + q_i)/(ν + n_r))`` beyond. A mode that agrees
+with the model weighs as under the Gaussian; one whose residual is far out
+weighs less; none weighs more.
 
 The parameters ``θ = (t, η)`` are sampled by Hamiltonian Monte Carlo with
 the exact gradient, the Gauss-Newton precision at the posterior mode as mass
@@ -104,6 +119,13 @@ class Marginal:
         combined by covariance intersection (:mod:`twin.update.intersection`:
         ``cov_z``'s shape block is over ``ω_i``, ``pole_cov`` over ``1 - ω_i``);
         None when they are taken as independent.
+    logdet : bool
+        Whether each mode's density carries ``-½ log |V_i(θ)|`` (the Gaussian
+        marginal of the residual) or not (the default: the errors-in-variables
+        likelihood ``exp(-q_i / 2)``; see :func:`log_density`).
+    order_cov : (I, 2, 2) or None
+        Each pole's spread over its model orders, included in ``pole_cov``
+        (:func:`twin.update.poles.order_covariance`); None when left out.
     """
 
     problem: Problem
@@ -114,6 +136,8 @@ class Marginal:
     bases: np.ndarray
     shape_covariance: str = SHAPE_COVARIANCES[0]
     weights: np.ndarray | None = None
+    logdet: bool = False
+    order_cov: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -122,12 +146,15 @@ class Marginal:
         return p.n_global + p.n_modes * p.n_per_mode
 
 
-def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = SHAPE_COVARIANCES[0]) -> Marginal:
+def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = SHAPE_COVARIANCES[0],
+                     logdet: bool = False, order_cov: np.ndarray | None = None) -> Marginal:  # fmt: skip
     """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
 
     ``shape_covariance`` is one of :data:`SHAPE_COVARIANCES`: the mean shape's covariance from the samples
     with their correlations shrunk (:func:`shrunk_covariance`, the default), or their own (``"sample"``),
-    which needs samples that span every entry of every mode's shape.
+    which needs samples that span every entry of every mode's shape. ``logdet`` keeps each mode's
+    ``-½ log |V_i(θ)|`` in the density (:attr:`Marginal.logdet`). ``order_cov`` ``(I, 2, 2)`` is added to
+    each mean pole's covariance (:func:`twin.update.poles.order_covariance`).
 
     Examples
     --------
@@ -152,6 +179,11 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
     d = np.stack([poles.real, poles.imag], axis=-1)
     d -= d.mean(axis=1, keepdims=True)
     pole_cov = np.einsum("ija,ijb->iab", d, d) / (J - 1) / J
+    if order_cov is not None:
+        order_cov = np.asarray(order_cov, dtype=float)
+        if order_cov.shape != pole_cov.shape:
+            raise UpdateError(f"order_cov must be one 2 x 2 matrix per mode {pole_cov.shape}, got {order_cov.shape}")
+        pole_cov = pole_cov + order_cov
     mean_z, cov_z = np.zeros((I, n_z)), np.zeros((I, n_z, n_z))
     mean_z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
     cov_z[:, problem.data_index[:, None], problem.data_index] = shape_covariance_of(problem, shape_covariance) / J
@@ -162,7 +194,8 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
         for a, k in enumerate(b.columns):
             bases[:, k][:, b.rows] = b.H[:, a, 0]
     columns = design(problem, mean_z).reshape(I, 1 + K, 3, n_r)
-    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance)
+    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance, logdet=logdet,
+                    order_cov=order_cov)
 
 
 def check_shape_covariance(name: str) -> None:
@@ -314,17 +347,19 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     Vinv = np.linalg.inv(V)
     y = np.einsum("irs,is->ir", Vinv, m)
     q = np.einsum("ir,ir->i", m, y)
-    logdet = np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1)
     kernel, weight = tail_kernel(q, n_r, nu)
-    log_p = float(np.sum(kernel - logdet))
+    log_p = float(np.sum(kernel))
+    if marg.logdet:
+        log_p -= float(np.sum(np.log(np.diagonal(L, axis1=1, axis2=2))))
     A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
     dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
     quadratic = (-np.einsum("ikr,ir->ik", A, y)
                  + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
                  + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y)))  # fmt: skip
-    trace = (np.einsum("ikrz,izr->ik", marg.bases, LH @ Vinv)
-             + np.einsum("ikra,ira->ik", dB, Vinv @ B @ marg.pole_cov))  # fmt: skip
-    grad_blocks = weight[:, None] * quadratic - trace
+    grad_blocks = weight[:, None] * quadratic
+    if marg.logdet:
+        grad_blocks -= (np.einsum("ikrz,izr->ik", marg.bases, LH @ Vinv)
+                        + np.einsum("ikra,ira->ik", dB, Vinv @ B @ marg.pole_cov))  # fmt: skip
     gradient = joint_vector(p, grad_blocks)
     residual_variance = np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1)
     if prior_precision is not None:
@@ -352,7 +387,7 @@ def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.n
 
     First Gauss-Newton steps that hold each ``V_i`` at the current ``θ``
     (iteratively reweighted least squares; far from the mode the exact
-    gradient's ``log |V_i|`` term points away from it), then quasi-Newton
+    gradient's terms from ``V_i(θ)`` can point away from it), then quasi-Newton
     steps on the exact gradient with the Gauss-Newton precision. Each step is
     halved until the density rises. From a given ``start`` (near the mode: the mode of nearby data) the
     first kind is skipped.

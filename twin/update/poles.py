@@ -39,17 +39,65 @@ spread of the pole samples.
 from __future__ import annotations
 
 import dataclasses
+import json
+import logging
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import xarray as xr
 
 from twin.errors import UpdateError
 from twin.update.condense import Condensed, condense
 
 #: Ways the pole samples enter the condensed model (see the module docstring).
 POLE_MODELS = ("samples", "linear", "marginal")
+#: What the marginal model takes as each mean pole's error (``update(pole_error=...)``; the default first; see
+#: :func:`order_covariance`).
+POLE_ERRORS = ("samples+orders", "samples")
 #: Finite-difference step of the pole derivatives, relative to the spread of the pole samples.
 STEP = 0.01
+
+
+log = logging.getLogger(__name__)
+
+
+def order_covariance(modes: xr.Dataset) -> np.ndarray:
+    """Each mode's pole covariance over its model orders, ``[Re, Im]`` [1/s²], ``(I, 2, 2)``.
+
+    SSI's estimate of a pole depends on the model order, and the extraction
+    averages each mode over a set of orders: the spread over them
+    (``modes.nc``'s ``pole_order_cov``) is a part of the pole's error that
+    no jackknife of the record shows. The marginal model adds it to the
+    covariance of the mean pole (``update(pole_error="samples+orders")``,
+    the default). Zero where the modes carry none (synthetic modes, another
+    producer) or where their pole samples carry it already
+    (``extract(order_spread="all")``).
+
+    Examples
+    --------
+    >>> import xarray as xr
+    >>> modes = xr.Dataset({"pole_order_cov": (("mode", "pole_part", "pole_part_2"), [[[4.0, 1.0], [1.0, 9.0]]])},
+    ...                    attrs={"settings": '{"order_spread": "shapes"}'})
+    >>> order_covariance(modes)[0].tolist()
+    [[4.0, 1.0], [1.0, 9.0]]
+    >>> order_covariance(modes.assign_attrs(settings='{"order_spread": "all"}'))[0].tolist()
+    [[0.0, 0.0], [0.0, 0.0]]
+    """
+    n = modes.sizes["mode"]
+    if "pole_order_cov" not in modes:
+        log.info("the modes carry no pole_order_cov: each mean pole's error is its samples' alone")
+        return np.zeros((n, 2, 2))
+    try:
+        spread = json.loads(str(modes.attrs.get("settings", "{}"))).get("order_spread")
+    except (ValueError, AttributeError):
+        spread = None
+    if spread == "all":
+        log.info("the pole samples carry the model-order spread already (order_spread='all'): nothing added")
+        return np.zeros((n, 2, 2))
+    cov = modes["pole_order_cov"].transpose("mode", ...).values
+    if cov.shape != (n, 2, 2) or not np.all(np.isfinite(cov)):
+        raise UpdateError(f"pole_order_cov must be finite, one 2 x 2 matrix per mode, got shape {cov.shape}")
+    return np.array(cov, dtype=float)
 
 
 def check_pole_model(name: str) -> None:
