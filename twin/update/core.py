@@ -29,7 +29,7 @@ from twin.update.marginal import Marginal, check_shape_covariance, marginal_prec
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import POLE_ERRORS, check_pole_model, order_covariance
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
-from twin.update.posterior import RHAT_LIMIT, diagnostics_json, summary, write_posterior
+from twin.update.posterior import RHAT_LIMIT, diagnostics_json, observed_data, summary, write_posterior
 
 log = logging.getLogger(__name__)
 
@@ -135,8 +135,7 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
         },  # fmt: skip
         coords={**coords, **mode_coord},
     )
-    observed = split_complex(modes[["pole", "shape"]].drop_vars([c for c in modes.coords if c not in
-                                                                 ("mode", "sample", "channel")]))  # fmt: skip
+    observed = observed_data(modes)
     constant = xr.Dataset(
         {
             "nominal": ("parameter", problem.global_nominal, {"long_name": "value before the update (SI)"}),

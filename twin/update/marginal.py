@@ -343,7 +343,7 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     p = marg.problem
     n_r = p.H0.shape[2]
     m, V, H, B, LH = _moments(marg, theta)
-    L = np.linalg.cholesky(V)
+    L = np.linalg.cholesky(V)  # raises where a V_i is not positive definite; its diagonal gives log|V_i|
     Vinv = np.linalg.inv(V)
     y = np.einsum("irs,is->ir", Vinv, m)
     q = np.einsum("ir,ir->i", m, y)

@@ -218,6 +218,23 @@ def _within_bounds(name: str, value: float, bounds: tuple[float, float]) -> floa
     return float(bound)
 
 
+def observed_data(modes: xr.Dataset) -> xr.Dataset:
+    """The posterior's ``observed_data`` group: the pole and shape samples, complex parts stored apart.
+
+    Only the ``mode``, ``sample`` and ``channel`` coordinates are kept (a modes file's others, such as the
+    channels' nodes or ``pole_order_cov``'s parts, describe variables the group does not hold).
+
+    Examples
+    --------
+    >>> ds = xr.Dataset({"pole": (("mode", "sample"), [[-1 + 9j, -1 + 11j]]), "shape": (("mode", "sample",
+    ...                  "channel"), np.ones((1, 2, 1)) + 0j), "n": ("part", [1, 2])}, coords={"part": [0, 1]})
+    >>> sorted(observed_data(ds).data_vars), list(observed_data(ds).coords)
+    (['pole_imag', 'pole_real', 'shape_imag', 'shape_real'], [])
+    """
+    sub = modes[["pole", "shape"]]
+    return split_complex(sub.drop_vars([c for c in sub.coords if c not in ("mode", "sample", "channel")]))
+
+
 def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0) -> xr.DataTree:
     """A Laplace posterior (:func:`twin.loop.fit.laplace_update`) in the ``posterior.nc`` layout.
 
@@ -255,8 +272,7 @@ def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 
                                      attrs={"units": unit, "long_name": f"per-mode FSI {kind.replace('_', ' ')}"})  # fmt: skip
     stats = xr.Dataset({"lp": (("chain", "draw"), np.zeros((1, draws)), {"long_name": "not recorded (Laplace)"})},
                        coords=coords)  # fmt: skip
-    observed = split_complex(modes[["pole", "shape"]].drop_vars([c for c in modes.coords if c not in
-                                                                 ("mode", "sample", "channel")]))  # fmt: skip
+    observed = observed_data(modes)
     constant = post[["map", "std", "prior_scale", "low", "high"]].drop_vars("unit", errors="ignore")
     return xr.DataTree.from_dict({"/": xr.Dataset(attrs=attrs), "posterior": out, "sample_stats": stats,
                                   "observed_data": observed, "constant_data": constant})  # fmt: skip
