@@ -167,6 +167,24 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
         update(hydro_unit, sub, "runner.m", fsi=True, draws=5, chains=1, progress=False)
 
 
+def test_the_poles_order_spread_widens_what_the_poles_say(hydro_unit):
+    # modes 3 and 4 with poles 100 times more precise than the paper's (so the added mass is read from them)
+    # and a spread over model orders 10 times their mean pole's covariance: by default the added mass's std
+    # grows by up to sqrt(11) (measured 2.9-4.0); with pole_error="samples" it is as without the spread
+    data = synthesize_modes(hydro_unit, samples=50, seed=1, pole_variance=(1e-4, 1e-4)).isel(mode=[2, 3])
+    d = data["pole"].values - data["pole"].values.mean(axis=1, keepdims=True)
+    parts = np.stack([d.real, d.imag], axis=-1)
+    mean_cov = np.einsum("ija,ijb->iab", parts, parts) / (d.shape[1] - 1) / d.shape[1]
+    spread = data.assign(pole_order_cov=(("mode", "pole_part", "pole_part_2"), 10.0 * mean_cov))
+    std = {}
+    for label, modes, error in (("orders", spread, None), ("samples", spread, "samples"), ("none", data, None)):
+        tree = update(hydro_unit, modes, None, fsi=True, draws=200, chains=2, seed=3, pole_error=error,
+                      progress=False)  # fmt: skip
+        std[label] = tree["posterior"]["added_mass"].std(("chain", "draw")).values
+    np.testing.assert_allclose(std["samples"], std["none"])
+    assert np.all(std["orders"] > 2.0 * std["samples"]), (std["orders"], std["samples"])
+
+
 def test_synthetic_modes_follow_the_paper_noise_model(hydro_unit, paper_truth_modes):
     ds = synthesize_modes(hydro_unit, samples=4000, seed=7)
     dev = ds["pole"].values - paper_truth_modes.poles[:, None]
