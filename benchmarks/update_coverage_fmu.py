@@ -36,6 +36,7 @@ import numpy as np
 from extraction_options import add_extraction_options, extraction_flags, extraction_options
 
 from twin.update.marginal import SHAPE_COVARIANCES
+from twin.update.poles import POLE_ERRORS
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "update_coverage_fmu.md"
@@ -228,7 +229,7 @@ def main() -> None:
                          "--delete-half with more blocks than entries)")
     ap.add_argument("--combine", choices=("intersection", "independent"), default="intersection",
                     help="how the update combines each mode's pole and shape errors (twin update --combine)")
-    ap.add_argument("--pole-error", choices=("samples+orders", "samples"), default="samples+orders",
+    ap.add_argument("--pole-error", choices=POLE_ERRORS, default=POLE_ERRORS[0],
                     help="each mean pole's error (twin update --pole-error)")
     ap.add_argument("--logdet", action="store_true", help="keep the marginal's -1/2 log|V| (twin update --logdet)")
     add_extraction_options(ap)
@@ -244,7 +245,7 @@ def main() -> None:
              f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
              f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
              f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
-             f"{'' if args.pole_error == 'samples+orders' else ' --pole-error ' + args.pole_error}"
+             f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
              f"{' --logdet' if args.logdet else ''}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
