@@ -16,7 +16,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
                                              [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
-                                             [--pole-error {samples+orders,samples}] [--logdet]
+                                             [--pole-error {samples+orders,samples}] [--logdet] [--flat-priors]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -93,9 +93,9 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
                 shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None,
-                pole_error: str | None = None, logdet: bool = False) -> list[dict]:  # fmt: skip
+                pole_error: str | None = None, logdet: bool = False, plausible: bool = True) -> list[dict]:  # fmt: skip
     """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset (``shape_covariance``, ``combine``, ``pole_error`` and ``logdet`` as
+    update one dataset (``shape_covariance``, ``combine``, ``pole_error``, ``logdet`` and ``plausible`` as
     :func:`twin.update.update`'s); one row per parameter."""
     from twin.loop.demo import posterior_table
     from twin.update.adjust import stretch
@@ -109,7 +109,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         warnings.simplefilter("ignore")
         try:
             post = tw.update(names, seed=seed, progress=False, adjust="jackknife", shape_covariance=shape_covariance,
-                             combine=combine, pole_error=pole_error, logdet=logdet)  # fmt: skip
+                             combine=combine, pole_error=pole_error, logdet=logdet, plausible=plausible)  # fmt: skip
         except UpdateError as err:  # e.g. shape samples that do not span every entry, for shape_covariance="sample"
             return [{"scenario": name, "seed": seed, "refused": str(err)}]
     table = posterior_table(post, tw.model)
@@ -232,13 +232,16 @@ def main() -> None:
     ap.add_argument("--pole-error", choices=POLE_ERRORS, default=POLE_ERRORS[0],
                     help="each mean pole's error (twin update --pole-error)")
     ap.add_argument("--logdet", action="store_true", help="keep the marginal's -1/2 log|V| (twin update --logdet)")
+    ap.add_argument("--flat-priors", action="store_true",
+                    help="no prior on the effects' parameters (twin update --flat-priors)")
     add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
                            extraction=extraction_options(args), shape_covariance=args.shape_covariance,
-                           combine=args.combine, pole_error=args.pole_error, logdet=args.logdet)  # fmt: skip
+                           combine=args.combine, pole_error=args.pole_error, logdet=args.logdet,
+                           plausible=not args.flat_priors)  # fmt: skip
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
@@ -246,7 +249,7 @@ def main() -> None:
              f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
              f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
              f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
-             f"{' --logdet' if args.logdet else ''}`; "
+             f"{' --logdet' if args.logdet else ''}{' --flat-priors' if args.flat_priors else ''}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows)  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"

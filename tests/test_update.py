@@ -78,9 +78,11 @@ def test_full_noise_and_linear_pole_models_give_calibrated_case_a_intervals(hydr
     # about 50%). Linearised in the pole, the modes near a resonance of the unobserved DOFs lose the bias the
     # model's curvature puts into their residuals: with the bases at every pole sample, the added damping of
     # modes 13 and 15 sits at |z| = 49 and 12 on these data; linearised, every |z| is below 3.7.
-    # benchmarks/update_cases.py --noise-model --pole-model measures them over 20 seeds.
+    # benchmarks/update_cases.py --noise-model --pole-model measures them over 20 seeds. Flat priors: the
+    # default one on the added damping (std 1.7e8 N s/m) pulls mode 15's, which this model puts at a third of
+    # its truth of 1.37e8, further down (|z| 3.7 -> 4.6); the default sampler determines it to 0.4%.
     tree, _ = _run(hydro_unit, paper_modes, None, draws=300, chains=1, seed=2, noise_model="full", collapsed=False,
-                   pole_model="linear")  # fmt: skip
+                   pole_model="linear", plausible=False)  # fmt: skip
     settings = json.loads(tree.attrs["settings"])
     assert settings["noise_model"] == "full" and settings["pole_model"] == "linear"
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))

@@ -46,6 +46,7 @@ def _update(args: argparse.Namespace) -> int:
                       burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
                       pole_model=args.pole_model, adjust=args.adjust, shape_covariance=args.shape_covariance,
                       combine=args.combine, pole_error=args.pole_error, logdet=args.logdet,
+                      plausible=not args.flat_priors,
                       output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
     table = summary(tree["posterior"].to_dataset())
     print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "

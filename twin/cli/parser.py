@@ -310,6 +310,9 @@ def _add_loop(sub) -> None:
     p.add_argument("--logdet", action="store_true",
                    help="marginal model only: keep each mode's -1/2 log|V(theta)| in the density (the model "
                         "before stop 44; it biased the lower guide bearing and trapped chains)")
+    p.add_argument("--flat-priors", action="store_true",
+                   help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
+                        "model's value, as wide as its effect's plausible scale: a bound where the data say little)")
     p.add_argument("--paper", action="store_true",
                    help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

@@ -28,6 +28,7 @@ from twin.update.intersection import check_combination, intersected
 from twin.update.marginal import Marginal, check_shape_covariance, marginal_precision, marginal_problem
 from twin.update.marginal import run_chains as run_marginal
 from twin.update.poles import POLE_ERRORS, check_pole_model, order_covariance
+from twin.update.priors import plausible_priors
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, observed_data, summary, write_posterior
 
@@ -163,6 +164,7 @@ def update(
     burn_in: int = BURN_IN,
     seed: int | None = None,
     priors: Mapping[str, tuple[float, float]] | None = None,
+    plausible: bool = True,
     eps_std: float = 1e-6,
     noise_model: str = "full",
     collapsed: bool = True,
@@ -202,7 +204,14 @@ def update(
     seed : int, optional
         Seed of the chains.
     priors : mapping, optional
-        Gaussian priors ``{name: (mean, std)}`` in SI units (default: flat).
+        Gaussian priors ``{name: (mean, std)}`` in SI units; they replace the
+        ``plausible`` ones of the same names. Parameters without one are flat.
+    plausible : bool
+        Give each updated parameter of the model's effects (and the per-mode
+        FSI of ``fsi``) a Gaussian prior centred on the model's value, as wide
+        as the effect's plausible scale (:func:`twin.update.priors.plausible_priors`):
+        no change where the data determine the parameter, a bound on what
+        they do not. False: flat.
     eps_std : float
         σ of the perturbation ε of the condensed eigen-equation, relative to
         the dynamic stiffness.
@@ -318,6 +327,7 @@ def update(
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=eps_std, pole_model=pole_model, source=source)
+    priors = {**(plausible_priors(model, names, fsi) if plausible else {}), **(priors or {})}
     prior = _prior(problem, priors, noise_model, 0.0 if pole_model == "marginal" else NOISE_PRIOR_SHAPE)
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
@@ -346,8 +356,8 @@ def update(
     settings = {"params": names, "fsi": fsi, "draws": draws, "chains": chains, "burn_in": burn_in, "seed": seed,
                 "eps_std": eps_std, "noise_model": noise_model, "collapsed": collapsed, "pole_model": pole_model,
                 "adjust": adjust, "shape_covariance": shape_covariance, "combine": combine,
-                "pole_error": pole_error, "logdet": logdet,
-                "priors": {k: list(v) for k, v in (priors or {}).items()} or "flat"}  # fmt: skip
+                "pole_error": pole_error, "logdet": logdet, "plausible": plausible,
+                "priors": {k: list(v) for k, v in priors.items()} or "flat"}  # fmt: skip
     attrs = {
         "title": f"APerCEM posterior of {model.name}",
         "producer": f"twin {__version__}",
