@@ -6,7 +6,7 @@ generous magnitude, e.g. twice the immersed disks' mass for an added mass).
 The update puts a Gaussian prior on each of them, centred on the model's
 value and as wide as that scale. Where the data determine a parameter the
 prior is far wider than the posterior and changes nothing (a hidden pull at
-2% posterior std against a scale of 220%: a shift of 1e-4 std). Where they do
+2% posterior std against a scale of 220%: a shift of 0.004 std). Where they do
 not, the errors-in-variables density is flat far out (as a per-mode added
 mass grows, the mode's residual and its covariance grow together), and
 without a prior the posterior of such a parameter runs off to values no
