@@ -37,7 +37,8 @@ def _added_mass_6(model, data, **kw):
 def test_the_default_prior_bounds_what_the_data_do_not_determine(hydro_unit):
     # mode 6 alone with 10 samples whose poles scatter 10 rad/s and shapes 20%: the data hardly say what its
     # added mass is (truth 5.08e4 kg). Flat, the chains wander to 1e6 kg and disagree (std 1.0e6, R-hat 1.8);
-    # with the default prior (std 2 x the runner's 8.5e4 kg) the std is 8.3e4 kg and the interval holds the truth
+    # with the default prior (std 1.7e5 kg, twice the runner's mass) the std is 8.3e4 kg and the interval
+    # holds the truth
     data = synthesize_modes(hydro_unit, samples=10, seed=2, pole_variance=(100.0, 100.0), shape_cov=4e-2)
     data = data.isel(mode=[5])
     scale = 2 * hydro_unit.parameter("runner.m").nominal
