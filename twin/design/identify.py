@@ -44,11 +44,10 @@ from twin.design.observe import (
     target_modes,
 )
 from twin.errors import ModelError
-from twin.fem.effects import with_shared_fsi
+from twin.fem.effects import plausible_scales, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import full_state_space, state_modes
-from twin.loop.fit import effect_priors
 from twin.modes.shapes import mac, normalisation_jacobian, normalise_shapes
 from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
 
@@ -64,9 +63,7 @@ FSI_NAMES = (("added_mass", "FSI.added_mass"), ("added_damping", "FSI.added_damp
 
 def parameter_scales(model: RotorModel, names: Sequence[str]) -> np.ndarray:
     """Scale of each parameter [SI]: ``|nominal|``, or the effect's plausible size for a zero nominal."""
-    owned: dict[str, float] = {}
-    for effect in model.effects:
-        owned.update(effect_priors(model, effect))
+    owned = plausible_scales(model)
     out = []
     for n in names:
         nominal = model.parameter(n).nominal

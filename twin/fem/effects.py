@@ -366,6 +366,23 @@ def effect_label(effect) -> str:
     return f"{effect.key}:{getattr(effect, effect.element)}"
 
 
+def plausible_scales(model) -> dict[str, float]:
+    """``{parameter: plausible scale [SI]}`` of every parameter of the model's switched-on effects.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull())
+    >>> {k: round(v / 1e6, 1) for k, v in plausible_scales(m).items()}
+    {'MAG.stiffness': 89.1}
+    """
+    out: dict[str, float] = {}
+    for effect in model.effects:
+        scales = effect.plausible_scale(model)
+        out.update({p.name: scales[p.name] for p in effect.parameters(model)})
+    return out
+
+
 def describe(effect, model) -> str:
     """One paragraph on an effect: its physics, and each parameter with unit, physical bounds and prior scale.
 

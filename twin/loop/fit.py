@@ -46,7 +46,7 @@ import scipy.stats
 import xarray as xr
 
 from twin.errors import ModelError
-from twin.fem.effects import CHANGE_FRACTION, with_shared_fsi
+from twin.fem.effects import CHANGE_FRACTION, plausible_scales, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.loop.compare import (
     PER_MODE_NAME,
@@ -116,12 +116,6 @@ class Prior:
         return np.clip(u, self.u_low, self.u_high)
 
 
-def effect_priors(model: RotorModel, effect) -> dict[str, float]:
-    """``{parameter: plausible scale [SI]}`` of an effect of ``model``, in parameter order."""
-    scales = effect.plausible_scale(model)
-    return {p.name: scales[p.name] for p in effect.parameters(model)}
-
-
 def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
     """The priors of parameters ``names`` of ``model`` (see the module docstring).
 
@@ -134,9 +128,7 @@ def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
     >>> float(p.mean[0]), bool(p.scale[1] == 0.5 * model.parameter("UGB.kxx").nominal), float(p.high[0]), float(p.low[1])
     (0.0, True, 0.0, 0.0)
     """
-    owned: dict[str, float] = {}
-    for effect in model.effects:
-        owned.update(effect_priors(model, effect))
+    owned = plausible_scales(model)
     mean, scale, low, high = [], [], [], []
     for n in names:
         p = model.parameter(n)  # names an unknown parameter clearly

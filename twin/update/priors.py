@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from twin.fem.effects import FluidAddedMass
+from twin.fem.effects import FluidAddedMass, plausible_scales
 from twin.fem.model import RotorModel
 
 
@@ -44,13 +44,8 @@ def plausible_priors(model: RotorModel, names: Sequence[str], fsi: bool = False)
     >>> sorted(plausible_priors(m, [], fsi=True))
     ['FSI.added_damping', 'FSI.added_mass']
     """
-    wanted = set(names)
-    out: dict[str, tuple[float, float]] = {}
-    for effect in model.effects:
-        scale = effect.plausible_scale(model)
-        for p in effect.parameters(model):
-            if p.name in wanted and scale.get(p.name, 0.0) > 0:
-                out[p.name] = (float(p.nominal), float(scale[p.name]))
+    scales = plausible_scales(model)
+    out = {n: (float(model.parameter(n).nominal), float(scales[n])) for n in names if scales.get(n, 0.0) > 0}
     if fsi:
         scale = FluidAddedMass().plausible_scale(model)
         for name in ("FSI.added_mass", "FSI.added_damping"):
