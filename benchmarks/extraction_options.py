@@ -20,12 +20,12 @@ from __future__ import annotations
 import argparse
 
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
-VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"))
+VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"))
 
 
 def add_extraction_options(ap: argparse.ArgumentParser) -> None:
-    """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode`` and
-    ``--order-spread`` (as ``twin extract``'s) to a benchmark's parser."""
+    """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode``,
+    ``--order-spread`` and ``--block-rows`` (as ``twin extract``'s) to a benchmark's parser."""
     ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                     help="leave the running-speed lines in the record (removed by default)")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
@@ -36,6 +36,8 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
                     help="lowest settled orders each mode is averaged over (default: extract's; 0: all)")
     ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default=None,
                     help="what the model-order spread is added to (default: extract's)")  # fmt: skip
+    ap.add_argument("--block-rows", type=int, default=None,
+                    help="Hankel block rows, one pass (default: extract's lags over periods of the slowest mode)")
 
 
 def extraction_options(args: argparse.Namespace) -> dict:
@@ -53,7 +55,7 @@ def extraction_options(args: argparse.Namespace) -> dict:
 def extraction_flags(args: argparse.Namespace) -> str:
     """The flags given, as they would be typed (for a results file's command line)."""
     flags = ("" if args.remove_harmonics else " --keep-harmonics") + (" --delete-half" if args.delete_half else "")
-    for flag in ("samples", "blocks", "orders_per_mode", "order_spread"):
+    for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows"):
         if getattr(args, flag) is not None:
             flags += f" --{flag.replace('_', '-')} {getattr(args, flag)}"
     return flags

@@ -57,3 +57,27 @@ def test_exact_covariances_give_the_exact_poles():
     R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(13)])
     lam, _ = realise(R, 6, 4, fs).modes(4)
     assert np.allclose(np.sort_complex(lam), np.sort_complex(poles), rtol=1e-9)
+
+
+def test_leading_triplets_by_lanczos_equal_the_full_svd():
+    """A Hankel matrix of 60 lags of a 4-channel record: the 20 leading singular values and vectors from
+    ARPACK are the full SVD's to round-off, so the realisation's poles are the same."""
+    import twin.extract.ssi as ssi
+
+    rng = np.random.default_rng(3)
+    y = rng.standard_normal((20000, 4))
+    for k in range(1, 4):
+        y[k:] += 0.6 ** k * y[:-k]
+    R = block_covariances(y, 120).covariance()
+    H = hankel(R, 60)
+    U, s = ssi.leading_singular(H, 20)
+    U_full, s_full, _ = np.linalg.svd(H, full_matrices=False)
+    assert np.allclose(s, s_full[:20], rtol=1e-10)
+    assert np.allclose(np.abs(np.sum(U * U_full[:, :20], axis=0)), 1.0, atol=1e-9)  # same vectors up to sign
+    partial = realise(R, 60, 20, fs_hz=1.0).modes(20)[0]
+    fraction, ssi.PARTIAL_SVD_FRACTION = ssi.PARTIAL_SVD_FRACTION, 0.0  # every triplet from the full SVD
+    try:
+        full = realise(R, 60, 20, fs_hz=1.0).modes(20)[0]
+    finally:
+        ssi.PARTIAL_SVD_FRACTION = fraction
+    assert np.allclose(np.sort_complex(partial), np.sort_complex(full), rtol=1e-8, atol=1e-10)

@@ -8,6 +8,13 @@ of every order then comes from one QR factorisation of the largest
 observability matrix (the fast multi-order solution of Döhler and Mevel,
 2012): with ``O_up = Q R`` and ``S = Q^T O_down``, the order-``n`` matrix is
 ``A_n = R[:n, :n]^-1 S[:n, :n]``.
+
+Only the ``max_order`` leading singular triplets of the Hankel matrix are
+used. Where they are fewer than a third of its smaller side they come from
+Lanczos bidiagonalisation (ARPACK, converged to machine precision, fixed
+start vector) instead of the full SVD: the same modes to round-off, and a
+hydro unit record extracted 1.8 times faster at 107 block rows, 3.6 times at
+214 (``benchmarks/ssi_speed.py``).
 """
 
 from __future__ import annotations
@@ -17,6 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse.linalg as spla
+
+#: The leading singular triplets come from Lanczos (ARPACK) when they are at most this fraction of the
+#: Hankel matrix's smaller side; else from the full SVD.
+PARTIAL_SVD_FRACTION = 1.0 / 3.0
 
 
 @dataclass(frozen=True)
@@ -90,7 +102,7 @@ class Realisation:
     C: np.ndarray  # (l, max_order) output matrix of the largest order
     R_up: np.ndarray  # (max_order, max_order) triangular factor of O_up
     S: np.ndarray  # (max_order, max_order) Q^T O_down
-    singular_values: np.ndarray
+    singular_values: np.ndarray  # the leading ones (at least max_order of them), descending
     fs_hz: float
 
     @property
@@ -125,7 +137,29 @@ def realise(R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_
     l = R.shape[1]
     H = hankel(R, block_rows, block_columns)
     max_order = min(max_order, min(H.shape) - l)
-    U, s, _ = np.linalg.svd(H, full_matrices=False)
+    U, s = leading_singular(H, max_order)
     O = U[:, :max_order] * np.sqrt(s[:max_order])
     Q, R_up = np.linalg.qr(O[:-l])
     return Realisation(C=O[:l], R_up=R_up, S=Q.T @ O[l:], singular_values=s, fs_hz=fs_hz)
+
+
+def leading_singular(H: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` leading left singular vectors ``(m, k)`` and singular values (descending) of ``H``.
+
+    Lanczos (ARPACK, ``tol=0``, a fixed start vector so the result is repeatable) when ``k`` is at most
+    :data:`PARTIAL_SVD_FRACTION` of the smaller side, else the full SVD (all singular values returned).
+
+    Examples
+    --------
+    >>> H = np.random.default_rng(0).standard_normal((90, 80))
+    >>> U, s = leading_singular(H, 5)
+    >>> U.shape, bool(np.allclose(s, np.linalg.svd(H, compute_uv=False)[:5]))
+    ((90, 5), True)
+    """
+    if k > PARTIAL_SVD_FRACTION * min(H.shape):
+        U, s, _ = np.linalg.svd(H, full_matrices=False)
+        return U, s
+    v0 = np.ones(min(H.shape)) / np.sqrt(min(H.shape))
+    U, s, _ = spla.svds(H, k=k, tol=0, v0=v0, solver="arpack")
+    order = np.argsort(s)[::-1]
+    return U[:, order], s[order]
