@@ -37,7 +37,7 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--order-spread", choices=("shapes", "all", "none"), default=None,
                     help="what the model-order spread is added to (default: extract's)")  # fmt: skip
     ap.add_argument("--block-rows", type=int, default=None,
-                    help="Hankel block rows, one pass (default: extract's lags over periods of the slowest mode)")
+                    help="Hankel block rows (default: extract's, from fmax)")
 
 
 def extraction_options(args: argparse.Namespace) -> dict:

@@ -147,7 +147,8 @@ def leading_singular(H: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` leading left singular vectors ``(m, k)`` and singular values (descending) of ``H``.
 
     Lanczos (ARPACK, ``tol=0``, a fixed start vector so the result is repeatable) when ``k`` is at most
-    :data:`PARTIAL_SVD_FRACTION` of the smaller side, else the full SVD (all singular values returned).
+    :data:`PARTIAL_SVD_FRACTION` of the smaller side, else (or should ARPACK not converge) the full SVD, all
+    of whose singular values are returned.
 
     Examples
     --------
@@ -156,10 +157,14 @@ def leading_singular(H: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     >>> U.shape, bool(np.allclose(s, np.linalg.svd(H, compute_uv=False)[:5]))
     ((90, 5), True)
     """
-    if k > PARTIAL_SVD_FRACTION * min(H.shape):
-        U, s, _ = np.linalg.svd(H, full_matrices=False)
-        return U, s
-    v0 = np.ones(min(H.shape)) / np.sqrt(min(H.shape))
-    U, s, _ = spla.svds(H, k=k, tol=0, v0=v0, solver="arpack")
-    order = np.argsort(s)[::-1]
-    return U[:, order], s[order]
+    if k <= PARTIAL_SVD_FRACTION * min(H.shape):
+        v0 = np.ones(min(H.shape)) / np.sqrt(min(H.shape))
+        try:
+            U, s, _ = spla.svds(H, k=k, tol=0, v0=v0, solver="arpack")
+        except spla.ArpackNoConvergence:
+            pass  # the full SVD below
+        else:
+            order = np.argsort(s)[::-1]
+            return U[:, order], s[order]
+    U, s, _ = np.linalg.svd(H, full_matrices=False)
+    return U, s
