@@ -287,7 +287,8 @@ def extract(
         if order_spread == "all":
             sample_p = sample_p + d_p
     n_orders = np.array([len(m[0]) for m in members])
-    keep = pole_determined(poles, sample_p, missing.mean(axis=1) / n_orders)
+    missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
+    keep = pole_determined(poles, sample_p, missing.mean(axis=1))
     f_se, z_se = (x / np.sqrt(samples) for x in _frequency_damping_std(sample_p[~keep]))
     undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
                      "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
@@ -310,7 +311,7 @@ def extract(
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing / n_orders[:, None], block_len / fs, n_blocks)
+    _warn_about_samples(source, poles, missing, block_len / fs, n_blocks)
 
     out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                    [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
