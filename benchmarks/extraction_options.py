@@ -20,12 +20,13 @@ from __future__ import annotations
 import argparse
 
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
-VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"))
+VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"),
+          ("shape_block_rows", "shape_block_rows"))
 
 
 def add_extraction_options(ap: argparse.ArgumentParser) -> None:
     """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode``,
-    ``--order-spread`` and ``--block-rows`` (as ``twin extract``'s) to a benchmark's parser."""
+    ``--order-spread``, ``--block-rows`` and ``--shape-block-rows`` (as ``twin extract``'s) to a benchmark's parser."""
     ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                     help="leave the running-speed lines in the record (removed by default)")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
@@ -38,6 +39,8 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
                     help="what the model-order spread is added to (default: extract's)")  # fmt: skip
     ap.add_argument("--block-rows", type=int, default=None,
                     help="Hankel block rows (default: extract's, from fmax)")
+    ap.add_argument("--shape-block-rows", default=None, type=lambda t: t if t == "auto" else int(t),
+                    help="block rows of a second pass the shapes are read at, or auto (default: extract's, none)")
 
 
 def extraction_options(args: argparse.Namespace) -> dict:
@@ -55,7 +58,7 @@ def extraction_options(args: argparse.Namespace) -> dict:
 def extraction_flags(args: argparse.Namespace) -> str:
     """The flags given, as they would be typed (for a results file's command line)."""
     flags = ("" if args.remove_harmonics else " --keep-harmonics") + (" --delete-half" if args.delete_half else "")
-    for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows"):
+    for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows", "shape_block_rows"):
         if getattr(args, flag) is not None:
             flags += f" --{flag.replace('_', '-')} {getattr(args, flag)}"
     return flags

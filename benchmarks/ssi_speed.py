@@ -2,13 +2,16 @@
 
 One 20 min record of the hydro unit (FMU, 256 Hz, seed 1, no hidden effect) is
 extracted as the loop does (``fmax 60 Hz``, 15 delete-one samples) twice per
-block-row setting in the same process: once as shipped (ARPACK's Lanczos for
+setting in the same process (a number: one SSI pass with that many block
+rows, as extract does by default; ``auto``: the default block rows and
+``shape_block_rows="auto"``, a second pass for the slow modes' shapes,
+:mod:`twin.extract.passes`): once as shipped (ARPACK's Lanczos for
 the ``max_order`` leading triplets, :func:`twin.extract.ssi.leading_singular`)
 and once with ``PARTIAL_SVD_FRACTION = 0`` (every realisation from the full
 SVD). It reports the wall times, their ratio and the largest differences of
 the two results' frequencies, damping ratios and shape samples.
 
-    python benchmarks/ssi_speed.py [--block-rows 107,214] [--seed 1] [--repeat 2]
+    python benchmarks/ssi_speed.py [--block-rows 107,214[,auto]] [--seed 1] [--repeat 2]
 
 Writes ``benchmarks/results/ssi_speed.md``.
 """
@@ -16,6 +19,7 @@ Writes ``benchmarks/results/ssi_speed.md``.
 from __future__ import annotations
 
 import argparse
+import json
 import time
 import warnings
 from pathlib import Path
@@ -28,11 +32,15 @@ RESULTS = Path(__file__).parent / "results" / "ssi_speed.md"
 
 
 @one_blas_thread
-def timed_extractions(signals, block_rows: int, repeat: int) -> dict:
-    """Best-of-``repeat`` wall time of ``extract`` with Lanczos and with the full SVD, and the results' differences."""
+def timed_extractions(signals, block_rows: int | None, repeat: int) -> dict:
+    """Best-of-``repeat`` wall time of ``extract`` with Lanczos and with the full SVD, and the results' differences.
+
+    ``block_rows``: one SSI pass with that many; None: ``shape_block_rows="auto"`` (two passes)."""
     import twin.extract.ssi as ssi
     from twin.extract import extract
     from twin.loop.demo import DEMO_SAMPLES
+
+    options = {"shape_block_rows": "auto"} if block_rows is None else {"block_rows": block_rows}
 
     def run():
         best, out = np.inf, None
@@ -40,7 +48,7 @@ def timed_extractions(signals, block_rows: int, repeat: int) -> dict:
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                out = extract(signals, fmax_hz=60.0, samples=DEMO_SAMPLES, block_rows=block_rows, progress=False)
+                out = extract(signals, fmax_hz=60.0, samples=DEMO_SAMPLES, progress=False, **options)
             best = min(best, time.perf_counter() - t0)
         return best, out
 
@@ -56,13 +64,17 @@ def timed_extractions(signals, block_rows: int, repeat: int) -> dict:
         diff = {"frequency": float(np.max(np.abs(lanczos.frequency.values / full.frequency.values - 1))),
                 "damping": float(np.max(np.abs(lanczos.damping_ratio.values / full.damping_ratio.values - 1))),
                 "shape": float(np.max(np.abs(lanczos.shape.values - full.shape.values)))}  # fmt: skip
-    return {"block_rows": block_rows, "modes": int(lanczos.sizes["mode"]), "same_modes": same,
+    settings = json.loads(lanczos.attrs["settings"])
+    rows = (f"{settings['block_rows']}" if block_rows is not None
+            else f"{settings['block_rows']}, slow modes' shapes at {settings['shape_block_rows']}")  # fmt: skip
+    return {"block_rows": rows, "modes": int(lanczos.sizes["mode"]), "same_modes": same,
             "t_lanczos": t_lanczos, "t_full": t_full, **diff}  # fmt: skip
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--block-rows", default="107,214", help="comma-separated block rows (107: the loop's default)")
+    ap.add_argument("--block-rows", default="107,214",
+                    help="comma-separated block rows of one pass, or auto (a second pass for the slow modes' shapes)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=2, help="runs per setting; the fastest counts")
     args = ap.parse_args()
@@ -71,7 +83,8 @@ def main() -> None:
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
-    rows = [timed_extractions(signals, int(b), args.repeat) for b in args.block_rows.split(",")]
+    settings = [None if b.strip() == "auto" else int(b) for b in args.block_rows.split(",")]
+    rows = [timed_extractions(signals, b, args.repeat) for b in settings]
     lines = ["# SSI: leading singular triplets by Lanczos against the full SVD", "",
              f"Command: `python benchmarks/ssi_speed.py --block-rows {args.block_rows} --seed {args.seed} "
              f"--repeat {args.repeat}`; one BLAS thread, best of {args.repeat}.", "",

@@ -36,6 +36,16 @@ def _common() -> argparse.ArgumentParser:
     return p
 
 
+def _rows_or_auto(text: str) -> int | str:
+    """``--shape-block-rows``: a whole number of block rows, or ``auto``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of block rows or 'auto', got {text!r}") from None
+
+
 def _command(sub, name: str, summary: str, description: str, examples: list[str], func) -> argparse.ArgumentParser:
     """A sub-command with its one-line summary, a description, and examples in its help."""
     p = sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}.\n\n{description}",
@@ -219,7 +229,12 @@ def _add_stages(sub) -> None:
                    help="blocks the record is cut into (default: --samples; with --delete-half it may be fewer)")
     p.add_argument("--fmax", type=float, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
     p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz]")
-    p.add_argument("--block-rows", type=int, default=None, help="Hankel block rows (default: from fmax)")
+    p.add_argument("--block-rows", type=int, default=None,
+                   help="Hankel block rows the poles are read at (default: from fmax)")
+    p.add_argument("--shape-block-rows", type=_rows_or_auto, default=0,
+                   help="block rows of a second pass every mode's shapes are read at (default 0: none, the "
+                        "shapes come with the poles); auto: the slow modes' shapes at lags over 1.5 periods of "
+                        "the slowest")
     p.add_argument("--max-order", type=int, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")

@@ -23,12 +23,12 @@ import xarray as xr
 from twin import __version__
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
-from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test, remove_running_harmonics
+from twin.extract.harmonics import remove_running_harmonics
 from twin.extract.modesfile import write_modes
 from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
-from twin.extract.ssi import block_covariances, realise
-from twin.extract.stabilisation import Criteria, cluster_poles, diagram
+from twin.extract.passes import SSIPass, shape_lag_rows, shapes_at_longer_lags, ssi_pass
+from twin.extract.stabilisation import Criteria
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mpc, mpd
 from twin.netcdf import check_writable, load_netcdf
@@ -91,6 +91,7 @@ def extract(
     fmax_hz: float | None = None,
     fmin_hz: float = 0.0,
     block_rows: int | None = None,
+    shape_block_rows: int | str = 0,
     max_order: int = 100,
     channels: Sequence[str] | None = None,
     criteria: Criteria | None = None,
@@ -122,7 +123,18 @@ def extract(
     block_rows : int, optional
         Block rows ``i`` of the covariance Hankel matrix (lags up to ``2i``).
         Default: ``i / fs`` covers a quarter period of ``max(fmin, fmax / 100)``
-        (about 63 block rows after decimation).
+        (about 63 block rows after decimation). The poles are read at these lags.
+    shape_block_rows : int or "auto"
+        0 (the default): the shapes are read at ``block_rows`` with the
+        poles. A number: every mode's shapes (and their samples) are read
+        from a second SSI pass with that many block rows. ``"auto"``: the
+        shapes of the modes with fewer than 1.5 periods in ``block_rows``'s
+        lags are read at lags over 1.5 periods of the slowest of them
+        (:func:`twin.extract.passes.shape_lag_rows`; 345-350 block rows for
+        the hydro unit's 1.1 and 2.9 Hz modes at 256 Hz). Neither beat the
+        one pass on the hydro unit's FMU records (README, "How long the lags
+        must be"). A mode without a counterpart in the second pass keeps
+        the first pass's shapes (variable ``shape_block_rows``).
     max_order : int
         Largest model order of the stabilisation diagram (orders 2, 4, ...).
     channels : sequence of str, optional
@@ -245,47 +257,21 @@ def extract(
 
     log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows, orders up to %d",
              source, n_ch, rec.duration_s, fs, i, max_order)  # fmt: skip
-    covariances = block_covariances(y, 2 * i, n_blocks)
-    real = realise(covariances.covariance(), i, max_order, fs)
-    orders = np.arange(2, real.max_order + 1, 2)
-    diag = diagram(real, orders, fmin_hz, fmax, crit)
-    diag, clusters = cluster_poles(diag, len(orders), crit)
-
-    rep_zeta = [float(damping_ratio(diag.pole[c.representative])) for c in clusters]
-    # the FFT of the record only when some cluster is damped little enough to be tested as a harmonic
-    spectrum = np.fft.rfft(y, axis=0) if min(rep_zeta, default=1.0) < HARMONIC_MAX_DAMPING else None
-    harmonics, modes = list(removed), []
-    labels = np.full(len(diag.pole), -1)  # -1 no mode, -2 harmonic, else the mode index
-    for c, zeta in zip(clusters, rep_zeta):
-        h = harmonic_test(spectrum, y.shape[0], fs, diag.pole[c.representative], running_hz)
-        if h is None and zeta > 0:
-            labels[c.members] = len(modes)
-            modes.append(c)
-        elif h is None:  # not damped and not a sinusoid: not physical
-            log.info("%.4f Hz: stable pole without damping that is no harmonic; dropped",
-                     diag.pole[c.representative].imag / (2 * np.pi))  # fmt: skip
-        else:
-            h["channel"] = rec.channels[h.pop("channel_index")]
-            harmonics.append(h)
-            log.info("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
-            labels[c.members] = -2
+    spectrum: dict = {}
+    found = ssi_pass(y, fs, i, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum)
+    covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
+    harmonics = list(removed) + found.harmonics
     if not modes:
         raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(harmonics)} harmonic(s) rejected)")  # fmt: skip
-    diag = dataclasses.replace(diag, cluster=labels)
 
-    members = []
-    for c in modes:
-        use = _orders_used(diag, c, orders_per_mode)
-        members.append((diag.order[use], diag.pole[use], diag.shape[use]))
+    members = _members(found, orders_per_mode)
     poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
                                                            delete=delete_blocks, n_samples=samples)
     jackknife_p = sample_p
-    if order_spread != "none":
-        d_p, d_s = order_deviations(members, shapes, samples)
-        sample_s = sample_s + d_s
-        if order_spread == "all":
-            sample_p = sample_p + d_p
+    d_p, d_s = order_deviations(members, shapes, samples)
+    if order_spread == "all":
+        sample_p = sample_p + d_p
     n_orders = np.array([len(m[0]) for m in members])
     missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
     keep = pole_determined(poles, sample_p, missing.mean(axis=1))
@@ -304,10 +290,25 @@ def extract(
     if undetermined:
         new_index = np.where(keep, np.cumsum(keep) - 1, -1)
         diag = dataclasses.replace(diag, cluster=np.where(diag.cluster >= 0, new_index[diag.cluster], diag.cluster))
-        poles, shapes, sample_p, sample_s, missing, jackknife_p, n_orders = (
-            x[keep] for x in (poles, shapes, sample_p, sample_s, missing, jackknife_p, n_orders))  # fmt: skip
+        poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders = (
+            x[keep] for x in (poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders))  # fmt: skip
         members = [m for m, k in zip(members, keep) if k]
         modes = [c for c, k in zip(modes, keep) if k]
+    i_s, slow = _shape_rows(shape_block_rows, poles, fs, i, block_len, source)
+    shape_rows = np.full(len(poles), i)
+    if i_s > i:
+        log.info("SSI-cov again with %d block rows for the shapes of %d mode(s) (lags of %.3g s)",
+                 i_s, slow.sum(), i_s / fs)  # fmt: skip
+        again = ssi_pass(y, fs, i_s, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
+                         quiet=True)  # fmt: skip
+        read = shapes_at_longer_lags(again, fs, _members(again, orders_per_mode), poles[slow], shapes[slow],
+                                     sample_s[slow], d_s[slow], progress, delete=delete_blocks, n_samples=samples)
+        shapes[slow], sample_s[slow], d_s[slow], matched = read
+        shape_rows[np.flatnonzero(slow)[matched]] = i_s
+        for f in poles[slow][~matched].imag / (2 * np.pi):
+            log.info("%.4f Hz: no counterpart at %d block rows, its shapes are read at %d", f, i_s, i)
+    if order_spread != "none":
+        sample_s = sample_s + d_s
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
@@ -315,9 +316,10 @@ def extract(
 
     out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                    [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
+    out["shape_block_rows"] = ("mode", shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
     settings = {
         "samples": samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i,
-        "max_order": int(real.max_order),
+        "shape_block_rows": max(i, i_s), "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
@@ -334,6 +336,7 @@ def extract(
                            "centred on the full-record estimate"
                            + {"none": "", "shapes": ", the shapes plus the mode's spread over its model orders",
                               "all": ", plus the mode's spread over its model orders"}[order_spread]
+                           + (f"; shapes read at {i_s} block rows" if i_s > i else "")
                            + ": sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
@@ -358,6 +361,35 @@ def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.nda
     for line in unobservable_text(targets):
         log.info(line)
     return targets
+
+
+def _members(found: SSIPass, n_orders: int | None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Each mode of a pass at the orders it is averaged over (:func:`_orders_used`): (orders, poles, shapes)."""
+    diag = found.diag
+    return [(diag.order[u], diag.pole[u], diag.shape[u]) for u in (_orders_used(diag, c, n_orders) for c in found.modes)]
+
+
+def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,
+                source: str) -> tuple[int, np.ndarray]:  # fmt: skip
+    """Block rows of the pass the shapes are read at, and which modes' shapes it reads.
+
+    ``asked``: every mode's, at that many rows (``i``, the poles' pass, or fewer: none). ``"auto"``: the
+    modes whose own :func:`shape_lag_rows` exceed ``i``, at those of the slowest of them; at most what
+    the jackknife blocks hold."""
+    longest = int(block_len // (2 * MIN_BLOCK_LAGS))
+    if asked == "auto":
+        f_hz = np.abs(poles) / (2 * np.pi)
+        slow = np.array([shape_lag_rows(f, fs) > i for f in f_hz], dtype=bool)
+        if not slow.any():
+            return i, slow
+        return shape_lag_rows(float(f_hz[slow].min()), fs, minimum=i, maximum=longest), slow
+    if isinstance(asked, str) or asked < 0:
+        raise SignalError(f"shape_block_rows must be 'auto' or at least 0 (0: the shapes from the poles' pass), "
+                          f"got {asked!r}")  # fmt: skip
+    if asked > longest:
+        raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
+                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {2 * asked} lags (at most {longest})")
+    return int(asked), np.ones(len(poles), dtype=bool)
 
 
 def _orders_used(diag, cluster, n_orders: int | None = ORDERS_PER_MODE) -> np.ndarray:

@@ -1,0 +1,190 @@
+"""One SSI pass over a record, and a second one with longer lags to read mode shapes at (an option).
+
+:func:`ssi_pass` runs covariance-driven SSI with a given number of block
+rows, clusters the stabilisation diagram and sorts the clusters into modes
+and harmonics. :func:`twin.extract.extract` runs it once, with lags of a
+quarter period of ``max(fmin, fmax / 100)``, for every mode's pole and
+shape. With ``shape_block_rows`` it runs it again and reads shapes there: a
+number of block rows for every mode, or ``"auto"`` for the modes whose
+:data:`SHAPE_LAG_PERIODS` periods the first lags do not span, at lags over
+that many periods of the slowest of them (:func:`shape_lag_rows`).
+:func:`matching_modes` pairs the two passes' modes and
+:func:`shapes_at_longer_lags` reads the shapes. The jackknife of both passes
+leaves out the same blocks, so pole sample ``m`` and shape sample ``m``
+still come from the same reduced record.
+
+Why it is there, and why not the default. On the hydro unit's 20 min FMU
+records at 256 Hz the first pass has 107 block rows, 0.42 s, under half a
+period of the 1.09 Hz mode, whose whirl partner is at 2.9 Hz. With such lags
+the sixteen bearing coefficients updated from jackknife samples alone came
+out with the lower guide bearing's direct damping 3-4 posterior stds low on
+every record; the shapes' spread over the model orders covers that bias, at
+the price of bearing intervals about twice too wide. Longer lags for every
+quantity traded that bias for others (the pull's error 1.2% -> 2.8%). Reading
+only the shapes at longer lags (stop 47, twenty unseen seeds) biased the
+upper guide bearing's stiffnesses when every mode's shapes were read there
+(UGB.kxx 4% high, 65% covered), and with ``"auto"`` left the bearings as wide
+as in one pass while the pull fell from 95% to 85% covered (README, "How long
+the lags must be").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+
+from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
+from twin.extract.samples import MATCH_DISTANCE, jackknife, order_deviations
+from twin.extract.ssi import BlockCovariances, Realisation, block_covariances, realise
+from twin.extract.stabilisation import Cluster, Criteria, Diagram, cluster_poles, diagram, pole_distance
+from twin.modes.analysis import damping_ratio
+
+log = logging.getLogger(__name__)
+
+#: By default the shapes are read at lags (block rows over the sampling rate) spanning this many periods
+#: of the slowest mode the first pass finds (README, "How long the lags must be").
+SHAPE_LAG_PERIODS = 1.5
+
+
+def shape_lag_rows(slowest_hz: float, fs_hz: float, minimum: int = 1, maximum: int | None = None) -> int:
+    """Block rows ``i`` whose lags ``i / fs`` span :data:`SHAPE_LAG_PERIODS` periods of the slowest mode.
+
+    Kept within ``[minimum, maximum]`` (the block length bounds it: each jackknife block must hold
+    ``MIN_BLOCK_LAGS`` times the ``2 i`` lags); a bound that cuts the rule short is logged.
+
+    Examples
+    --------
+    >>> shape_lag_rows(1.1, 256.0), shape_lag_rows(1.1, 256.0, minimum=400), shape_lag_rows(1.1, 256.0, maximum=200)
+    (350, 400, 200)
+    """
+    i = int(np.ceil(SHAPE_LAG_PERIODS * fs_hz / slowest_hz))
+    if maximum is not None and i > maximum:
+        log.info("shape block rows held to %d by the block length (%.3f Hz over %g periods asks for %d)",
+                 maximum, slowest_hz, SHAPE_LAG_PERIODS, i)  # fmt: skip
+        i = maximum
+    return max(i, int(minimum))
+
+
+@dataclasses.dataclass(frozen=True)
+class SSIPass:
+    """One SSI pass: its block rows, the covariances, the realisation, the clustered diagram and its modes."""
+
+    block_rows: int
+    covariances: BlockCovariances
+    real: Realisation
+    diag: Diagram
+    modes: list[Cluster]
+    harmonics: list[dict]
+
+
+def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fmin_hz: float, fmax: float,
+             crit: Criteria, running_hz: float | None, channels: Sequence[str], spectrum: dict,
+             quiet: bool = False) -> SSIPass:  # fmt: skip
+    """SSI-cov with ``i`` block rows, the stabilisation diagram clustered and its clusters sorted into modes
+    and harmonics.
+
+    The record's FFT is computed once, into ``spectrum``, when a cluster must be tested as a harmonic;
+    ``quiet`` logs the sorting at debug level only (a second pass, whose harmonics the first reported).
+    """
+    say = log.debug if quiet else log.info
+    covariances = block_covariances(y, 2 * i, n_blocks)
+    real = realise(covariances.covariance(), i, max_order, fs)
+    orders = np.arange(2, real.max_order + 1, 2)
+    diag = diagram(real, orders, fmin_hz, fmax, crit)
+    diag, clusters = cluster_poles(diag, len(orders), crit)
+
+    rep_zeta = [float(damping_ratio(diag.pole[c.representative])) for c in clusters]
+    # the FFT of the record only when some cluster is damped little enough to be tested as a harmonic
+    if "fft" not in spectrum and min(rep_zeta, default=1.0) < HARMONIC_MAX_DAMPING:
+        spectrum["fft"] = np.fft.rfft(y, axis=0)
+    harmonics, modes = [], []
+    labels = np.full(len(diag.pole), -1)  # -1 no mode, -2 harmonic, else the mode index
+    for c, zeta in zip(clusters, rep_zeta):
+        h = harmonic_test(spectrum.get("fft"), y.shape[0], fs, diag.pole[c.representative], running_hz)
+        if h is None and zeta > 0:
+            labels[c.members] = len(modes)
+            modes.append(c)
+        elif h is None:  # not damped and not a sinusoid: not physical
+            say("%.4f Hz: stable pole without damping that is no harmonic; dropped",
+                diag.pole[c.representative].imag / (2 * np.pi))  # fmt: skip
+        else:
+            h["channel"] = channels[h.pop("channel_index")]
+            harmonics.append(h)
+            say("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
+            labels[c.members] = -2
+    return SSIPass(i, covariances, real, dataclasses.replace(diag, cluster=labels), modes, harmonics)
+
+
+def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarray,
+                   other_shapes: np.ndarray) -> np.ndarray:  # fmt: skip
+    """For each mode, the index of the same mode among ``other_*`` (-1 for none), one to one.
+
+    Two modes are the same when their clustering distance (relative pole distance plus ``1 - MAC``) is
+    below ``MATCH_DISTANCE``; pairs are taken closest first, so each mode is used at most once.
+
+    Examples
+    --------
+    >>> p = np.array([-0.1 + 7j, -0.1 + 7.5j])
+    >>> s = np.array([[1.0, 0.0], [0.0, 1.0]], dtype=complex)
+    >>> matching_modes(p, s, p[::-1] * 1.01, s[::-1]).tolist()
+    [1, 0]
+    >>> matching_modes(p, s, p[:1] * 1.5, s[:1]).tolist()
+    [-1, -1]
+    """
+    match = np.full(len(poles), -1)
+    if not len(poles) or not len(other_poles):
+        return match
+    dist = pole_distance(np.asarray(poles), np.asarray(shapes), np.asarray(other_poles), np.asarray(other_shapes))
+    taken = np.zeros(len(other_poles), dtype=bool)
+    for flat in np.argsort(dist, axis=None):
+        k, j = np.unravel_index(flat, dist.shape)
+        if dist[k, j] >= MATCH_DISTANCE:
+            break
+        if match[k] < 0 and not taken[j]:
+            match[k], taken[j] = j, True
+    return match
+
+
+def shapes_at_longer_lags(again: SSIPass, fs: float, members: list, poles: np.ndarray, shapes: np.ndarray,
+                          sample_shapes: np.ndarray, shape_deviations: np.ndarray, progress: bool = True,
+                          delete: int | None = 1, n_samples: int | None = None) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """The shapes, their jackknife samples and model-order deviations of each mode read from a second pass.
+
+    Parameters
+    ----------
+    again : SSIPass
+        The pass with the longer lags (the same record and blocks as the first).
+    fs : float
+        Sampling rate [Hz] of the record the passes ran on.
+    members : list of (orders, poles, shapes)
+        The second pass's modes at the orders each is averaged over (as for
+        :func:`twin.extract.samples.jackknife`).
+    poles, shapes : (modes,), (modes, channels)
+        The first pass's full-record estimates, which find each mode's counterpart (:func:`matching_modes`).
+    sample_shapes, shape_deviations : (modes, J, channels)
+        The first pass's shape samples and order deviations (:func:`twin.extract.samples.order_deviations`),
+        kept for a mode without a counterpart.
+    delete, n_samples
+        As for :func:`twin.extract.samples.jackknife`, and the same as the first pass's: sample ``m`` of both
+        leaves out the same blocks.
+
+    Returns
+    -------
+    (shapes, sample_shapes, shape_deviations, matched)
+        The inputs with every matched mode's replaced, and ``(modes,)`` whether it was.
+    """
+    shapes, sample_shapes, shape_deviations = (np.array(x) for x in (shapes, sample_shapes, shape_deviations))
+    matched = np.zeros(len(poles), dtype=bool)
+    if not members:
+        return shapes, sample_shapes, shape_deviations, matched
+    l_poles, l_shapes, _, l_samples, _ = jackknife(again.covariances, again.block_rows, fs, members, progress,
+                                                   delete=delete, n_samples=n_samples)  # fmt: skip
+    _, l_dev = order_deviations(members, l_shapes, l_samples.shape[1])
+    match = matching_modes(poles, shapes, l_poles, l_shapes)
+    matched = match >= 0
+    j = match[matched]
+    shapes[matched], sample_shapes[matched], shape_deviations[matched] = l_shapes[j], l_samples[j], l_dev[j]
+    return shapes, sample_shapes, shape_deviations, matched
