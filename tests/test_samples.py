@@ -31,7 +31,8 @@ def test_order_average_of_identical_estimates_is_that_estimate():
 
 
 def test_order_deviations_carry_the_spread_over_orders():
-    """Zero mean over the samples; std / sqrt(J) is the std of the pole (and of the aligned shape) over the orders."""
+    """Zero mean over the samples; std / sqrt(J) is the std of the pole over the orders, and the standard error
+    of the mean of the aligned shapes over them (their std over sqrt(n))."""
     rng = np.random.default_rng(3)
     p = -0.5 + 2j * np.pi * (2.0 + 0.01 * rng.standard_normal(5))
     s = (np.array([1.0, 0.6j]) + 0.05 * rng.standard_normal((5, 2))) * np.exp(1j * rng.uniform(0, 6, (5, 1)))
@@ -42,9 +43,10 @@ def test_order_deviations_carry_the_spread_over_orders():
     assert np.allclose(dp.mean(axis=1), 0.0) and np.allclose(ds.mean(axis=1), 0.0)
     assert np.isclose(np.sqrt(np.sum(np.abs(dp[0]) ** 2) / (J - 1) / J), np.std(p, ddof=1))
     aligned = align_phase(s / np.linalg.norm(s, axis=1, keepdims=True), ref)
-    # every order used J / 5 times, so the shape deviations have the orders' spread times the same scale
+    # every order used J / 5 times, so the shape deviations have the orders' spread times the same scale,
+    # over sqrt(5): the mean of 5 orders
     assert np.isclose(np.sum(np.abs(ds[0]) ** 2) / np.sum(np.abs(dp[0]) ** 2),
-                      np.sum(np.abs(aligned - aligned.mean(axis=0)) ** 2) / np.sum(np.abs(p - p.mean()) ** 2))
+                      np.sum(np.abs(aligned - aligned.mean(axis=0)) ** 2) / np.sum(np.abs(p - p.mean()) ** 2) / 5)
     assert not dp[1].any() and not ds[1].any()  # one order: nothing to spread
 
 

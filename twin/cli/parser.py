@@ -242,8 +242,9 @@ def _add_stages(sub) -> None:
                    help="each sample leaves out half the blocks (a spread that matches independent records) "
                         "instead of one (the default: wider, what the loop is calibrated to)")
     p.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
-                   help="add each mode's spread over its model orders to the shape samples (the default), "
-                        "to the pole samples too (all) or to neither (none)")
+                   help="add each mode's model-order error to the shape samples (the standard error of the "
+                        "shape's mean over its orders; the default), to the pole samples too (their spread over "
+                        "the orders: all) or to neither (none)")
     p.add_argument("--orders-per-mode", type=int, default=ORDERS_PER_MODE,
                    help=f"average each mode over this many of its lowest settled model orders (default "
                         f"{ORDERS_PER_MODE}; 0: all of them)")

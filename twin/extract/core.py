@@ -157,10 +157,12 @@ def extract(
         model-order part of SSI's systematic error, in quadrature: to the
         shape samples only (``"shapes"``, the default), to the pole samples
         too (``"all"``; ``True`` means the same) or to neither (``"none"``,
-        ``False``). SSI's shapes sit off the truth's by about their jackknife
-        error the same way on every record, and the update's intervals were
-        too narrow with jackknife shapes alone; the poles' jackknife error
-        is what the loop's comparison is calibrated to (see the README).
+        ``False``). The shapes get the standard error of their mean over the
+        ``n`` orders (the spread over ``sqrt(n)``), the poles the whole
+        spread. SSI's shapes sit off the truth's by more than their
+        jackknife error, and the update's intervals were too narrow with
+        jackknife shapes alone; the poles' jackknife error is what the loop's
+        comparison is calibrated to (see the README).
     blocks : int, optional
         J, contiguous blocks the record is cut into (default ``samples``).
         The delete-one jackknife gives one sample per block; with more
@@ -334,8 +336,10 @@ def extract(
         "undetermined_poles": json.dumps(undetermined),
         "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {n_blocks} blocks, {samples} samples) "
                            "centred on the full-record estimate"
-                           + {"none": "", "shapes": ", the shapes plus the mode's spread over its model orders",
-                              "all": ", plus the mode's spread over its model orders"}[order_spread]
+                           + {"none": "", "shapes": ", the shapes plus the standard error of their mean over the "
+                                                    "mode's model orders",
+                              "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
+                                     "standard error of their mean over them"}[order_spread]
                            + (f"; shapes read at {i_s} block rows" if i_s > i else "")
                            + ": sample std / sqrt(J) is the standard error"),
         "signals": source,
