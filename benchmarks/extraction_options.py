@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import argparse
 
+from twin.cli.parser import rows_or_auto
+
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
 VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"),
           ("shape_block_rows", "shape_block_rows"))
@@ -39,7 +41,7 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
                     help="what the model-order spread is added to (default: extract's)")  # fmt: skip
     ap.add_argument("--block-rows", type=int, default=None,
                     help="Hankel block rows (default: extract's, from fmax)")
-    ap.add_argument("--shape-block-rows", default=None, type=lambda t: t if t == "auto" else int(t),
+    ap.add_argument("--shape-block-rows", default=None, type=rows_or_auto,
                     help="block rows of a second pass the shapes are read at, or auto (default: extract's, none)")
 
 

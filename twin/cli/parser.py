@@ -36,8 +36,15 @@ def _common() -> argparse.ArgumentParser:
     return p
 
 
-def _rows_or_auto(text: str) -> int | str:
-    """``--shape-block-rows``: a whole number of block rows, or ``auto``."""
+def rows_or_auto(text: str) -> int | str:
+    """``--shape-block-rows``: a whole number of block rows, or ``auto`` (the argparse type of ``twin extract``
+    and of the benchmarks' extraction options).
+
+    Examples
+    --------
+    >>> rows_or_auto("350"), rows_or_auto("auto")
+    (350, 'auto')
+    """
     if text.strip().lower() == "auto":
         return "auto"
     try:
@@ -231,7 +238,7 @@ def _add_stages(sub) -> None:
     p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz]")
     p.add_argument("--block-rows", type=int, default=None,
                    help="Hankel block rows the poles are read at (default: from fmax)")
-    p.add_argument("--shape-block-rows", type=_rows_or_auto, default=0,
+    p.add_argument("--shape-block-rows", type=rows_or_auto, default=0,
                    help="block rows of a second pass every mode's shapes are read at (default 0: none, the "
                         "shapes come with the poles); auto: the slow modes' shapes at lags over 1.5 periods of "
                         "the slowest")
