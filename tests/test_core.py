@@ -143,6 +143,9 @@ def test_bad_requests_are_clear_errors(make_record):
         extract(ds, samples=1, progress=False)
     with pytest.raises(SignalError, match="max_order must be at least 2"):
         extract(ds, max_order=1, progress=False)
+    for bad in (0, 2.5, "3"):
+        with pytest.raises(SignalError, match=f"first_lag must be a whole number of samples, at least 1.*got {bad!r}"):
+            extract(ds, first_lag=bad, progress=False)
     with pytest.raises(SignalError, match="nowhere.nc: no such signals file"):
         extract("nowhere.nc", progress=False)
 
@@ -189,6 +192,9 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
         assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
     settings = json.loads(raw.attrs["settings"])
     assert settings["delete_blocks"] == 1 and settings["order_spread"] == "shapes"
+    assert settings["first_lag"] == 3  # the first lag at or beyond a period of fmax (8 Hz) at 20 Hz
+    assert main(["extract", str(signals), "-o", str(out), "--samples", "10", "--first-lag", "1"]) == 0
+    assert json.loads(xr.load_dataset(out).attrs["settings"])["first_lag"] == 1
     honest = tmp_path / "honest.nc"
     assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread", "all"]) == 0
     settings = json.loads(xr.load_dataset(honest).attrs["settings"])

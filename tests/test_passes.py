@@ -74,7 +74,9 @@ def test_extract_auto_reads_slow_modes_shapes_at_longer_lags_and_the_poles_at_it
 
 def test_an_explicit_second_pass_and_its_bad_values(close_pair):
     assert _extract(close_pair, shape_block_rows=12).shape_block_rows.values.tolist() == [12, 12, 12]  # every mode
-    with pytest.raises(SignalError, match="shape_block_rows = 400 is too many for blocks of 60 s.*at most 300"):
+    # blocks of 1200 samples hold twice 2 i + 2 lags (from lag 3, the first beyond a period of 8 Hz at 20 Hz)
+    too_many = "shape_block_rows = 400 is too many for blocks of 60 s.*802 lags.*at most 299"
+    with pytest.raises(SignalError, match=too_many):
         _extract(close_pair, shape_block_rows=400)
     for bad in (-1, "longer"):
         with pytest.raises(SignalError, match="shape_block_rows must be 'auto' or at least 0"):

@@ -242,6 +242,9 @@ def _add_stages(sub) -> None:
                    help="block rows of a second pass every mode's shapes are read at (default 0: none, the "
                         "shapes come with the poles); auto: the slow modes' shapes at lags over 1.5 periods of "
                         "the slowest")
+    p.add_argument("--first-lag", type=int, default=None,
+                   help="lag the covariance Hankel matrix starts at, in samples (default: the first at or beyond "
+                        "one period of fmax; 1: the textbook matrix)")
     p.add_argument("--max-order", type=int, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")

@@ -102,7 +102,8 @@ def _extract(args: argparse.Namespace) -> int:
     plot = None if args.plot is None else check_writable(args.plot, figure=True)
     channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
     ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
-                 shape_block_rows=args.shape_block_rows, max_order=args.max_order, channels=channels,
+                 shape_block_rows=args.shape_block_rows, first_lag=args.first_lag, max_order=args.max_order,
+                 channels=channels,
                  output=args.output, command=" ".join(sys.argv),
                  delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
                  remove_harmonics=args.remove_harmonics, blocks=args.blocks,

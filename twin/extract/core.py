@@ -27,7 +27,7 @@ from twin.extract.harmonics import remove_running_harmonics
 from twin.extract.modesfile import write_modes
 from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
-from twin.extract.passes import SSIPass, shape_lag_rows, shapes_at_longer_lags, ssi_pass
+from twin.extract.passes import SSIPass, first_lag_for, shape_lag_rows, shapes_at_longer_lags, ssi_pass
 from twin.extract.stabilisation import Criteria
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mpc, mpd
@@ -92,6 +92,7 @@ def extract(
     fmin_hz: float = 0.0,
     block_rows: int | None = None,
     shape_block_rows: int | str = 0,
+    first_lag: int | None = None,
     max_order: int = 100,
     channels: Sequence[str] | None = None,
     criteria: Criteria | None = None,
@@ -121,7 +122,7 @@ def extract(
         Lowest frequency of interest [Hz]; when given, the record must hold
         100 periods of it.
     block_rows : int, optional
-        Block rows ``i`` of the covariance Hankel matrix (lags up to ``2i``).
+        Block rows ``i`` of the covariance Hankel matrix (lags ``k0`` to ``2i + k0 - 1``, ``k0 = first_lag``).
         Default: ``i / fs`` covers a quarter period of ``max(fmin, fmax / 100)``
         (about 63 block rows after decimation). The poles are read at these lags.
     shape_block_rows : int or "auto"
@@ -135,6 +136,13 @@ def extract(
         one pass on the hydro unit's FMU records (README, "How long the lags
         must be"). A mode without a counterpart in the second pass keeps
         the first pass's shapes (variable ``shape_block_rows``).
+    first_lag : int, optional
+        The lag the covariance Hankel matrix starts at, in samples of the
+        (decimated) record, at least 1. Default: the first at or beyond one
+        period of ``fmax`` (:func:`twin.extract.passes.first_lag_for`; 5 at
+        256 Hz and 60 Hz): the first lags carry the dynamics above the band,
+        which bent the band's shapes (README, "Where the lags start").
+        1 is the textbook Hankel matrix.
     max_order : int
         Largest model order of the stabilisation diagram (orders 2, 4, ...).
     channels : sequence of str, optional
@@ -227,6 +235,9 @@ def extract(
         raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
     if samples < 2:
         raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
+    if first_lag is not None and not _whole_at_least_one(first_lag):
+        raise SignalError(f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
+                          f"noise), got {first_lag!r}")  # fmt: skip
     if orders_per_mode is not None and orders_per_mode < 1:
         raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
                           f"got {orders_per_mode}")  # fmt: skip
@@ -251,16 +262,19 @@ def extract(
     n_ch = y.shape[1]
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
+    k0 = first_lag_for(fs, fmax) if first_lag is None else int(first_lag)
     block_len = y.shape[0] // n_blocks
-    if block_len < MIN_BLOCK_LAGS * 2 * i:
-        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows: "
-                          f"each block needs {MIN_BLOCK_LAGS * 2 * i / fs:g} s; ask for fewer samples or blocks "
-                          f"(at most {y.shape[0] // int(MIN_BLOCK_LAGS * 2 * i)})")  # fmt: skip
+    lags = 2 * i + k0 - 1
+    if block_len < MIN_BLOCK_LAGS * lags:
+        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows "
+                          f"from lag {k0}: each block needs {MIN_BLOCK_LAGS * lags / fs:g} s; ask for fewer samples "
+                          f"or blocks (at most {y.shape[0] // int(MIN_BLOCK_LAGS * lags)})")  # fmt: skip
 
-    log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows, orders up to %d",
-             source, n_ch, rec.duration_s, fs, i, max_order)  # fmt: skip
+    log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
+             source, n_ch, rec.duration_s, fs, i, k0, max_order)  # fmt: skip
     spectrum: dict = {}
-    found = ssi_pass(y, fs, i, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum)
+    found = ssi_pass(y, fs, i, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
+                     first_lag=k0)  # fmt: skip
     covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
     harmonics = list(removed) + found.harmonics
     if not modes:
@@ -269,7 +283,7 @@ def extract(
 
     members = _members(found, orders_per_mode)
     poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
-                                                           delete=delete_blocks, n_samples=samples)
+                                                           delete=delete_blocks, n_samples=samples, first_lag=k0)
     jackknife_p = sample_p
     d_p, d_s = order_deviations(members, shapes, samples)
     if order_spread == "all":
@@ -296,13 +310,13 @@ def extract(
             x[keep] for x in (poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders))  # fmt: skip
         members = [m for m, k in zip(members, keep) if k]
         modes = [c for c, k in zip(modes, keep) if k]
-    i_s, slow = _shape_rows(shape_block_rows, poles, fs, i, block_len, source)
+    i_s, slow = _shape_rows(shape_block_rows, poles, fs, i, block_len, source, k0)
     shape_rows = np.full(len(poles), i)
     if i_s > i:
         log.info("SSI-cov again with %d block rows for the shapes of %d mode(s) (lags of %.3g s)",
                  i_s, slow.sum(), i_s / fs)  # fmt: skip
         again = ssi_pass(y, fs, i_s, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
-                         quiet=True)  # fmt: skip
+                         quiet=True, first_lag=k0)  # fmt: skip
         read = shapes_at_longer_lags(again, fs, _members(again, orders_per_mode), poles[slow], shapes[slow],
                                      sample_s[slow], d_s[slow], progress, delete=delete_blocks, n_samples=samples)
         shapes[slow], sample_s[slow], d_s[slow], matched = read
@@ -321,7 +335,7 @@ def extract(
     out["shape_block_rows"] = ("mode", shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
     settings = {
         "samples": samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i,
-        "shape_block_rows": max(i, i_s), "max_order": int(real.max_order),
+        "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
@@ -373,14 +387,25 @@ def _members(found: SSIPass, n_orders: int | None) -> list[tuple[np.ndarray, np.
     return [(diag.order[u], diag.pole[u], diag.shape[u]) for u in (_orders_used(diag, c, n_orders) for c in found.modes)]
 
 
+def _whole_at_least_one(value: object) -> bool:
+    """Whether ``value`` is a whole number >= 1 (``3`` or ``3.0``; not ``2.5``, ``0`` or ``"3"``)."""
+    if isinstance(value, (str, bool)):
+        return False
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return number.is_integer() and number >= 1
+
+
 def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,
-                source: str) -> tuple[int, np.ndarray]:  # fmt: skip
+                source: str, first_lag: int = 1) -> tuple[int, np.ndarray]:  # fmt: skip
     """Block rows of the pass the shapes are read at, and which modes' shapes it reads.
 
     ``asked``: every mode's, at that many rows (``i``, the poles' pass, or fewer: none). ``"auto"``: the
     modes whose own :func:`shape_lag_rows` exceed ``i``, at those of the slowest of them; at most what
-    the jackknife blocks hold."""
-    longest = int(block_len // (2 * MIN_BLOCK_LAGS))
+    the jackknife blocks hold (lags ``2 i + first_lag - 1``)."""
+    longest = int((block_len / MIN_BLOCK_LAGS - first_lag + 1) // 2)
     if asked == "auto":
         f_hz = np.abs(poles) / (2 * np.pi)
         slow = np.array([shape_lag_rows(f, fs) > i for f in f_hz], dtype=bool)
@@ -392,7 +417,8 @@ def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_le
                           f"got {asked!r}")  # fmt: skip
     if asked > longest:
         raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
-                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {2 * asked} lags (at most {longest})")
+                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {2 * asked + first_lag - 1} lags "
+                          f"(at most {longest})")  # fmt: skip
     return int(asked), np.ones(len(poles), dtype=bool)
 
 

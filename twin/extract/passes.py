@@ -19,7 +19,9 @@ period of the 1.09 Hz mode, whose whirl partner is at 2.9 Hz. With such lags
 the sixteen bearing coefficients updated from jackknife samples alone came
 out with the lower guide bearing's direct damping 3-4 posterior stds low on
 every record; the shapes' spread over the model orders covers that bias, at
-the price of bearing intervals about twice too wide. Longer lags for every
+the price of bearing intervals about twice too wide. (That bias came from the
+first lags, not from the lags' length: the Hankel matrix now starts after
+them, :func:`first_lag_for`.) Longer lags for every
 quantity traded that bias for others (the pull's error 1.2% -> 2.8%). Reading
 only the shapes at longer lags (stop 47, twenty unseen seeds) biased the
 upper guide bearing's stiffnesses when every mode's shapes were read there
@@ -68,6 +70,29 @@ def shape_lag_rows(slowest_hz: float, fs_hz: float, minimum: int = 1, maximum: i
     return max(i, int(minimum))
 
 
+def first_lag_for(fs_hz: float, fmax_hz: float) -> int:
+    """The lag the covariance Hankel matrix starts at by default: the first at or beyond one period of ``fmax``.
+
+    A record holds dynamics above the band of interest: the structure's stiffer modes, aliased or not,
+    with damping that grows with frequency, and on a real record the sensors' and the anti-aliasing
+    filter's. Their covariances die out within a few samples, but at the first lags they are part of
+    every ``R_k``, and SSI at the diagram's model orders, which has no room for them, bends the band's
+    modes to fit them. Starting the Hankel matrix at one period of the highest frequency of interest
+    leaves the band's modes as they are (:func:`twin.extract.ssi.hankel`) and those lags out.
+
+    On the hydro unit's 20-min FMU records at 256 Hz (fmax 60 Hz, lags from 5) this took away a bias
+    of the shapes that no jackknife shows: the lower guide bearing's direct damping had come out about
+    one posterior std low on average (mean z of LGB.cxx and LGB.cyy -0.9 to -1.1 on forty unseen
+    records, median error 0.7-1.1%), now +0.1 to +0.5 (0.3-0.4%) (README, "Where the lags start").
+
+    Examples
+    --------
+    >>> first_lag_for(256.0, 60.0), first_lag_for(150.0, 60.0), first_lag_for(100.0, 50.0)
+    (5, 3, 2)
+    """
+    return max(1, int(np.ceil(fs_hz / fmax_hz - 1e-9)))
+
+
 @dataclasses.dataclass(frozen=True)
 class SSIPass:
     """One SSI pass: its block rows, the covariances, the realisation, the clustered diagram and its modes."""
@@ -75,6 +100,7 @@ class SSIPass:
     block_rows: int
     covariances: BlockCovariances
     real: Realisation
+    first_lag: int
     diag: Diagram
     modes: list[Cluster]
     harmonics: list[dict]
@@ -82,9 +108,9 @@ class SSIPass:
 
 def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fmin_hz: float, fmax: float,
              crit: Criteria, running_hz: float | None, channels: Sequence[str], spectrum: dict,
-             quiet: bool = False) -> SSIPass:  # fmt: skip
-    """SSI-cov with ``i`` block rows, the stabilisation diagram clustered and its clusters sorted into modes
-    and harmonics.
+             quiet: bool = False, first_lag: int = 1) -> SSIPass:  # fmt: skip
+    """SSI-cov with ``i`` block rows from lag ``first_lag`` on, the stabilisation diagram clustered and its
+    clusters sorted into modes and harmonics.
 
     The record's FFT is computed once, into ``spectrum``, when a cluster must be tested as a harmonic;
     ``quiet`` logs the sorting at debug level only (a second pass, whose harmonics the first reported).
@@ -103,8 +129,8 @@ def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fm
     (20, 1, 2.0)
     """
     say = log.debug if quiet else log.info
-    covariances = block_covariances(y, 2 * i, n_blocks)
-    real = realise(covariances.covariance(), i, max_order, fs)
+    covariances = block_covariances(y, 2 * i + first_lag - 1, n_blocks)
+    real = realise(covariances.covariance(), i, max_order, fs, first_lag=first_lag)
     orders = np.arange(2, real.max_order + 1, 2)
     diag = diagram(real, orders, fmin_hz, fmax, crit)
     diag, clusters = cluster_poles(diag, len(orders), crit)
@@ -128,7 +154,7 @@ def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fm
             harmonics.append(h)
             say("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
             labels[c.members] = -2
-    return SSIPass(i, covariances, real, dataclasses.replace(diag, cluster=labels), modes, harmonics)
+    return SSIPass(i, covariances, real, first_lag, dataclasses.replace(diag, cluster=labels), modes, harmonics)
 
 
 def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarray,
@@ -194,7 +220,8 @@ def shapes_at_longer_lags(again: SSIPass, fs: float, members: list, poles: np.nd
     if not members:
         return shapes, sample_shapes, shape_deviations, matched
     l_poles, l_shapes, _, l_samples, _ = jackknife(again.covariances, again.block_rows, fs, members, progress,
-                                                   delete=delete, n_samples=n_samples)  # fmt: skip
+                                                   delete=delete, n_samples=n_samples,
+                                                   first_lag=again.first_lag)  # fmt: skip
     _, l_dev = order_deviations(members, l_shapes, l_samples.shape[1])
     match = matching_modes(poles, shapes, l_poles, l_shapes)
     matched = match >= 0

@@ -238,6 +238,7 @@ def jackknife(
     progress: bool = True,
     delete: int | None = 1,
     n_samples: int | None = None,
+    first_lag: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full-record estimates and delete-d jackknife samples of the given modes.
 
@@ -260,6 +261,8 @@ def jackknife(
     n_samples : int, optional
         M, samples per mode (default J, the number of blocks; only delete-d with ``d > 1`` may ask for
         another number, see :func:`deleted_blocks`).
+    first_lag : int
+        The lag the Hankel matrix starts at, as for the full record (:func:`twin.extract.ssi.hankel`).
 
     Returns
     -------
@@ -283,7 +286,7 @@ def jackknife(
     all_orders = np.unique(np.concatenate([m[0] for m in members]))
     max_order = int(all_orders.max())
     for j in bar(range(M), desc="jackknife", unit="sample", progress=progress, mininterval=0.5):
-        real = realise(blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz)
+        real = realise(blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz, first_lag=first_lag)
         at = {}
         for n in all_orders:
             lam, phi = real.modes(int(n))

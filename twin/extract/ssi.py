@@ -9,6 +9,11 @@ observability matrix (the fast multi-order solution of Döhler and Mevel,
 2012): with ``O_up = Q R`` and ``S = Q^T O_down``, the order-``n`` matrix is
 ``A_n = R[:n, :n]^-1 S[:n, :n]``.
 
+The Hankel matrix may start at a later lag than the first (``first_lag``):
+the same modes, without the lags where dynamics above the band live
+(:func:`twin.extract.passes.first_lag_for`, the default of
+:func:`twin.extract.extract`).
+
 Only the ``max_order`` leading singular triplets of the Hankel matrix are
 used. Where they are fewer than a third of its smaller side they come from
 Lanczos bidiagonalisation (ARPACK, converged to machine precision, fixed
@@ -86,12 +91,36 @@ def block_covariances(y: np.ndarray, max_lag: int, n_blocks: int = 1) -> BlockCo
     return BlockCovariances(sums, counts)
 
 
-def hankel(R: np.ndarray, block_rows: int, block_columns: int | None = None) -> np.ndarray:
-    """Block Hankel matrix ``H[a, b] = R_{a+b+1}``, ``block_rows + 1`` block rows, ``block_columns`` (default ``block_rows``) columns."""
+def hankel(R: np.ndarray, block_rows: int, block_columns: int | None = None, first_lag: int = 1) -> np.ndarray:
+    """Block Hankel matrix ``H[a, b] = R_{a+b+k0}`` (``k0 = first_lag``), ``block_rows + 1`` block rows,
+    ``block_columns`` (default ``block_rows``) columns.
+
+    With ``R_k = C A^(k-1) G`` the matrix factors as ``O Γ`` with the same observability matrix
+    ``O = [C; C A; ...]`` for any ``k0 >= 1`` (``Γ`` starts at ``A^(k0-1) G``): starting later leaves the
+    modes and their shapes as they are and leaves out the lags where dynamics of short memory live (see
+    :func:`twin.extract.passes.first_lag_for`).
+
+    Examples
+    --------
+    >>> R = np.arange(8.0)[:, None, None]  # R_k = k, one channel
+    >>> hankel(R, 2)
+    array([[1., 2.],
+           [2., 3.],
+           [3., 4.]])
+    >>> hankel(R, 2, first_lag=3)
+    array([[3., 4.],
+           [4., 5.],
+           [5., 6.]])
+    """
     i = block_rows
     q = block_rows if block_columns is None else block_columns
     _, l, r = R.shape
-    idx = np.arange(i + 1)[:, None] + np.arange(q)[None, :] + 1
+    if first_lag < 1:
+        raise ValueError(f"the Hankel matrix starts at lag 1 or later (lag 0 holds the sensor noise), got {first_lag}")
+    if i + q - 1 + first_lag >= R.shape[0]:
+        raise ValueError(f"{i} block rows and {q} columns from lag {first_lag} need covariances to lag "
+                         f"{i + q - 1 + first_lag}, got {R.shape[0] - 1}")  # fmt: skip
+    idx = np.arange(i + 1)[:, None] + np.arange(q)[None, :] + first_lag
     return R[idx].transpose(0, 2, 1, 3).reshape((i + 1) * l, q * r)
 
 
@@ -119,8 +148,12 @@ class Realisation:
         return lam[keep], self.C[:, :order] @ v[:, keep]
 
 
-def realise(R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_columns: int | None = None) -> Realisation:
+def realise(R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_columns: int | None = None,
+            first_lag: int = 1) -> Realisation:  # fmt: skip
     """Factorise the covariance Hankel matrix (SVD) and prepare the multi-order solution (QR).
+
+    ``first_lag`` is the lag the Hankel matrix starts at (:func:`hankel`); ``R`` must reach lag
+    ``2 block_rows + first_lag - 1`` (with the default square matrix).
 
     Examples
     --------
@@ -135,7 +168,7 @@ def realise(R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_
     array([0.84+0.46j])
     """
     l = R.shape[1]
-    H = hankel(R, block_rows, block_columns)
+    H = hankel(R, block_rows, block_columns, first_lag)
     max_order = min(max_order, min(H.shape) - l)
     U, s = leading_singular(H, max_order)
     O = U[:, :max_order] * np.sqrt(s[:max_order])
