@@ -29,6 +29,7 @@ from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_
 from twin.extract.signals import Record, check_record
 from twin.extract.passes import SSIPass, first_lag_for, shape_lag_rows, shapes_at_longer_lags, ssi_pass
 from twin.extract.stabilisation import Criteria
+from twin.extract.ssi import hankel_max_lag
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mpc, mpd
 from twin.netcdf import check_writable, load_netcdf
@@ -264,7 +265,7 @@ def extract(
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
     k0 = first_lag_for(fs, fmax) if first_lag is None else int(first_lag)
     block_len = y.shape[0] // n_blocks
-    lags = 2 * i + k0 - 1
+    lags = hankel_max_lag(i, k0)
     if block_len < MIN_BLOCK_LAGS * lags:
         raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows "
                           f"from lag {k0}: each block needs {MIN_BLOCK_LAGS * lags / fs:g} s; ask for fewer samples "
@@ -417,7 +418,7 @@ def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_le
                           f"got {asked!r}")  # fmt: skip
     if asked > longest:
         raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
-                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {2 * asked + first_lag - 1} lags "
+                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "
                           f"(at most {longest})")  # fmt: skip
     return int(asked), np.ones(len(poles), dtype=bool)
 

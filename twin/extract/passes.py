@@ -40,7 +40,7 @@ import numpy as np
 
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.samples import MATCH_DISTANCE, jackknife, order_deviations
-from twin.extract.ssi import BlockCovariances, Realisation, block_covariances, realise
+from twin.extract.ssi import BlockCovariances, Realisation, block_covariances, hankel_max_lag, realise
 from twin.extract.stabilisation import Cluster, Criteria, Diagram, cluster_poles, diagram, pole_distance
 from twin.modes.analysis import damping_ratio
 
@@ -129,7 +129,7 @@ def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fm
     (20, 1, 2.0)
     """
     say = log.debug if quiet else log.info
-    covariances = block_covariances(y, 2 * i + first_lag - 1, n_blocks)
+    covariances = block_covariances(y, hankel_max_lag(i, first_lag), n_blocks)
     real = realise(covariances.covariance(), i, max_order, fs, first_lag=first_lag)
     orders = np.arange(2, real.max_order + 1, 2)
     diag = diagram(real, orders, fmin_hz, fmax, crit)

@@ -91,6 +91,17 @@ def block_covariances(y: np.ndarray, max_lag: int, n_blocks: int = 1) -> BlockCo
     return BlockCovariances(sums, counts)
 
 
+def hankel_max_lag(block_rows: int, first_lag: int = 1) -> int:
+    """The largest lag the square Hankel matrix of ``block_rows`` reads from lag ``first_lag`` on: ``2 i + k0 - 1``.
+
+    Examples
+    --------
+    >>> hankel_max_lag(107), hankel_max_lag(107, first_lag=5)
+    (214, 218)
+    """
+    return 2 * block_rows + first_lag - 1
+
+
 def hankel(R: np.ndarray, block_rows: int, block_columns: int | None = None, first_lag: int = 1) -> np.ndarray:
     """Block Hankel matrix ``H[a, b] = R_{a+b+k0}`` (``k0 = first_lag``), ``block_rows + 1`` block rows,
     ``block_columns`` (default ``block_rows``) columns.
