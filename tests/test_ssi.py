@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from twin.extract.ssi import block_covariances, hankel, realise
+from twin.modes.shapes import mac
 
 
 def test_blocks_add_up_to_the_whole_record_and_leave_one_out_is_exact():
@@ -43,19 +44,26 @@ def test_fast_multi_order_equals_least_squares_at_every_order():
         assert np.allclose(np.sort_complex(lam), lam_ls, rtol=1e-9)
 
 
-def test_exact_covariances_give_the_exact_poles():
-    """With the exact output covariances of a 2-mode system, SSI returns its poles to round-off."""
+def _two_mode_system(fs: float, n_lags: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A 2-mode discrete system at ``fs`` (real 2x2 blocks ``[[Re, Im], [-Im, Re]]``): ``A``, ``C``, its exact
+    output covariances ``R_0 ... R_(n_lags - 1)`` under unit state noise, and its poles."""
     import scipy.linalg as sla
 
-    fs = 20.0
     poles = np.array([-0.1 + 2j * np.pi * 1.5, -0.3 + 2j * np.pi * 4.0])
     mu = np.exp(poles / fs)
     A = np.zeros((4, 4))
-    for k, m in enumerate(mu):  # real 2x2 blocks [[Re, Im], [-Im, Re]]
+    for k, m in enumerate(mu):
         A[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[m.real, m.imag], [-m.imag, m.real]]
     C = np.array([[1.0, 0.0, 0.3, 0.2], [0.0, 1.0, -0.5, 1.0], [0.4, 0.4, 0.0, 1.0]])
     sigma = sla.solve_discrete_lyapunov(A, np.eye(4))
-    R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(13)])
+    R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(n_lags)])
+    return A, C, R, poles
+
+
+def test_exact_covariances_give_the_exact_poles():
+    """With the exact output covariances of a 2-mode system, SSI returns its poles to round-off."""
+    fs = 20.0
+    _, _, R, poles = _two_mode_system(fs, 13)
     lam, _ = realise(R, 6, 4, fs).modes(4)
     assert np.allclose(np.sort_complex(lam), np.sort_complex(poles), rtol=1e-9)
 
@@ -84,19 +92,6 @@ def test_leading_triplets_by_lanczos_equal_the_full_svd():
     assert np.allclose(np.sort_complex(partial), np.sort_complex(full), rtol=1e-8, atol=1e-10)
 
 
-def _two_mode_system(fs: float):
-    """A, C and the state covariance of a 2-mode discrete system at ``fs`` (real 2x2 blocks), and its poles."""
-    import scipy.linalg as sla
-
-    poles = np.array([-0.1 + 2j * np.pi * 1.5, -0.3 + 2j * np.pi * 4.0])
-    mu = np.exp(poles / fs)
-    A = np.zeros((4, 4))
-    for k, m in enumerate(mu):
-        A[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[m.real, m.imag], [-m.imag, m.real]]
-    C = np.array([[1.0, 0.0, 0.3, 0.2], [0.0, 1.0, -0.5, 1.0], [0.4, 0.4, 0.0, 1.0]])
-    return A, C, sla.solve_discrete_lyapunov(A, np.eye(4)), poles
-
-
 def _mode_shapes(A: np.ndarray, C: np.ndarray) -> np.ndarray:
     """The exact output shapes of ``A``'s modes with Im > 0, by frequency, as columns (channels, modes)."""
     mu, v = np.linalg.eig(A)
@@ -107,10 +102,6 @@ def _mode_shapes(A: np.ndarray, C: np.ndarray) -> np.ndarray:
 def _by_frequency(lam: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     order = np.argsort(lam.imag)
     return lam[order], phi[:, order]
-
-
-def _mac(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.abs(np.vdot(a, b)) ** 2 / (np.vdot(a, a).real * np.vdot(b, b).real))
 
 
 def test_hankel_from_a_later_lag():
@@ -126,21 +117,19 @@ def test_hankel_from_a_later_lag():
 def test_a_later_first_lag_gives_the_same_exact_modes():
     """R_k = C A^(k-1) G from any first lag on: the same poles and shapes to round-off."""
     fs = 20.0
-    A, C, sigma, poles = _two_mode_system(fs)
-    R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(20)])
+    A, C, R, poles = _two_mode_system(fs, 20)
     exact = _mode_shapes(A, C)
     for k0 in (1, 2, 5):
         lam, phi = _by_frequency(*realise(R, 6, 4, fs, first_lag=k0).modes(4))
         assert np.allclose(lam, poles, rtol=1e-9)
-        assert all(_mac(phi[:, k], exact[:, k]) > 1 - 1e-12 for k in range(2))
+        assert all(mac(phi[:, k], exact[:, k]) > 1 - 1e-12 for k in range(2))
 
 
 def test_a_short_memory_part_bends_the_modes_unless_the_lags_start_after_it():
     """A part of the covariances that lives at lags 1-2 only (dynamics above the band, a filter) is no
     mode of an order-4 model: from lag 1 it bends the poles and shapes; from lag 3 they are exact."""
     fs = 20.0
-    A, C, sigma, poles = _two_mode_system(fs)
-    R = np.array([C @ np.linalg.matrix_power(A, k) @ sigma @ C.T for k in range(20)])
+    A, C, R, poles = _two_mode_system(fs, 20)
     short = 0.03 * np.abs(R[1]).max() * np.array([[1.0, -0.7, 0.3], [0.0, 0.7, 1.0], [0.3, 0.0, -1.0]])
     R[1] += short
     R[2] += 0.4 * short
@@ -148,6 +137,6 @@ def test_a_short_memory_part_bends_the_modes_unless_the_lags_start_after_it():
     lam1, phi1 = _by_frequency(*realise(R, 6, 4, fs, first_lag=1).modes(4))
     lam3, phi3 = _by_frequency(*realise(R, 6, 4, fs, first_lag=3).modes(4))
     assert np.max(np.abs(lam1 - poles) / np.abs(poles)) > 1e-3
-    assert min(_mac(phi1[:, k], exact[:, k]) for k in range(2)) < 0.9999
+    assert min(mac(phi1[:, k], exact[:, k]) for k in range(2)) < 0.9999
     assert np.allclose(lam3, poles, rtol=1e-9)
-    assert all(_mac(phi3[:, k], exact[:, k]) > 1 - 1e-12 for k in range(2))
+    assert all(mac(phi3[:, k], exact[:, k]) > 1 - 1e-12 for k in range(2))
