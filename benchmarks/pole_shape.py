@@ -7,7 +7,11 @@ against the truth's, weighted by the update's shrunk shape covariance) and from 
 samples' covariance), each in its own stds (``z``). Over the records this gives each mode's information
 from either, the RMS of each ``z``, and the correlation of the two errors, beside the correlation the
 mode's own samples show (median over records); and the RMS ``z`` of the estimates from every mode's shapes,
-every pole, and both taken as independent.
+every pole, and both taken as independent. Beside the error along the parameter, the error in every
+direction: the mean over the records of the shape error's chi-square at the truth (the same covariance)
+per degree of freedom (its entries that scatter less the unit norm's one), and of the pole's (both parts)
+per part. A chi-square per degree of freedom near one with an RMS ``z`` well above one puts the excess
+error along the parameter's own direction, where a mode's residual after the fit cannot show it.
 
 Then each record is updated twice (:meth:`twin.loop.twin.Twin.update`, defaults otherwise): with each mode's
 pole and shape errors combined by covariance intersection (``combine="intersection"``, the default) and as
@@ -15,6 +19,7 @@ independent (``"independent"``): RMS ``z`` (the std from the 90% interval's widt
 
     python benchmarks/pole_shape.py [--scenarios seal_cross_coupling,magnetic_pull] [--seeds 24]
                                     [--first-seed 601] [--workers 2] [--duration 1200] [--rows rows.json]
+                                    [the extraction flags of update_coverage_fmu.py: --delete-half ...]
 
 Results go to ``benchmarks/results/pole_shape.md``.
 """
@@ -70,23 +75,27 @@ def mode_terms(tw, truth: dict[str, float], name: str) -> list[dict]:
     for i, (x, p) in enumerate(zip(samples, np.stack([poles.real, poles.imag], axis=-1))):
         moving = scatters(x.std(axis=0))
         x, g = x[:, moving], g_shape[i][moving]
-        w_s = np.linalg.solve(shrunk_covariance(x, x.var(axis=0, ddof=1)) / J, g)
-        w_p = np.linalg.solve(np.cov(p.T) / J, g_pole[i])
+        cov_s, cov_p = shrunk_covariance(x, x.var(axis=0, ddof=1)) / J, np.cov(p.T) / J
+        w_s, w_p = np.linalg.solve(cov_s, g), np.linalg.solve(cov_p, g_pole[i])
         a_s, a_p = (x - x.mean(axis=0)) @ w_s, (p - p.mean(axis=0)) @ w_p
+        e_s, e_p = x.mean(axis=0) - shapes_t[i][moving], p.mean(axis=0) - poles_t[i]
         out.append({"frequency_hz": float(poles[i].mean().imag / (2 * np.pi)),
-                    "shape_a": float(w_s @ (x.mean(axis=0) - shapes_t[i][moving])), "shape_b": float(w_s @ g),
-                    "pole_a": float(w_p @ (p.mean(axis=0) - poles_t[i])), "pole_b": float(w_p @ g_pole[i]),
-                    "sample_corr": float(np.corrcoef(a_s, a_p)[0, 1])})  # fmt: skip
+                    "shape_a": float(w_s @ e_s), "shape_b": float(w_s @ g),
+                    "pole_a": float(w_p @ e_p), "pole_b": float(w_p @ g_pole[i]),
+                    "sample_corr": float(np.corrcoef(a_s, a_p)[0, 1]),
+                    "shape_chi2_dof": float(e_s @ np.linalg.solve(cov_s, e_s)) / (len(e_s) - 1),
+                    "pole_chi2_dof": float(e_p @ np.linalg.solve(cov_p, e_p)) / 2})  # fmt: skip
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float) -> list[dict]:
-    """Simulate and extract one dataset; the linearised terms and the two updates; one row per parameter."""
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
+    """Simulate and extract one dataset (``extraction``: options of :func:`twin.extract.extract`); the
+    linearised terms and the two updates; one row per parameter."""
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
 
     name, seed = job
-    tw, names, truth = scenario_record(job, duration_s)
+    tw, names, truth = scenario_record(job, duration_s, extraction)
     if any(PER_MODE_NAME.match(n) for n in names):
         raise ValueError(f"{name}: per-mode parameters are not one shared direction; choose another scenario")
     tables = {}
@@ -117,8 +126,9 @@ def report(rows: list[dict]) -> list[str]:
         sel = [r for r in rows if r["scenario"] == scenario and r["parameter"] == p]
         lines += [f"## {scenario}: {p} ({len(sel)} records)", "",
                   "| mode [Hz] | records | information: shapes, pole | RMS z: shapes, pole, both independent | "
-                  "correlation of the shapes' and the pole's errors: over the records, in the samples |",
-                  "| --- | --- | --- | --- | --- |"]  # fmt: skip
+                  "correlation of the shapes' and the pole's errors: over the records, in the samples | "
+                  "chi2 / dof in every direction: shapes, pole |",
+                  "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
         centres = np.unique(np.round([m["frequency_hz"] for r in sel for m in r["modes"]], 0))
         for f in centres:
             ms = [min(r["modes"], key=lambda m: abs(m["frequency_hz"] - f)) for r in sel]
@@ -131,7 +141,9 @@ def report(rows: list[dict]) -> list[str]:
             lines.append(f"| {np.median([m['frequency_hz'] for m in ms]):.1f} | {len(ms)} | "
                          f"{np.median([m['shape_b'] for m in ms]):.3g}, {np.median([m['pole_b'] for m in ms]):.3g} | "
                          f"{rms(zs):.2f}, {rms(zp):.2f}, {rms(zb):.2f} | {np.corrcoef(zs, zp)[0, 1]:.2f}, "
-                         f"{np.median([m['sample_corr'] for m in ms]):.2f} |")  # fmt: skip
+                         f"{np.median([m['sample_corr'] for m in ms]):.2f} | "
+                         f"{np.mean([m['shape_chi2_dof'] for m in ms]):.2f}, "
+                         f"{np.mean([m['pole_chi2_dof'] for m in ms]):.2f} |")  # fmt: skip
         total = {k: np.array([[sum(m[f"{k}_{ab}"] for m in r["modes"]) for ab in "ab"] for r in sel])
                  for k in ("shape", "pole")}  # fmt: skip
         z = {k: v[:, 0] / np.sqrt(v[:, 1]) for k, v in total.items()}

@@ -18,6 +18,7 @@ is about one while the default's RMS z is above one, the error is one the record
 
     python benchmarks/shape_error.py [--scenarios seal_cross_coupling,bearings] [--seeds 16] [--first-seed 601]
                                      [--workers 2] [--duration 1200] [--rows rows.json]
+                                     [the extraction flags of update_coverage_fmu.py: --delete-half ...]
 
 Results go to ``benchmarks/results/shape_error.md``.
 """
@@ -62,8 +63,9 @@ def moved(modes, target: np.ndarray, part: str):
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float) -> list[dict]:
-    """Simulate, extract and update one dataset the five ways; one row per parameter."""
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
+    """Simulate, extract (``extraction``: options of :func:`twin.extract.extract`) and update one dataset
+    the five ways; one row per parameter."""
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
@@ -72,7 +74,7 @@ def one_dataset(job: tuple[str, int], duration_s: float) -> list[dict]:
     from twin.update.problem import build_problem
 
     name, seed = job
-    tw, names, truth = scenario_record(job, duration_s)
+    tw, names, truth = scenario_record(job, duration_s, extraction)
     target = truth_shapes(tw, truth)
     datasets = {"default": tw.modes, "true shapes": moved(tw.modes, target, "all"),
                 "true Re": moved(tw.modes, target, "re"), "true Im": moved(tw.modes, target, "im")}  # fmt: skip

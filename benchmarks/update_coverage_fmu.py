@@ -198,17 +198,20 @@ def dataset_command(script: str, args: argparse.Namespace) -> str:
 def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
                       scenarios: str, seeds: int, first_seed: int) -> None:  # fmt: skip
     """The whole run of a benchmark over FMU datasets without options of its own: parse the options of
-    :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s)`` for every
-    dataset, and write ``title``, the command, ``note`` and ``report(rows)`` to ``results``."""
+    :func:`add_dataset_options` (with these defaults) and the extraction's (:func:`add_extraction_options`),
+    run ``one_dataset(job, duration_s, extraction)`` for every dataset, and write ``title``, the command,
+    ``note`` and ``report(rows)`` to ``results``."""
     ap = argparse.ArgumentParser(description=description)
     add_dataset_options(ap, scenarios=scenarios, seeds=seeds, first_seed=first_seed)
+    add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
-    results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration)
+    results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
+                            extraction=extraction_options(args))  # fmt: skip
     rows = [r for rs in results_ for r in rs]
-    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
-             f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
+    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}{extraction_flags(args)}`; {len(jobs)} "
+             f"datasets in {time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
     write_results(results, lines, rows, args.rows)
 
 
