@@ -162,13 +162,15 @@ def report(rows: list[dict]) -> list[str]:
 
 def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int, first_seed: int) -> None:
     """``--scenarios``, ``--seeds``, ``--first-seed``, ``--workers``, ``--duration`` and ``--rows`` (with these
-    defaults): the options of the benchmarks over FMU datasets."""
+    defaults), and the extraction's flags (:func:`add_extraction_options`): the options of the benchmarks over
+    FMU datasets."""
     ap.add_argument("--scenarios", default=scenarios)
     ap.add_argument("--seeds", type=int, default=seeds)
     ap.add_argument("--first-seed", type=int, default=first_seed)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
+    add_extraction_options(ap)
 
 
 def dataset_jobs(args: argparse.Namespace) -> list[tuple[str, int]]:
@@ -192,26 +194,25 @@ def run_datasets(function, jobs: list[tuple[str, int]], workers: int, **shared) 
 def dataset_command(script: str, args: argparse.Namespace) -> str:
     """The command line of a benchmark over FMU datasets with the options of :func:`add_dataset_options`."""
     return (f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
-            f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}")  # fmt: skip
+            f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
+            f"{extraction_flags(args)}")  # fmt: skip
 
 
 def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
                       scenarios: str, seeds: int, first_seed: int) -> None:  # fmt: skip
     """The whole run of a benchmark over FMU datasets without options of its own: parse the options of
-    :func:`add_dataset_options` (with these defaults) and the extraction's (:func:`add_extraction_options`),
-    run ``one_dataset(job, duration_s, extraction)`` for every dataset, and write ``title``, the command,
-    ``note`` and ``report(rows)`` to ``results``."""
+    :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s, extraction)`` for
+    every dataset, and write ``title``, the command, ``note`` and ``report(rows)`` to ``results``."""
     ap = argparse.ArgumentParser(description=description)
     add_dataset_options(ap, scenarios=scenarios, seeds=seeds, first_seed=first_seed)
-    add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
                             extraction=extraction_options(args))  # fmt: skip
     rows = [r for rs in results_ for r in rs]
-    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}{extraction_flags(args)}`; {len(jobs)} "
-             f"datasets in {time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
+    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
+             f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
     write_results(results, lines, rows, args.rows)
 
 
@@ -237,7 +238,6 @@ def main() -> None:
     ap.add_argument("--logdet", action="store_true", help="keep the marginal's -1/2 log|V| (twin update --logdet)")
     ap.add_argument("--flat-priors", action="store_true",
                     help="no prior on the effects' parameters (twin update --flat-priors)")
-    add_extraction_options(ap)
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
@@ -248,7 +248,7 @@ def main() -> None:
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
-             f"Command: `{dataset_command('update_coverage_fmu.py', args)}{extraction_flags(args)}"
+             f"Command: `{dataset_command('update_coverage_fmu.py', args)}"
              f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
              f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
              f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
