@@ -23,13 +23,14 @@ from twin.cli.parser import rows_or_auto
 
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
 VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"),
-          ("shape_block_rows", "shape_block_rows"), ("first_lag", "first_lag"))
+          ("shape_block_rows", "shape_block_rows"), ("first_lag", "first_lag"),
+          ("differenced_above", "differenced_above_hz"))
 
 
 def add_extraction_options(ap: argparse.ArgumentParser) -> None:
     """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode``,
-    ``--order-spread``, ``--block-rows``, ``--shape-block-rows`` and ``--first-lag`` (as ``twin extract``'s) to a
-    benchmark's parser."""
+    ``--order-spread``, ``--block-rows``, ``--shape-block-rows``, ``--first-lag`` and ``--differenced-above`` (as
+    ``twin extract``'s) to a benchmark's parser."""
     ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                     help="leave the running-speed lines in the record (removed by default)")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
@@ -46,6 +47,8 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
                     help="block rows of a second pass the shapes are read at, or auto (default: extract's, none)")
     ap.add_argument("--first-lag", type=int, default=None,
                     help="lag the Hankel matrix starts at (default: extract's, one period of fmax; 1: the old one)")
+    ap.add_argument("--differenced-above", type=float, default=None, metavar="HZ",
+                    help="modes above this frequency from the record differenced twice (default: extract's, none)")
 
 
 def extraction_options(args: argparse.Namespace) -> dict:
@@ -63,7 +66,8 @@ def extraction_options(args: argparse.Namespace) -> dict:
 def extraction_flags(args: argparse.Namespace) -> str:
     """The flags given, as they would be typed (for a results file's command line)."""
     flags = ("" if args.remove_harmonics else " --keep-harmonics") + (" --delete-half" if args.delete_half else "")
-    for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows", "shape_block_rows", "first_lag"):
+    for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows", "shape_block_rows", "first_lag",
+                 "differenced_above"):
         if getattr(args, flag) is not None:
             flags += f" --{flag.replace('_', '-')} {getattr(args, flag)}"
     return flags

@@ -1,4 +1,5 @@
-"""The second SSI pass the shapes are read at: its lag rule, the pairing of modes, what extract takes from it."""
+"""The second SSI passes: the one the shapes are read at (its lag rule), the one over the differenced record,
+the pairing of modes, what extract takes from them."""
 
 import json
 import warnings
@@ -8,7 +9,7 @@ import pytest
 
 from twin.errors import SignalError
 from twin.extract import extract, read_modes
-from twin.extract.passes import SHAPE_LAG_PERIODS, matching_modes, shape_lag_rows
+from twin.extract.passes import DIFFERENCES, SHAPE_LAG_PERIODS, differenced, matching_modes, shape_lag_rows
 from twin.modes.shapes import mac
 
 FS = 20.0
@@ -94,6 +95,47 @@ def test_the_command_line_takes_a_number_or_auto(tmp_path, close_pair, capsys):
         warnings.simplefilter("ignore")
         assert main(args + ["--shape-block-rows", "auto"]) == 0
     assert json.loads(read_modes(out).attrs["settings"])["shape_block_rows"] == 30
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(args + ["--differenced-above", "3"]) == 0
+    assert read_modes(out).differences.values.tolist() == [0, 0, DIFFERENCES]
     with pytest.raises(SystemExit):
         main(args + ["--shape-block-rows", "longer"])
     assert "expected a number of block rows or 'auto', got 'longer'" in capsys.readouterr().err
+
+
+def test_differencing_keeps_a_mode_and_weighs_it_by_its_frequency():
+    # one undamped mode: a sinusoid stays a sinusoid of the same frequency (the same pole), its amplitude times
+    # (2 sin(pi f / fs))^2 for two differences, and a constant (a 0 Hz mode) is gone
+    fs, f = 20.0, 6.0
+    t = np.arange(400) / fs
+    y = np.column_stack([np.cos(2 * np.pi * f * t), 0.5 * np.sin(2 * np.pi * f * t), np.full_like(t, 3.0)])
+    d = differenced(y)
+    assert d.shape == (400 - DIFFERENCES, 3)
+    gain = (2 * np.sin(np.pi * f / fs)) ** DIFFERENCES
+    np.testing.assert_allclose(d[:, 0], -gain * np.cos(2 * np.pi * f * t[1:-1]), atol=1e-12)  # centred at t - 1
+    np.testing.assert_allclose(d[:, 1], -gain * 0.5 * np.sin(2 * np.pi * f * t[1:-1]), atol=1e-12)
+    np.testing.assert_allclose(d[:, 2], 0.0, atol=1e-12)
+
+
+def test_extract_reads_the_modes_above_the_split_from_the_differenced_record(close_pair):
+    first = _extract(close_pair)
+    split = _extract(close_pair, differenced_above_hz=3.0)
+    assert split.differences.values.tolist() == [0, 0, DIFFERENCES] and first.differences.values.tolist() == [0, 0, 0]
+    assert json.loads(split.attrs["settings"])["differenced_above_hz"] == 3.0
+    assert "modes above 3 Hz read from the record differenced 2 times" in split.attrs["samples_method"]
+    # the slow modes are the first pass's, samples and all
+    for v in ("pole", "shape"):
+        np.testing.assert_array_equal(split[v].values[:2], first[v].values[:2])
+    # the 6 Hz mode is the same mode from other covariances: within 4 of its standard errors of the truth
+    fast = split.pole.values[2]
+    se = np.std(fast.real) / np.sqrt(fast.size), np.std(fast.imag) / np.sqrt(fast.size)
+    assert not np.allclose(fast, first.pole.values[2])
+    assert abs(fast.mean().real - POLES[2].real) < 4 * se[0] and abs(fast.mean().imag - POLES[2].imag) < 4 * se[1]
+    assert float(mac(split.sensor_shape.values[2], SHAPES[2])) > 0.99
+
+
+def test_bad_split_frequencies_are_refused(close_pair):
+    for bad in (-1.0, 8.0, float("nan"), "6"):
+        with pytest.raises(SignalError, match="differenced_above_hz must be a frequency from 0 to below fmax = 8 Hz"):
+            _extract(close_pair, differenced_above_hz=bad)

@@ -6,7 +6,7 @@
     twin simulate MODEL.toml --duration S --fs HZ --seed N [--truth truth.toml|paper] -o signals.nc
     twin extract signals.nc -o modes.nc [--samples J] [--fmax HZ] [--fmin HZ] [--channels A,B] [--plot stab.png]
                  [--block-rows I] [--shape-block-rows I|auto] [--first-lag K] [--delete-half]
-                 [--order-spread shapes|all|none]
+                 [--order-spread shapes|all|none] [--differenced-above HZ]
     twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
     twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
                 [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear] [--adjust jackknife|none] [--effect LABEL]

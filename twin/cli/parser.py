@@ -245,6 +245,9 @@ def _add_stages(sub) -> None:
     p.add_argument("--first-lag", type=int, default=None,
                    help="lag the covariance Hankel matrix starts at, in samples (default: the first at or beyond "
                         "one period of fmax; 1: the textbook matrix)")
+    p.add_argument("--differenced-above", type=float, default=None, metavar="HZ",
+                   help="read the modes above this frequency [Hz] from a second pass over the record differenced "
+                        "twice, where the slow, strong modes no longer fill the covariances (default: none)")
     p.add_argument("--max-order", type=int, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")

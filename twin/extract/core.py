@@ -27,7 +27,8 @@ from twin.extract.harmonics import remove_running_harmonics
 from twin.extract.modesfile import write_modes
 from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations
 from twin.extract.signals import Record, check_record
-from twin.extract.passes import SSIPass, first_lag_for, shape_lag_rows, shapes_at_longer_lags, ssi_pass
+from twin.extract.passes import (DIFFERENCES, SSIPass, differenced, first_lag_for, modes_from_differenced,
+                                 shape_lag_rows, shapes_at_longer_lags, ssi_pass)
 from twin.extract.stabilisation import Criteria
 from twin.extract.ssi import hankel_max_lag
 from twin.modes.analysis import damping_ratio
@@ -105,6 +106,7 @@ def extract(
     remove_harmonics: bool = True,
     blocks: int | None = None,
     orders_per_mode: int | None = ORDERS_PER_MODE,
+    differenced_above_hz: float | None = None,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -181,6 +183,19 @@ def extract(
         A mode is the average over this many of its lowest settled model
         orders (default 8; None: all of them, less of SSI's bias and a wider
         jackknife, see the README).
+    differenced_above_hz : float, optional
+        Read the modes above this natural frequency [Hz] from a second SSI
+        pass over the record differenced twice
+        (:func:`twin.extract.passes.differenced`; lags from ``max(first_lag,
+        3)``), where the slow, strong modes no longer fill the covariances
+        (:func:`twin.extract.passes.modes_from_differenced`). A mode without
+        a counterpart there keeps the first pass's estimate (variable
+        ``differences``: 0 or 2 per mode). Put it between a record's slow
+        modes and the rest (e.g. 6 Hz for the hydro unit, whose modes below
+        4 Hz are the strongest). Not the default: on the hydro unit's FMU
+        records it narrows the bearings' intervals by a quarter, and the
+        seal's stay too narrow (README, "The slow modes' share of the
+        covariances").
     remove_harmonics : bool
         When the record gives its running speed (attr ``speed_rpm``), subtract
         the sinusoids at its multiples before SSI
@@ -239,6 +254,9 @@ def extract(
     if first_lag is not None and not _whole_at_least_one(first_lag):
         raise SignalError(f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
                           f"noise), got {first_lag!r}")  # fmt: skip
+    if differenced_above_hz is not None and not 0 <= _as_float(differenced_above_hz) < fmax:  # NaN fails too
+        raise SignalError(f"{source}: differenced_above_hz must be a frequency from 0 to below fmax = {fmax:g} Hz, "
+                          f"got {differenced_above_hz!r}")  # fmt: skip
     if orders_per_mode is not None and orders_per_mode < 1:
         raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
                           f"got {orders_per_mode}")  # fmt: skip
@@ -285,8 +303,22 @@ def extract(
     members = _members(found, orders_per_mode)
     poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
                                                            delete=delete_blocks, n_samples=samples, first_lag=k0)
-    jackknife_p = sample_p
     d_p, d_s = order_deviations(members, shapes, samples)
+    differences = np.zeros(len(poles), dtype=int)
+    if differenced_above_hz is not None:
+        log.info("SSI-cov again on the record differenced %d times for the modes above %g Hz",
+                 DIFFERENCES, differenced_above_hz)  # fmt: skip
+        again = ssi_pass(differenced(y), fs, i, n_blocks, max_order, max(fmin_hz, differenced_above_hz), fmax, crit,
+                         running_hz, rec.channels, {}, quiet=True, first_lag=max(k0, DIFFERENCES + 1))  # fmt: skip
+        first = (members, poles, shapes, sample_p, sample_s, missing, d_p, d_s)
+        read, counterpart = modes_from_differenced(again, _members(again, orders_per_mode), fs, differenced_above_hz,
+                                                   first, progress, delete=delete_blocks, n_samples=samples)  # fmt: skip
+        members, poles, shapes, sample_p, sample_s, missing, d_p, d_s = read
+        differences[counterpart >= 0] = DIFFERENCES
+        modes = [again.modes[j] if j >= 0 else c for c, j in zip(modes, counterpart)]  # for the cluster sizes
+        for f in np.abs(poles[(np.abs(poles) / (2 * np.pi) > differenced_above_hz) & (counterpart < 0)]) / (2 * np.pi):
+            log.info("%.4f Hz: no counterpart in the differenced record, read from the record itself", f)
+    jackknife_p = sample_p
     if order_spread == "all":
         sample_p = sample_p + d_p
     n_orders = np.array([len(m[0]) for m in members])
@@ -307,8 +339,8 @@ def extract(
     if undetermined:
         new_index = np.where(keep, np.cumsum(keep) - 1, -1)
         diag = dataclasses.replace(diag, cluster=np.where(diag.cluster >= 0, new_index[diag.cluster], diag.cluster))
-        poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders = (
-            x[keep] for x in (poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders))  # fmt: skip
+        poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders, differences = (
+            x[keep] for x in (poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders, differences))  # fmt: skip
         members = [m for m, k in zip(members, keep) if k]
         modes = [c for c, k in zip(modes, keep) if k]
     i_s, slow = _shape_rows(shape_block_rows, poles, fs, i, block_len, source, k0)
@@ -334,6 +366,8 @@ def extract(
     out = _dataset(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                    [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
     out["shape_block_rows"] = ("mode", shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
+    out["differences"] = ("mode", differences, {"long_name": "times the record was differenced for the SSI pass "
+                                                             "the mode is read from"})  # fmt: skip
     settings = {
         "samples": samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i,
         "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
@@ -341,6 +375,7 @@ def extract(
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
         "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(remove_harmonics),
+        "differenced_above_hz": differenced_above_hz,
     }  # fmt: skip
     out.attrs.update({
         "title": f"modes identified from {Path(source).name}",
@@ -356,6 +391,8 @@ def extract(
                               "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
                                      "standard error of their mean over them"}[order_spread]
                            + (f"; shapes read at {i_s} block rows" if i_s > i else "")
+                           + (f"; modes above {differenced_above_hz:g} Hz read from the record differenced "
+                              f"{DIFFERENCES} times" if differences.any() else "")
                            + ": sample std / sqrt(J) is the standard error"),
         "signals": source,
     })  # fmt: skip
@@ -386,6 +423,16 @@ def _members(found: SSIPass, n_orders: int | None) -> list[tuple[np.ndarray, np.
     """Each mode of a pass at the orders it is averaged over (:func:`_orders_used`): (orders, poles, shapes)."""
     diag = found.diag
     return [(diag.order[u], diag.pole[u], diag.shape[u]) for u in (_orders_used(diag, c, n_orders) for c in found.modes)]
+
+
+def _as_float(value: object) -> float:
+    """``value`` as a float, NaN when it is none (a string, None or an array)."""
+    if isinstance(value, (str, bool)):
+        return float("nan")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def _whole_at_least_one(value: object) -> bool:
