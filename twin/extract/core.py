@@ -375,7 +375,7 @@ def extract(
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
         "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(remove_harmonics),
-        "differenced_above_hz": differenced_above_hz,
+        "differenced_above_hz": None if differenced_above_hz is None else float(differenced_above_hz),
     }  # fmt: skip
     out.attrs.update({
         "title": f"modes identified from {Path(source).name}",
