@@ -316,8 +316,6 @@ def extract(
         members, poles, shapes, sample_p, sample_s, missing, d_p, d_s = read
         differences[counterpart >= 0] = DIFFERENCES
         modes = [again.modes[j] if j >= 0 else c for c, j in zip(modes, counterpart)]  # for the cluster sizes
-        for f in np.abs(poles[(np.abs(poles) / (2 * np.pi) > differenced_above_hz) & (counterpart < 0)]) / (2 * np.pi):
-            log.info("%.4f Hz: no counterpart in the differenced record, read from the record itself", f)
     jackknife_p = sample_p
     if order_spread == "all":
         sample_p = sample_p + d_p
@@ -437,12 +435,7 @@ def _as_float(value: object) -> float:
 
 def _whole_at_least_one(value: object) -> bool:
     """Whether ``value`` is a whole number >= 1 (``3`` or ``3.0``; not ``2.5``, ``0`` or ``"3"``)."""
-    if isinstance(value, (str, bool)):
-        return False
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return False
+    number = _as_float(value)  # NaN for a non-number, which is no whole number
     return number.is_integer() and number >= 1
 
 

@@ -310,6 +310,7 @@ def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above
     upper = np.flatnonzero(np.abs(poles) / (2 * np.pi) > above_hz)
     d_members = list(again_members)
     if not len(upper) or not d_members:
+        _log_unmatched(poles[upper])
         return (members, *arrays), counterpart
     d_poles, d_shapes, d_sp, d_ss, d_missing = jackknife(again.covariances, again.block_rows, fs, d_members, progress,
                                                          delete=delete, n_samples=n_samples,
@@ -321,4 +322,10 @@ def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above
         for target, source in zip(arrays, (d_poles, d_shapes, d_sp, d_ss, d_missing, d_dp, d_ds)):
             target[k] = source[j]
         counterpart[k] = j
+    _log_unmatched(poles[upper[match < 0]])
     return (members, *arrays), counterpart
+
+
+def _log_unmatched(poles: np.ndarray) -> None:
+    for f in np.abs(poles) / (2 * np.pi):
+        log.info("%.4f Hz: no counterpart in the differenced record, read from the record itself", f)
