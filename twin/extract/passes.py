@@ -276,9 +276,11 @@ def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above
     1.11) with 1.3 times the information, and the 41-53 Hz modes' shapes held
     2.5-8 times more (README, "The slow modes' share of the covariances").
     The differenced record loses the slow modes themselves, so they stay
-    with the first pass. On the FMU's records of the same scenario the
-    differenced 11.6 Hz mode holds 1.5 times the shape information but errs
-    beyond it (RMS z 2.15): not yet understood, and not the default.
+    with the first pass. Pooled over 126 simulated records (numpy's random
+    streams and the FMU's, stop 53) the differenced 11.6 Hz mode holds
+    1.4-2.1 times the shape information without the slow modes' bias, but
+    errs beyond that information (RMS z 1.52 along the seal; 2.15 on the
+    FMU's records 2201-2220), so this is not the default.
 
     Parameters
     ----------
