@@ -19,6 +19,7 @@ independent (``"independent"``): RMS ``z`` (the std from the 90% interval's widt
 
     python benchmarks/pole_shape.py [--scenarios seal_cross_coupling,magnetic_pull] [--seeds 24]
                                     [--first-seed 601] [--workers 2] [--duration 1200] [--rows rows.json]
+                                    [--streams {fmu,numpy}]
                                     [the extraction flags of update_coverage_fmu.py: --delete-half ...]
 
 Results go to ``benchmarks/results/pole_shape.md``.
@@ -88,14 +89,16 @@ def mode_terms(tw, truth: dict[str, float], name: str) -> list[dict]:
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
-    """Simulate and extract one dataset (``extraction``: options of :func:`twin.extract.extract`); the
-    linearised terms and the two updates; one row per parameter."""
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
+                streams: str = "fmu") -> list[dict]:
+    """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s) and extract one dataset
+    (``extraction``: options of :func:`twin.extract.extract`); the linearised terms and the two updates; one row
+    per parameter."""
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
 
     name, seed = job
-    tw, names, truth = scenario_record(job, duration_s, extraction)
+    tw, names, truth = scenario_record(job, duration_s, extraction, streams)
     if any(PER_MODE_NAME.match(n) for n in names):
         raise ValueError(f"{name}: per-mode parameters are not one shared direction; choose another scenario")
     tables = {}

@@ -63,9 +63,10 @@ def moved(modes, target: np.ndarray, part: str):
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None) -> list[dict]:
-    """Simulate, extract (``extraction``: options of :func:`twin.extract.extract`) and update one dataset
-    the five ways; one row per parameter."""
+def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
+                streams: str = "fmu") -> list[dict]:
+    """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s), extract (``extraction``:
+    options of :func:`twin.extract.extract`) and update one dataset the five ways; one row per parameter."""
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
@@ -74,7 +75,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     from twin.update.problem import build_problem
 
     name, seed = job
-    tw, names, truth = scenario_record(job, duration_s, extraction)
+    tw, names, truth = scenario_record(job, duration_s, extraction, streams)
     target = truth_shapes(tw, truth)
     datasets = {"default": tw.modes, "true shapes": moved(tw.modes, target, "all"),
                 "true Re": moved(tw.modes, target, "re"), "true Im": moved(tw.modes, target, "im")}  # fmt: skip

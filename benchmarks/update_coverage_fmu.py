@@ -17,6 +17,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
                                              [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
                                              [--pole-error {samples+orders,samples}] [--logdet] [--flat-priors]
+                                             [--streams {fmu,numpy}]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
 chains); ``--workers`` runs datasets as Dask tasks. Results go to
@@ -34,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from extraction_options import add_extraction_options, extraction_flags, extraction_options
+from numpy_records import STREAMS, numpy_signals
 
 from twin.update.marginal import SHAPE_COVARIANCES
 from twin.update.poles import POLE_ERRORS
@@ -56,9 +58,11 @@ def group(name: str) -> str:
     return name
 
 
-def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | None = None):
+def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | None = None, streams: str = "fmu"):
     """Simulate and extract one dataset of a scenario (``extraction``: options of :func:`twin.extract.extract`
-    other than its defaults); the twin with the hidden effect added, the names to update and their truths.
+    other than its defaults; ``streams``: ``"fmu"`` through the FMU, ``"numpy"`` the same record from numpy's
+    random numbers, :func:`numpy_records.numpy_signals`); the twin with the hidden effect added, the names to
+    update and their truths.
 
     Returns ``(twin, names, truth)``: a :class:`twin.loop.twin.Twin` on the extracted modes, the parameter
     names (the 16 bearing coefficients for ``bearings``, else the added effect's, per-mode ones by measured
@@ -77,8 +81,11 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
     scenario = parse_scenario("none" if name == "bearings" else name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(),
-                           progress=False)  # fmt: skip
+        if streams == "numpy":
+            signals = numpy_signals(model, scenario.truth(), duration_s, seed)
+        else:
+            signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(),
+                               progress=False)  # fmt: skip
         modes = extract(signals, fmax_hz=60.0, progress=False, **{"samples": DEMO_SAMPLES, **(extraction or {})})
         tw = Twin(model, modes)
         if name == "bearings":
@@ -93,10 +100,12 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
                 shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None,
-                pole_error: str | None = None, logdet: bool = False, plausible: bool = True) -> list[dict]:  # fmt: skip
-    """Simulate, extract (``extraction``: options of :func:`twin.extract.extract` other than its defaults) and
-    update one dataset (``shape_covariance``, ``combine``, ``pole_error``, ``logdet`` and ``plausible`` as
-    :func:`twin.update.update`'s); one row per parameter."""
+                pole_error: str | None = None, logdet: bool = False, plausible: bool = True,
+                streams: str = "fmu") -> list[dict]:  # fmt: skip
+    """Simulate (``streams`` as :func:`scenario_record`'s), extract (``extraction``: options of
+    :func:`twin.extract.extract` other than its defaults) and update one dataset (``shape_covariance``,
+    ``combine``, ``pole_error``, ``logdet`` and ``plausible`` as :func:`twin.update.update`'s); one row per
+    parameter."""
     from twin.loop.demo import posterior_table
     from twin.update.adjust import stretch
     from twin.update.posterior import parameter_draws
@@ -104,7 +113,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
 
     name, seed = job
     started = time.perf_counter()
-    tw, names, truth = scenario_record(job, duration_s, extraction)
+    tw, names, truth = scenario_record(job, duration_s, extraction, streams)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -170,6 +179,9 @@ def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int,
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
+    ap.add_argument("--streams", choices=STREAMS, default=STREAMS[0],
+                    help="the records' random numbers: the FMU's own, or numpy's through the same system "
+                         "(numpy_records.py)")
     add_extraction_options(ap)
 
 
@@ -195,13 +207,13 @@ def dataset_command(script: str, args: argparse.Namespace) -> str:
     """The command line of a benchmark over FMU datasets with the options of :func:`add_dataset_options`."""
     return (f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
             f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-            f"{extraction_flags(args)}")  # fmt: skip
+            f"{'' if args.streams == STREAMS[0] else ' --streams ' + args.streams}{extraction_flags(args)}")  # fmt: skip
 
 
 def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
                       scenarios: str, seeds: int, first_seed: int) -> None:  # fmt: skip
     """The whole run of a benchmark over FMU datasets without options of its own: parse the options of
-    :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s, extraction)`` for
+    :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s, extraction, streams)`` for
     every dataset, and write ``title``, the command, ``note`` and ``report(rows)`` to ``results``."""
     ap = argparse.ArgumentParser(description=description)
     add_dataset_options(ap, scenarios=scenarios, seeds=seeds, first_seed=first_seed)
@@ -209,7 +221,7 @@ def dataset_benchmark(description: str, script: str, one_dataset, report, result
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
-                            extraction=extraction_options(args))  # fmt: skip
+                            extraction=extraction_options(args), streams=args.streams)  # fmt: skip
     rows = [r for rs in results_ for r in rs]
     lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
              f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
@@ -244,7 +256,7 @@ def main() -> None:
     results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
                            extraction=extraction_options(args), shape_covariance=args.shape_covariance,
                            combine=args.combine, pole_error=args.pole_error, logdet=args.logdet,
-                           plausible=not args.flat_priors)  # fmt: skip
+                           plausible=not args.flat_priors, streams=args.streams)  # fmt: skip
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
     lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
