@@ -205,9 +205,10 @@ def run_datasets(function, jobs: list[tuple[str, int]], workers: int, **shared) 
 
 def dataset_command(script: str, args: argparse.Namespace) -> str:
     """The command line of a benchmark over FMU datasets with the options of :func:`add_dataset_options`."""
+    streams = "" if args.streams == STREAMS[0] else f" --streams {args.streams}"
     return (f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
             f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-            f"{'' if args.streams == STREAMS[0] else ' --streams ' + args.streams}{extraction_flags(args)}")  # fmt: skip
+            f"{streams}{extraction_flags(args)}")  # fmt: skip
 
 
 def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
