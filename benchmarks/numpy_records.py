@@ -34,12 +34,12 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     from twin.fmu import discretize, simulate_reference
     from twin.fmu.excitation import unbalance_force
     from twin.fmu.export import default_turbulence_node, default_unbalance_node
-    from twin.fmu.simulate import (DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, MAX_WARMUP_S,
-                                   WARMUP_TIME_CONSTANTS, sensor_noise_std, system_for)  # fmt: skip
+    from twin.fmu.simulate import (DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, default_warmup_s,
+                                   sensor_noise_std, system_for)  # fmt: skip
 
     h = 1.0 / fs_hz
     ss = system_for(model, truth, "full", None)
-    n_warm = int(np.ceil(min(MAX_WARMUP_S, WARMUP_TIME_CONSTANTS / np.min(-ss.poles.real)) * fs_hz))
+    n_warm = int(np.ceil(default_warmup_s(ss) * fs_hz))
     n_rec = int(round(duration_s * fs_hz))
     total = n_warm + n_rec
     rng = np.random.default_rng(seed)

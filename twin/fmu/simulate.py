@@ -57,6 +57,21 @@ def output_rms(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports
     return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", ss.C, sigma, ss.C), 0, None))
 
 
+def default_warmup_s(ss: StateSpace) -> float:
+    """The warm-up [s] :func:`simulate` discards by default: ``WARMUP_TIME_CONSTANTS`` time constants of the
+    slowest mode, at most ``MAX_WARMUP_S``.
+
+    Examples
+    --------
+    >>> from twin.fmu.statespace import StateSpace
+    >>> ss = StateSpace(np.array([[-0.5]]), np.array([[1.0]]), np.array([[1.0]]), ["0.x"], ["y"], 0.0)
+    >>> default_warmup_s(ss)  # five time constants of 2 s
+    10.0
+    """
+    slowest = 1.0 / np.min(-ss.poles.real)
+    return float(min(MAX_WARMUP_S, WARMUP_TIME_CONSTANTS * slowest))
+
+
 def sensor_noise_std(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports: list[int],
                      noise_ratio: float, noise_std_m: float | None = None) -> float:
     """Sensor noise std [m] per sample: ``noise_std_m`` when given, else ``noise_ratio`` times the
@@ -151,8 +166,7 @@ def simulate(
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
                       f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", stacklevel=2)  # fmt: skip
     if warmup_s is None:
-        slowest = 1.0 / np.min(-ss.poles.real)
-        warmup_s = min(MAX_WARMUP_S, WARMUP_TIME_CONSTANTS * slowest)
+        warmup_s = default_warmup_s(ss)
     n_warm = int(np.ceil(warmup_s * fs_hz))
     n_rec = int(round(duration_s * fs_hz))
     if n_rec < 2:
