@@ -29,7 +29,7 @@ from scipy.signal import lfilter
 
 import twin
 from twin.fmu import export_fmu, full_state_space, truncated_state_space
-from twin.fmu.excitation import turbulence_force, unbalance_force
+from twin.fmu.excitation import excitation_forces, turbulence_force
 
 ROOT = Path(__file__).resolve().parent.parent
 FS = 256.0
@@ -44,9 +44,7 @@ def numpy_modal(ss, n: int, h: float) -> tuple[np.ndarray, float]:
     """
     start = time.perf_counter()
     t = np.arange(n) * h
-    f = np.zeros((n, len(ss.ports)))
-    f[:, [ss.port_index("8.x"), ss.port_index("8.y")]] = unbalance_force(t, ME, 0.0, ss.speed_rpm * np.pi / 30)
-    f[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(n, ASD, 1, h)
+    f = excitation_forces(ss, t, 8, ME, 28, turbulence_force(n, ASD, 1, h))
     used = np.nonzero(np.any(f != 0, axis=0))[0]
     lam, vec = sla.eig(ss.A)
     left = np.linalg.inv(vec)

@@ -32,7 +32,7 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     (('time', 'channel'), 128, 'numpy')
     """
     from twin.fmu import discretize, simulate_reference
-    from twin.fmu.excitation import unbalance_force
+    from twin.fmu.excitation import excitation_forces
     from twin.fmu.export import default_turbulence_node, default_unbalance_node
     from twin.fmu.simulate import (DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, default_warmup_s,
                                    sensor_noise_std, system_for)  # fmt: skip
@@ -43,12 +43,11 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     n_rec = int(round(duration_s * fs_hz))
     total = n_warm + n_rec
     rng = np.random.default_rng(seed)
-    turbulence = [ss.port_index(f"{default_turbulence_node(model)}.{a}") for a in "xy"]
-    unbalance = [ss.port_index(f"{default_unbalance_node(model)}.{a}") for a in "xy"]
-    forces = np.zeros((total, len(ss.ports)))
+    turbulence_node = default_turbulence_node(model)
     t = (np.arange(total) - n_warm) * h
-    forces[:, unbalance] = unbalance_force(t, DEFAULT_UNBALANCE_ME, 0.0, ss.speed_rpm * np.pi / 30)
-    forces[:, turbulence] += DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2))
+    forces = excitation_forces(ss, t, default_unbalance_node(model), DEFAULT_UNBALANCE_ME, turbulence_node,
+                               DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2)))
+    turbulence = [ss.port_index(f"{turbulence_node}.{a}") for a in "xy"]
     y = simulate_reference(discretize(ss, h), ss.C, foh=forces)[n_warm:]
     noise = rng.standard_normal((total, y.shape[1]))[n_warm:]  # drawn over the warm-up too, as the FMU's
     y += sensor_noise_std(ss, h, DEFAULT_TURBULENCE_ASD, turbulence, 0.05) * noise

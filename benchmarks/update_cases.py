@@ -24,6 +24,7 @@ import numpy as np
 
 import twin
 from twin.errors import TwinWarning
+from twin.tasks import one_blas_thread
 from twin.update import summary, synthesize_modes, update
 from twin.update.core import BURN_IN, MIN_MARGIN
 from twin.update.gibbs import NOISE_MODELS
@@ -49,6 +50,7 @@ def paper_figure(name: str) -> str:
     return PAPER.get(name, PAPER["bearing"])
 
 
+@one_blas_thread  # many small dense problems: a second BLAS thread costs more than it gains (twin.tasks)
 def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN,
         collapsed: bool = False, pole_model: str = "samples", adjust: str | None = None, combine: str | None = None):
     ds = synthesize_modes(model, samples=100, seed=seed)

@@ -9,7 +9,7 @@ from fmpy.validation import validate_fmu
 
 from twin import ModelError, TwinError
 from twin.fmu import discretize, export_fmu, full_state_space, simulate_reference, truncated_state_space
-from twin.fmu.excitation import sensor_noise, turbulence_force, unbalance_force
+from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_force
 
 H = 1.0 / 256.0
 
@@ -22,11 +22,8 @@ def unit_fmu(tmp_path_factory, hydro_unit):
 def _reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None):
     """Exact recursion with the FMU's excitation: external inputs ZOH, unbalance and turbulence FOH."""
     t = np.arange(n) * H
-    zoh, foh = np.zeros((n, len(ss.ports))), np.zeros((n, len(ss.ports)))
-    foh[:, [ss.port_index(f"{node}.x"), ss.port_index(f"{node}.y")]] += unbalance_force(
-        t, me, phase, ss.speed_rpm * 2 * np.pi / 60
-    )
-    foh[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(n, asd, seed, H)
+    zoh = np.zeros((n, len(ss.ports)))
+    foh = excitation_forces(ss, t, node, me, 28, turbulence_force(n, asd, seed, H), phase_rad=phase)
     for port, values in (inputs or {}).items():
         zoh[:, ss.port_index(port)] += values
     return simulate_reference(discretize(ss, H), ss.C, zoh=zoh, foh=foh)

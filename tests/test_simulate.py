@@ -12,7 +12,7 @@ from twin.cli import main
 from twin.fem.truthfile import Truth
 from twin.fem.effects import MagneticPull
 from twin.fmu import discretize, full_state_space, simulate_reference
-from twin.fmu.excitation import sensor_noise, turbulence_force, unbalance_force
+from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_force
 from twin.fmu.simulate import simulate
 
 
@@ -23,9 +23,7 @@ def test_signals_equal_the_numpy_reference_after_the_warm_up(hydro_unit):
     ss = full_state_space(hydro_unit)
     h, total = 1 / fs, int(warm * fs) + n
     t = (np.arange(total) - int(warm * fs)) * h
-    foh = np.zeros((total, len(ss.ports)))
-    foh[:, [ss.port_index("8.x"), ss.port_index("8.y")]] = unbalance_force(t, 100.0, 0.0, ss.speed_rpm * np.pi / 30)
-    foh[:, [ss.port_index("28.x"), ss.port_index("28.y")]] += turbulence_force(total, 3000.0, 3, h)
+    foh = excitation_forces(ss, t, 8, 100.0, 28, turbulence_force(total, 3000.0, 3, h))
     ref = simulate_reference(discretize(ss, h), ss.C, foh=foh)
     ref += sensor_noise(total, 8, settings["noise_std_m"], 3 + 7919)
     np.testing.assert_allclose(ds.displacement.values, ref[-n:], rtol=0, atol=1e-9 * np.abs(ref).max())

@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from twin.fem.model import RPM_TO_RAD_S
+from twin.fmu.statespace import StateSpace
+
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
@@ -61,6 +64,45 @@ def unbalance_force(t: np.ndarray, me_kgm: float, phase_rad: float, omega_rad_s:
 def turbulence_force(n_samples: int, asd: float, seed: int, h: float) -> np.ndarray:
     """Turbulence force samples [N], shape ``(n_samples, 2)``; one sample per step boundary."""
     return asd / np.sqrt(2.0 * h) * gaussian_stream(seed, 2 * n_samples).reshape(n_samples, 2)
+
+
+def excitation_forces(
+    ss: StateSpace,
+    t: np.ndarray,
+    unbalance_node: int | str,
+    me_kgm: float,
+    turbulence_node: int | str,
+    turbulence: np.ndarray,
+    phase_rad: float = 0.0,
+) -> np.ndarray:
+    """The FMU's built-in excitation as the force input of the reference simulation, ``(len(t), ports)`` [N].
+
+    The 1X unbalance (:func:`unbalance_force`, at the system's running speed) at ``unbalance_node`` and the
+    turbulence samples ``turbulence`` ``(len(t), 2)`` [N] (e.g. :func:`turbulence_force`) at
+    ``turbulence_node``, both in x and y; zero at every other port. The FMU takes them linear between
+    samples: pass the array as ``foh`` to :func:`twin.fmu.statespace.simulate_reference`.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fmu.statespace import full_state_space
+    >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
+    >>> t = np.arange(4) / 256.0
+    >>> f = excitation_forces(ss, t, 8, 100.0, 28, turbulence_force(4, 3000.0, 1, 1 / 256.0))
+    >>> f.shape == (4, len(ss.ports)), int(np.count_nonzero(f.any(axis=0)))
+    (True, 4)
+    """
+    t = np.asarray(t, dtype=float)
+    turbulence = np.asarray(turbulence, dtype=float)
+    if turbulence.shape != (len(t), 2):
+        raise ValueError(f"turbulence must be {len(t)} samples of x and y, shape ({len(t)}, 2), "
+                         f"got {turbulence.shape}")  # fmt: skip
+    forces = np.zeros((len(t), len(ss.ports)))
+    forces[:, [ss.port_index(f"{unbalance_node}.{a}") for a in "xy"]] = unbalance_force(
+        t, me_kgm, phase_rad, ss.speed_rpm * RPM_TO_RAD_S
+    )
+    forces[:, [ss.port_index(f"{turbulence_node}.{a}") for a in "xy"]] += turbulence
+    return forces
 
 
 def sensor_noise(n_samples: int, n_channels: int, std: float, seed: int) -> np.ndarray:
