@@ -24,13 +24,13 @@ from twin.cli.parser import rows_or_auto
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
 VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"),
           ("shape_block_rows", "shape_block_rows"), ("first_lag", "first_lag"),
-          ("differenced_above", "differenced_above_hz"))
+          ("differenced_above", "differenced_above_hz"), ("shape_samples", "shape_samples"))
 
 
 def add_extraction_options(ap: argparse.ArgumentParser) -> None:
     """Add ``--keep-harmonics``, ``--delete-half``, ``--samples``, ``--blocks``, ``--orders-per-mode``,
-    ``--order-spread``, ``--block-rows``, ``--shape-block-rows``, ``--first-lag`` and ``--differenced-above`` (as
-    ``twin extract``'s) to a benchmark's parser."""
+    ``--order-spread``, ``--block-rows``, ``--shape-block-rows``, ``--first-lag``, ``--differenced-above`` and
+    ``--shape-samples`` (as ``twin extract``'s) to a benchmark's parser."""
     ap.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
                     help="leave the running-speed lines in the record (removed by default)")
     ap.add_argument("--delete-half", action="store_true", help="delete-half jackknife samples (default delete-one)")
@@ -49,6 +49,9 @@ def add_extraction_options(ap: argparse.ArgumentParser) -> None:
                     help="lag the Hankel matrix starts at (default: extract's, one period of fmax; 1: the old one)")
     ap.add_argument("--differenced-above", type=float, default=None, metavar="HZ",
                     help="modes above this frequency from the record differenced twice (default: extract's, none)")
+    ap.add_argument("--shape-samples", type=int, default=None, metavar="M",
+                    help="the shapes from M random halves of the blocks, the poles keeping theirs (default: the "
+                         "benchmark's, 4 x samples for the loop's records; 0: none)")
 
 
 def extraction_options(args: argparse.Namespace) -> dict:
@@ -67,7 +70,7 @@ def extraction_flags(args: argparse.Namespace) -> str:
     """The flags given, as they would be typed (for a results file's command line)."""
     flags = ("" if args.remove_harmonics else " --keep-harmonics") + (" --delete-half" if args.delete_half else "")
     for flag in ("samples", "blocks", "orders_per_mode", "order_spread", "block_rows", "shape_block_rows", "first_lag",
-                 "differenced_above"):
+                 "differenced_above", "shape_samples"):
         if getattr(args, flag) is not None:
             flags += f" --{flag.replace('_', '-')} {getattr(args, flag)}"
     return flags

@@ -15,6 +15,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--seeds 20] [--first-seed 101] [--workers 2] [--duration 1200]
                                              [--keep-harmonics] [--delete-half] [--samples J] [--blocks B]
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
+                                             [--shape-samples M]
                                              [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
                                              [--pole-error {samples+orders,samples}] [--logdet] [--flat-priors]
                                              [--streams {fmu,numpy}]
@@ -58,6 +59,33 @@ def group(name: str) -> str:
     return name
 
 
+def loop_extraction(extraction: dict | None) -> dict:
+    """The ``extract`` keywords of the twin's loop (``twin demo``), with the options given instead.
+
+    The loop's samples (``samples`` if given) and its shape samples
+    (:data:`twin.loop.demo.SHAPE_SAMPLES_PER_SAMPLE` per sample), unless ``extraction`` sets ``blocks`` or
+    ``delete_blocks`` (the shapes then come with the poles) or ``shape_samples`` itself (0: none).
+
+    Examples
+    --------
+    >>> loop_extraction(None)
+    {'samples': 15, 'shape_samples': 60}
+    >>> loop_extraction({"samples": 45, "blocks": 15, "delete_blocks": None})
+    {'samples': 45, 'blocks': 15, 'delete_blocks': None}
+    >>> loop_extraction({"shape_samples": 0})
+    {'samples': 15}
+    """
+    from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+
+    options = dict(extraction or {})
+    options.setdefault("samples", DEMO_SAMPLES)
+    if "shape_samples" not in options and not {"blocks", "delete_blocks"} & set(options):
+        options["shape_samples"] = SHAPE_SAMPLES_PER_SAMPLE * options["samples"]
+    if not options.get("shape_samples", 1):
+        del options["shape_samples"]
+    return options
+
+
 def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | None = None, streams: str = "fmu"):
     """Simulate and extract one dataset of a scenario (``extraction``: options of :func:`twin.extract.extract`
     other than its defaults; ``streams``: ``"fmu"`` through the FMU, ``"numpy"`` the same record from numpy's
@@ -71,7 +99,7 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import DEMO_SAMPLES, truth_for_measured
+    from twin.loop.demo import truth_for_measured
     from twin.loop.scenarios import parse_scenario
     from twin.loop.twin import Twin
     from twin.update.problem import select_parameters
@@ -86,7 +114,7 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
         else:
             signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(),
                                progress=False)  # fmt: skip
-        modes = extract(signals, fmax_hz=60.0, progress=False, **{"samples": DEMO_SAMPLES, **(extraction or {})})
+        modes = extract(signals, fmax_hz=60.0, progress=False, **loop_extraction(extraction))
         tw = Twin(model, modes)
         if name == "bearings":
             names = select_parameters(model, "bearings")

@@ -203,6 +203,10 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     raw = xr.load_dataset(honest)
     settings = json.loads(raw.attrs["settings"])
     assert (settings["blocks"], settings["samples"], settings["delete_blocks"], raw.sizes["sample"]) == (6, 12, 3, 12)
+    assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--shape-samples", "30"]) == 0
+    raw = xr.load_dataset(honest)
+    settings = json.loads(raw.attrs["settings"])
+    assert (settings["samples"], settings["shape_samples"], settings["delete_blocks"], raw.sizes["sample"]) == (10, 30, 1, 30)
     # delete-one gives one sample per block: asking for more is named, with nothing written
     assert main(["extract", str(signals), "-o", str(tmp_path / "one.nc"), "--samples", "12", "--blocks", "6"]) == 2
     assert "one sample per block" in capsys.readouterr().err and not (tmp_path / "one.nc").exists()

@@ -70,6 +70,35 @@ def test_extraction_standard_error_has_its_two_parts(make_record):
     assert cov[0, 1] == cov[1, 0] and np.all(np.linalg.eigvalsh(cov) >= -1e-12 * cov.max())  # PSD to rounding
 
 
+def test_shape_samples_of_their_own_keep_the_poles_standard_error(make_record):
+    """extract(shape_samples=M): the shapes from M random halves of the blocks, the delete-one pole samples each
+    used M / J times with the same standard error."""
+    poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])
+    ds = make_record(poles, np.array([[1.0, 0.6j, 0.3, 0.8j]]), fs_hz=20.0, duration_s=1000.0, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        both = extract(ds, samples=20, max_order=16, progress=False, shape_samples=60)
+        one = extract(ds, samples=20, max_order=16, progress=False)
+        halves = extract(ds, samples=60, blocks=20, max_order=16, progress=False, delete_blocks=None)
+        none = extract(ds, samples=20, max_order=16, progress=False, shape_samples=0)
+    assert none.sizes["sample"] == 20 and json.loads(none.attrs["settings"])["shape_samples"] == 20
+    assert both.sizes["sample"] == 60 and json.loads(both.attrs["settings"])["shape_samples"] == 60
+    np.testing.assert_array_equal(both["shape"].values, halves["shape"].values)
+    p = both["pole"].values
+    assert np.all(p[:, 0::3] == p[:, 1::3]) and np.all(p[:, 0::3] == p[:, 2::3])  # each used 3 times in a row
+    assert np.isclose(p.mean(), one["pole"].values.mean(), rtol=1e-12)
+    np.testing.assert_allclose(both.frequency_se, one.frequency_se, rtol=1e-9)
+    # the damping ratio is not linear in the pole: its std moves a little with the scaled deviations
+    np.testing.assert_allclose(both.damping_ratio_se, one.damping_ratio_se, rtol=0.05)
+    assert "the shapes from 60 random halves of the blocks" in both.attrs["samples_method"]
+    for bad in (30, 20, 2.5, -40, "60"):
+        with pytest.raises(SignalError, match=f"shape_samples must be a whole multiple of samples = 20 above it "
+                                              f".*got {bad!r}"):  # fmt: skip
+            extract(ds, samples=20, max_order=16, progress=False, shape_samples=bad)
+    with pytest.raises(SignalError, match="shape_samples is not available with differenced_above_hz"):
+        extract(ds, samples=20, max_order=16, progress=False, shape_samples=40, differenced_above_hz=1.0)
+
+
 def _spread_ratios(make_record, seeds, delete_blocks=1):
     """Mean jackknife standard error / std over independent records, for frequency and damping ratio."""
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0])

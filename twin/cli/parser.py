@@ -248,6 +248,10 @@ def _add_stages(sub) -> None:
     p.add_argument("--differenced-above", type=float, default=None, metavar="HZ",
                    help="read the modes above this frequency [Hz] from a second pass over the record differenced "
                         "twice, where the slow, strong modes no longer fill the covariances (default: none)")
+    p.add_argument("--shape-samples", type=int, default=None, metavar="M",
+                   help="draw the shape samples from M random halves of the blocks (a multiple of --samples), "
+                        "the poles keeping their own samples, each used M / samples times (default: the shapes "
+                        "come with the poles)")
     p.add_argument("--max-order", type=int, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")

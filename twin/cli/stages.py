@@ -108,7 +108,7 @@ def _extract(args: argparse.Namespace) -> int:
                  delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
                  remove_harmonics=args.remove_harmonics, blocks=args.blocks,
                  orders_per_mode=args.orders_per_mode or None,
-                 differenced_above_hz=args.differenced_above)  # fmt: skip
+                 differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
           + (f"; running-speed lines removed at {removed} Hz" if removed else "")

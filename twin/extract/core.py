@@ -25,7 +25,7 @@ from twin.design.observe import record_observability, target_summary, unobservab
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import remove_running_harmonics
 from twin.extract.modesfile import write_modes
-from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations
+from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations, repeated
 from twin.extract.signals import Record, check_record
 from twin.extract.passes import (DIFFERENCES, SSIPass, differenced, first_lag_for, modes_from_differenced,
                                  shape_lag_rows, shapes_at_longer_lags, ssi_pass)
@@ -107,6 +107,7 @@ def extract(
     blocks: int | None = None,
     orders_per_mode: int | None = ORDERS_PER_MODE,
     differenced_above_hz: float | None = None,
+    shape_samples: int | None = None,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -196,6 +197,21 @@ def extract(
         records it narrows the bearings' intervals by a quarter, and the
         seal's stay too narrow (README, "The slow modes' share of the
         covariances").
+    shape_samples : int, optional
+        Draw the shape samples from their own delete-half jackknife: this
+        many random halves of the same ``blocks`` (a multiple of
+        ``samples``), while the poles keep the samples of ``delete_blocks``,
+        each used ``shape_samples / samples`` times with its deviation
+        scaled so that the standard error stays
+        (:func:`twin.extract.samples.repeated`). The update estimates each
+        mode's shape covariance (``2 x channels`` real entries) from the
+        samples; 15 delete-one samples leave it singular and its shrinkage
+        lifts the directions the bearings are read from, while the
+        delete-one spread of the poles is what the seal's and the loop's
+        comparison are calibrated to (README, "Shape samples of their
+        own"). ``twin demo`` and ``twin sweep`` ask for ``4 x samples``.
+        Not with ``differenced_above_hz`` or ``shape_block_rows``. None or 0
+        (the default): the shapes come with the poles.
     remove_harmonics : bool
         When the record gives its running speed (attr ``speed_rpm``), subtract
         the sinusoids at its multiples before SSI
@@ -265,6 +281,7 @@ def extract(
         n_deleted = len(deleted_blocks(n_blocks, delete_blocks, n_samples=samples)[0])
     except ValueError as exc:
         raise SignalError(f"delete_blocks: {exc}") from None
+    repeats = _shape_sample_repeats(shape_samples, samples, n_blocks, differenced_above_hz, shape_block_rows)
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
         raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
@@ -303,7 +320,14 @@ def extract(
     members = _members(found, orders_per_mode)
     poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
                                                            delete=delete_blocks, n_samples=samples, first_lag=k0)
-    d_p, d_s = order_deviations(members, shapes, samples)
+    n_samples = samples
+    if repeats > 1:  # the shapes from their own delete-half samples, each pole sample used `repeats` times
+        n_samples = samples * repeats
+        log.info("shape samples: %d random halves of the %d blocks", n_samples, n_blocks)
+        sample_s = jackknife(covariances, i, fs, members, progress, delete=None, n_samples=n_samples,
+                             first_lag=k0)[3]  # fmt: skip
+        sample_p, missing = repeated(sample_p, repeats), np.repeat(missing, repeats, axis=1)
+    d_p, d_s = order_deviations(members, shapes, n_samples)
     differences = np.zeros(len(poles), dtype=int)
     if differenced_above_hz is not None:
         log.info("SSI-cov again on the record differenced %d times for the modes above %g Hz",
@@ -322,7 +346,7 @@ def extract(
     n_orders = np.array([len(m[0]) for m in members])
     missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
     keep = pole_determined(poles, sample_p, missing.mean(axis=1))
-    f_se, z_se = (x / np.sqrt(samples) for x in _frequency_damping_std(sample_p[~keep]))
+    f_se, z_se = (x / np.sqrt(n_samples) for x in _frequency_damping_std(sample_p[~keep]))
     undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
                      "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
                     for p, f, z in zip(poles[~keep], f_se, z_se)]  # fmt: skip
@@ -367,7 +391,8 @@ def extract(
     out["differences"] = ("mode", differences, {"long_name": "times the record was differenced for the SSI pass "
                                                              "the mode is read from"})  # fmt: skip
     settings = {
-        "samples": samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax, "block_rows": i,
+        "samples": samples, "shape_samples": n_samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax,
+        "block_rows": i,
         "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
@@ -388,6 +413,8 @@ def extract(
                                                     "mode's model orders",
                               "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
                                      "standard error of their mean over them"}[order_spread]
+                           + (f"; the shapes from {n_samples} random halves of the blocks, each pole sample "
+                              f"used {repeats} times (scaled to keep its standard error)" if repeats > 1 else "")
                            + (f"; shapes read at {i_s} block rows" if i_s > i else "")
                            + (f"; modes above {differenced_above_hz:g} Hz read from the record differenced "
                               f"{DIFFERENCES} times" if differences.any() else "")
@@ -404,6 +431,23 @@ def extract(
     if output is not None:
         write_modes(out, output)
     return out
+
+
+def _shape_sample_repeats(shape_samples: object, samples: int, n_blocks: int, differenced_above_hz: float | None,
+                          shape_block_rows: int | str) -> int:  # fmt: skip
+    """How many times each pole sample is used beside ``shape_samples`` delete-half shape samples (1: none asked)."""
+    if shape_samples is None or _as_float(shape_samples) == 0:
+        return 1
+    if not _whole_at_least_one(shape_samples) or int(shape_samples) % samples or int(shape_samples) <= samples:
+        raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} above it "
+                          f"(e.g. {4 * samples}), got {shape_samples!r}")  # fmt: skip
+    if n_blocks < 4:
+        raise SignalError(f"shape_samples draws random halves of the blocks: it needs at least 4 blocks, "
+                          f"got {n_blocks}")  # fmt: skip
+    if differenced_above_hz is not None or shape_block_rows != 0:
+        raise SignalError("shape_samples is not available with differenced_above_hz or shape_block_rows: those "
+                          "passes redraw the samples of the modes they read")  # fmt: skip
+    return int(shape_samples) // samples
 
 
 def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.ndarray) -> list[dict] | None:

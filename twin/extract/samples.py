@@ -162,6 +162,32 @@ def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0, n_samples: 
     return [np.sort(rng.permutation(n_blocks)[:d]) for _ in range(n_samples)]
 
 
+def repeated(samples: np.ndarray, times: int) -> np.ndarray:
+    """Samples (axis 1) each used ``times`` times in a row, their deviations scaled to keep the standard error.
+
+    ``J`` samples whose std over ``sqrt(J)`` is a standard error become ``M = times J`` samples with the
+    same mean and the same std over ``sqrt(M)``: deviation ``d`` becomes ``c d`` with
+    ``c = sqrt((M - 1) M / (times (J - 1) J))``. It lets pole samples of a delete-one jackknife stand beside
+    ``M`` shape samples of another (``extract(shape_samples=M)``).
+
+    Examples
+    --------
+    >>> x = np.array([[1.0, 2.0, 6.0]])
+    >>> y = repeated(x, 4)
+    >>> y.shape, float(y.mean())
+    ((1, 12), 3.0)
+    >>> bool(np.isclose(y.std(ddof=1) / np.sqrt(12), x.std(ddof=1) / np.sqrt(3)))
+    True
+    """
+    samples = np.asarray(samples)
+    J, M = samples.shape[1], samples.shape[1] * int(times)
+    if times < 1 or J < 2:
+        raise ValueError(f"need at least 2 samples used at least once each, got {J} used {times} times")
+    mean = samples.mean(axis=1, keepdims=True)
+    c = np.sqrt((M - 1) * M / (times * (J - 1) * J))
+    return mean + c * np.repeat(samples - mean, times, axis=1)
+
+
 def order_deviations(
     members: list[tuple[np.ndarray, np.ndarray, np.ndarray]], shapes: np.ndarray, n_samples: int, seed: int = 1
 ) -> tuple[np.ndarray, np.ndarray]:
