@@ -217,7 +217,9 @@ def run_demo(
     duration_s, fs_hz : float
         Record length [s] and sampling rate [Hz] of the simulated signals.
     samples : int
-        Jackknife samples per mode.
+        Jackknife samples per mode (delete-one, the poles'); the shapes get
+        :data:`SHAPE_SAMPLES_PER_SAMPLE` times as many, random halves of the
+        same blocks (``extract(shape_samples=...)``).
     fmax_hz : float
         Highest frequency of the extraction [Hz].
     seed : int
