@@ -47,7 +47,7 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     t = (np.arange(total) - n_warm) * h
     forces = excitation_forces(ss, t, default_unbalance_node(model), DEFAULT_UNBALANCE_ME, turbulence_node,
                                DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2)))
-    turbulence = [ss.port_index(f"{turbulence_node}.{a}") for a in "xy"]
+    turbulence = ss.node_ports(turbulence_node)
     y = simulate_reference(discretize(ss, h), ss.C, foh=forces)[n_warm:]
     noise = rng.standard_normal((total, y.shape[1]))[n_warm:]  # drawn over the warm-up too, as the FMU's
     y += sensor_noise_std(ss, h, DEFAULT_TURBULENCE_ASD, turbulence, 0.05) * noise

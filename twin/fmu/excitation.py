@@ -98,10 +98,8 @@ def excitation_forces(
         raise ValueError(f"turbulence must be {len(t)} samples of x and y, shape ({len(t)}, 2), "
                          f"got {turbulence.shape}")  # fmt: skip
     forces = np.zeros((len(t), len(ss.ports)))
-    forces[:, [ss.port_index(f"{unbalance_node}.{a}") for a in "xy"]] = unbalance_force(
-        t, me_kgm, phase_rad, ss.speed_rpm * RPM_TO_RAD_S
-    )
-    forces[:, [ss.port_index(f"{turbulence_node}.{a}") for a in "xy"]] += turbulence
+    forces[:, ss.node_ports(unbalance_node)] = unbalance_force(t, me_kgm, phase_rad, ss.speed_rpm * RPM_TO_RAD_S)
+    forces[:, ss.node_ports(turbulence_node)] += turbulence
     return forces
 
 

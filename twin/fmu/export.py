@@ -167,7 +167,7 @@ def export_fmu(
     check_stable(state_space, model.name)
 
     disc = discretize(state_space, step_s)
-    turb = [-1, -1] if turbulence_node is None else [state_space.port_index(f"{turbulence_node}.{a}") for a in "xy"]
+    turb = [-1, -1] if turbulence_node is None else state_space.node_ports(turbulence_node)
     in_ports = [state_space.port_index(p.port) for p in ports]
     omega = state_space.speed_rpm * RPM_TO_RAD_S
     body = b"".join([

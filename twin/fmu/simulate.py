@@ -173,7 +173,7 @@ def simulate(
         raise ModelError(f"{duration_s} s at {fs_hz} Hz gives fewer than two samples")
 
     turb_node = default_turbulence_node(model)
-    turb_ports = [] if turb_node is None else [ss.port_index(f"{turb_node}.{a}") for a in "xy"]
+    turb_ports = [] if turb_node is None else ss.node_ports(turb_node)
     noise_std = sensor_noise_std(ss, h, turbulence_asd, turb_ports, noise_ratio, noise_std_m)
     start_values = {
         "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,

@@ -79,6 +79,18 @@ class StateSpace:
         except ValueError:
             raise ModelError(f"no force port '{port}'; ports are '<node>.x' / '<node>.y' for nodes 0..{len(self.ports) // 2 - 1}") from None
 
+    def node_ports(self, node: int | str) -> list[int]:
+        """Columns of ``B`` for the x and y forces at ``node`` (:meth:`port_index` of ``"<node>.x"``, ``"<node>.y"``).
+
+        Examples
+        --------
+        >>> from twin import load_model, shipped_model
+        >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
+        >>> ss.node_ports(28) == [ss.port_index("28.x"), ss.port_index("28.y")]
+        True
+        """
+        return [self.port_index(f"{node}.{a}") for a in "xy"]
+
     @cached_property
     def poles(self) -> np.ndarray:
         """Eigenvalues of ``A`` [1/s] (computed once)."""
