@@ -1,7 +1,8 @@
 """Extraction time with the Hankel matrix's leading singular triplets from Lanczos (the default) against the full SVD.
 
 One 20 min record of the hydro unit (FMU, 256 Hz, seed 1, no hidden effect) is
-extracted as the loop does (``fmax 60 Hz``, 15 delete-one samples) twice per
+extracted as the loop does (``fmax 60 Hz``, 15 delete-one samples and 60
+shape samples from random halves of the blocks, ``--shape-samples``) twice per
 setting in the same process (a number: one SSI pass with that many block
 rows, as extract does by default; ``auto``: the default block rows and
 ``shape_block_rows="auto"``, a second pass for the slow modes' shapes,
@@ -11,7 +12,7 @@ and once with ``PARTIAL_SVD_FRACTION = 0`` (every realisation from the full
 SVD). It reports the wall times, their ratio and the largest differences of
 the two results' frequencies, damping ratios and shape samples.
 
-    python benchmarks/ssi_speed.py [--block-rows 107,214[,auto]] [--seed 1] [--repeat 2]
+    python benchmarks/ssi_speed.py [--block-rows 107,214[,auto]] [--seed 1] [--repeat 2] [--shape-samples 60]
 
 Writes ``benchmarks/results/ssi_speed.md``.
 """
@@ -32,15 +33,18 @@ RESULTS = Path(__file__).parent / "results" / "ssi_speed.md"
 
 
 @one_blas_thread
-def timed_extractions(signals, block_rows: int | None, repeat: int) -> dict:
+def timed_extractions(signals, block_rows: int | None, repeat: int, shape_samples: int = 0) -> dict:
     """Best-of-``repeat`` wall time of ``extract`` with Lanczos and with the full SVD, and the results' differences.
 
-    ``block_rows``: one SSI pass with that many; None: ``shape_block_rows="auto"`` (two passes)."""
+    ``block_rows``: one SSI pass with that many; None: ``shape_block_rows="auto"`` (two passes).
+    ``shape_samples``: ``extract``'s (0: the shapes come with the poles' samples)."""
     import twin.extract.ssi as ssi
     from twin.extract import extract
     from twin.loop.demo import DEMO_SAMPLES
 
     options = {"shape_block_rows": "auto"} if block_rows is None else {"block_rows": block_rows}
+    if shape_samples:
+        options["shape_samples"] = shape_samples
 
     def run():
         best, out = np.inf, None
@@ -77,17 +81,24 @@ def main() -> None:
                     help="comma-separated block rows of one pass, or auto (a second pass for the slow modes' shapes)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=2, help="runs per setting; the fastest counts")
+    ap.add_argument("--shape-samples", type=int, default=None,
+                    help="extract's shape samples (default: the loop's, 4 per sample; 0: none; auto block rows "
+                         "take none)")
     args = ap.parse_args()
     from twin import load_model, shipped_model
     from twin.fmu.simulate import simulate
+    from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+
+    shape_samples = SHAPE_SAMPLES_PER_SAMPLE * DEMO_SAMPLES if args.shape_samples is None else args.shape_samples
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
     settings = [None if b.strip() == "auto" else int(b) for b in args.block_rows.split(",")]
-    rows = [timed_extractions(signals, b, args.repeat) for b in settings]
+    rows = [timed_extractions(signals, b, args.repeat, 0 if b is None else shape_samples) for b in settings]
     lines = ["# SSI: leading singular triplets by Lanczos against the full SVD", "",
              f"Command: `python benchmarks/ssi_speed.py --block-rows {args.block_rows} --seed {args.seed} "
-             f"--repeat {args.repeat}`; one BLAS thread, best of {args.repeat}.", "",
+             f"--repeat {args.repeat} --shape-samples {shape_samples}`; one BLAS thread, best of {args.repeat}; "
+             f"{shape_samples or 'no'} shape samples of their own (none with auto block rows).", "",
              "| block rows | modes | extract, Lanczos [s] | extract, full SVD [s] | full / Lanczos | "
              "max rel. diff. frequency | max rel. diff. damping | max abs. diff. shape samples |",
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
