@@ -212,7 +212,7 @@ def report(rows: list[dict]) -> list[str]:
     for scenario, grp in keys:
         sel = [r for r in rows if r["scenario"] == scenario and r["group"] == grp]
         model = np.mean([r["q05_model"] <= r["truth"] <= r["q95_model"] for r in sel])
-        inside = np.mean([r["q05"] <= r["truth"] <= r["q95"] for r in sel])
+        inside = np.mean([_covers(r) for r in sel])
         err = np.median([abs(r["map"] / r["truth"] - 1) for r in sel if r["truth"] != 0] or [np.nan])
         det = [r for r in sel if r["determined"]]
         und = [r for r in sel if not r["determined"]]
@@ -227,7 +227,7 @@ def report(rows: list[dict]) -> list[str]:
         lines.append(f"| {scenario} | {grp} | {len(sel)} | {model:.0%} | {inside:.0%} | {determined} | {err:.1%} | "
                      f"{len(und)} ({covered}) | {mixed} | {least} |")  # fmt: skip
     model = np.mean([r["q05_model"] <= r["truth"] <= r["q95_model"] for r in rows])
-    inside = np.mean([r["q05"] <= r["truth"] <= r["q95"] for r in rows])
+    inside = np.mean([_covers(r) for r in rows])
     lines += ["", f"All: the 90% intervals cover the truth for {model:.0%} of {len(rows)} values with the model's "
                   f"posterior, {inside:.0%} adjusted."]  # fmt: skip
     return lines
