@@ -410,7 +410,8 @@ def _adjusted(result: Chain, marg: Marginal, model: RotorModel, modes: xr.Datase
 def _sampler_text(pole_model: str, collapsed: bool) -> str:
     if pole_model == "marginal":
         return ("HMC on the marginal of (t, eta), with (psi, eps) and the pole deviations integrated out "
-                "(errors-in-variables PerCEM, Student t tail per mode); then psi | t, eta (closed form)")  # fmt: skip
+                "(errors-in-variables PerCEM, Student t tail per mode), each trajectory followed by a slice step "
+                "of every eta_i | t; then psi | t, eta (closed form)")  # fmt: skip
     return "Gibbs: t | rest, eta_i | rest, " + ("Metropolis (t, eta) | Delta with (psi, eps) integrated out, "
             if collapsed else "") + "(psi_i, eps_i) | rest, Delta_i | rest (closed form)"  # fmt: skip
 
