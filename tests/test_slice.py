@@ -77,3 +77,6 @@ def test_a_block_never_leaves_its_support():
     draws = np.array(draws)
     assert draws.min() >= 0.0
     np.testing.assert_allclose(draws.mean(axis=0), np.sqrt(2 / np.pi), rtol=0.06)
+    # a block that starts outside its support could never close in on a point of the slice
+    with pytest.raises(ValueError, match=r"block\(s\) \[1\] start where their log density is not finite"):
+        slice_blocks(log_f, np.array([[1.0], [-1.0]]), np.ones((2, 1, 1)), np.ones((2, 1)), rng)

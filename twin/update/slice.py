@@ -66,7 +66,7 @@ def slice_blocks(log_f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axes:
     axes, widths : (I, Km, A), (I, A)
         The A directions (columns) and initial interval widths (:func:`block_axes`: all Km principal axes).
     f0 : (I,), optional
-        ``log_f(x)``, if known.
+        ``log_f(x)``, if known; it must be finite (the shrinkage closes in on ``x``).
     max_steps : int
         Most widths the interval steps out along an axis (split at random
         between the two ends, as Neal's procedure does to keep the update
@@ -92,6 +92,9 @@ def slice_blocks(log_f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axes:
     I = x.shape[0]
     x = np.array(x, dtype=float)
     f0 = log_f(x) if f0 is None else np.array(f0, dtype=float)
+    if not np.all(np.isfinite(f0)):
+        raise ValueError(f"slice_blocks: block(s) {np.flatnonzero(~np.isfinite(f0)).tolist()} start where their "
+                         "log density is not finite")  # fmt: skip
     for a in range(axes.shape[2]):
         step = axes[:, :, a] * widths[:, a, None]
         log_y = f0 - rng.exponential(size=I)
