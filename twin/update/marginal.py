@@ -610,6 +610,7 @@ def run_chain(
         y, (here, theta) = Lm.T @ mode, evaluate(Lm.T @ mode)
     g = gradient(here)
     slicing = per_mode_slice and p.n_per_mode > 0
+    f = held = None  # each mode's density in its own parameters, and the shared ones it was built at
     if slicing:
         axes, widths = block_axes(Lm @ Lm.T, p.n_global, p.n_modes, p.n_per_mode)
     warm = max(burn_in, WARMUP)
@@ -638,7 +639,8 @@ def run_chain(
         if moved:
             y, g, here, theta = yn, gn, new, theta_n
         if slicing:
-            f = mode_density(marg, theta, prior_mean, prior_precision, nu)
+            if f is None or not np.array_equal(theta[: p.n_global], held):  # its coefficients depend on t only
+                f, held = mode_density(marg, theta, prior_mean, prior_precision, nu), theta[: p.n_global].copy()
             eta = slice_blocks(f, theta[p.n_global:].reshape(p.n_modes, -1), axes, widths, rng)[0]
             theta = np.concatenate([theta[: p.n_global], eta.ravel()])
             y = Lm.T @ theta
