@@ -81,11 +81,11 @@ def test_update_records_the_adjustment_and_never_narrows(hydro_unit):
     data = _data(hydro_unit, 5, samples=30)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        plain = update(hydro_unit, data, NAMES, draws=200, chains=1, seed=3, adjust="none", progress=False)
-        tree = update(hydro_unit, data, NAMES, draws=200, chains=1, seed=3, progress=False)
+        plain = update(hydro_unit, data, NAMES, draws=200, chains=1, seed=3, progress=False)  # the default: none
+        tree = update(hydro_unit, data, NAMES, draws=200, chains=1, seed=3, adjust="jackknife", progress=False)
     factors = json.loads(tree.attrs["spread_adjustment"])
     assert set(factors) == set(NAMES) and min(factors.values()) >= 1.0
-    assert "spread_adjustment" not in plain.attrs
+    assert "spread_adjustment" not in plain.attrs and json.loads(plain.attrs["settings"])["adjust"] == "none"
     std = [t["posterior"]["theta"].std(("chain", "draw")) for t in (plain, tree)]
     np.testing.assert_allclose(std[1] / std[0], [factors[n] for n in NAMES], rtol=1e-4)  # same chain, stretched (attr rounded)
     assert json.loads(tree.attrs["settings"])["adjust"] == "jackknife"

@@ -9,7 +9,7 @@
                  [--order-spread shapes|all|none] [--differenced-above HZ]
     twin synthesize-modes MODEL.toml -o modes.nc [--truth truth.toml|paper] [--samples J] [--seed N]
     twin update MODEL.toml modes.nc -o posterior.nc [--params bearings|NAME,...] [--fsi] [--draws N] [--chains N]
-                [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear] [--adjust jackknife|none] [--effect LABEL]
+                [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear] [--adjust none|jackknife] [--effect LABEL]
     twin compare MODEL.toml modes.nc [--posterior posterior.nc] [--effect LABEL] [--json] [--plot DIR]
     twin diagnose MODEL.toml modes.nc [--posterior posterior.nc] [--candidates LABEL,...] [--json]
     twin loop MODEL.toml modes.nc [--out DIR] [--method laplace|gibbs]

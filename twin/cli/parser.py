@@ -321,11 +321,11 @@ def _add_loop(sub) -> None:
                         "and its covariance, the pole deviation and the shapes integrated out, the parameters "
                         "sampled by HMC; linear (Gibbs): linearised about each mode's mean pole; samples "
                         "(Gibbs): at every sample (the paper's)")
-    p.add_argument("--adjust", choices=("jackknife", "none"), default=None,
-                   help="marginal model only (default there: jackknife): stretch each parameter's draws by what "
-                        "the correlation of the modes adds to the spread of its posterior mode over perturbations "
-                        "of the data by its own samples, where that is more than one (modes from one record are "
-                        "correlated); none: the model's posterior")
+    p.add_argument("--adjust", choices=("none", "jackknife"), default=None,
+                   help="none (the default): the model's posterior; jackknife (marginal model only): stretch each "
+                        "parameter's draws by what the correlation of the modes adds to the spread of its "
+                        "posterior mode over perturbations of the data by its own samples, where that is more "
+                        "than one (modes from one record are correlated)")
     p.add_argument("--combine", choices=("intersection", "independent"), default=None,
                    help="marginal model only (default there: intersection): each mode's pole and shape errors, "
                         "correlated by an unknown amount, combined by covariance intersection; independent: as if "

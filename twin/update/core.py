@@ -45,11 +45,10 @@ BURN_IN = 20
 #: integrated out, its parameters sampled by HMC (:mod:`twin.update.marginal`); ``noise_model`` and
 #: ``collapsed`` only apply to the Gibbs configurations (``pole_model`` "linear" or "samples"). Where the
 #: Gibbs sampler with a full Δ left weakly determined parameters unmixed (paper Case B: bulk ESS 2 of
-#: 500), this one mixes (README, benchmarks/update_speed.py). Its 90% intervals cover 91% of the truths
-#: on the paper's data; on extracted modes, with the spread adjusted for the modes' correlation
-#: (``adjust``) and each mode's pole and shape errors combined by covariance intersection (``combine``),
-#: 75-100% by parameter group (on seeds 701-720 and 801-820: a hidden pull 90% and 85%, a seal 90% and 85%,
-#: the FSI's added mass 80% and 75%, the bearings 98-100%; 20 FMU records each,
+#: 500), this one mixes (README, benchmarks/update_speed.py). Its 90% intervals cover about 91% of the
+#: truths on the paper's data (Case A and B); on extracted modes, with each mode's pole and shape errors
+#: combined by covariance intersection (``combine``), the model's own posterior (no ``adjust``) covers
+#: 90-95% by parameter group over 40-80 FMU records each, except a hidden seal (82% of 100; README, stop 58;
 #: benchmarks/results/update_coverage_fmu.md).
 CALIBRATED = {"pole_model": "marginal"}
 #: The reference paper's configuration (its Table 1): diagonal Δ, bases at every pole sample, plain Gibbs.
@@ -230,14 +229,16 @@ def update(
         default); or, for the Gibbs sampler, linearised about each mode's mean
         pole, or the basis matrices at every sample (the paper's).
         ``**twin.update.PAPER`` gives the paper's sampler.
-    adjust : {"jackknife", "none"}, optional
-        Marginal model only (its default there: ``"jackknife"``): stretch each
-        parameter's draws about their mean by what the correlation of the
-        modes adds to the spread of its posterior mode over perturbations of
-        the data by its own samples, where that is more than one
-        (:mod:`twin.update.adjust`: modes extracted from one record are
-        correlated, the model's modes independent); the factors are in the
-        attr ``spread_adjustment``.
+    adjust : {"none", "jackknife"}, optional
+        ``"none"`` (the default): the model's posterior. ``"jackknife"``
+        (marginal model only): stretch each parameter's draws about their mean
+        by what the correlation of the modes adds to the spread of its
+        posterior mode over perturbations of the data by its own samples,
+        where that is more than one (:mod:`twin.update.adjust`: modes
+        extracted from one record are correlated, the model's modes
+        independent); the factors are in the attr ``spread_adjustment``. On
+        the twin's FMU records the factor measured no error of the model's
+        intervals (README, stop 58), so it is not the default.
     shape_covariance : {"shrunk", "held-out", "sample"}
         Marginal model only: each mode's shape covariance from its samples, its
         correlations shrunk toward zero by Schäfer and Strimmer's intensity (the
@@ -298,7 +299,7 @@ def update(
             raise UpdateError(f"{name} must be an integer >= {least}, got {value}")
     check_noise_model(noise_model)
     check_pole_model(pole_model)
-    adjust = adjust or ("jackknife" if pole_model == "marginal" else "none")
+    adjust = adjust or "none"
     if adjust not in ADJUSTMENTS:
         raise UpdateError(f"adjust must be one of {', '.join(ADJUSTMENTS)}, got {adjust!r}")
     if adjust != "none" and pole_model != "marginal":
