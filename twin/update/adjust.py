@@ -33,8 +33,8 @@ to 1.9. On 980 values of 300 FMU records (the pull, the seal, the
 mode-independent FSI, the bearings) the factor told nothing about the
 error: the model's posterior had RMS z 1.00 where it was one, 0.85 where it
 was 1.1-1.25 and 0.93 above (correlation of ``|z|`` and factor -0.07), and
-it widened the FSI's added mass from 92.5% to 96.3% covered. Since the modes' pole and shape
-errors are combined by covariance intersection
+it widened the FSI's added mass from 92.5% to 96.3% covered. Since the
+modes' pole and shape errors are combined by covariance intersection
 (:mod:`twin.update.intersection`) and the shapes' covariance is shrunk, the
 model's own posterior is what the records support. A record whose modes
 are known to err together can still ask for it.
