@@ -258,7 +258,6 @@ def test_default_mixes_a_per_mode_fsi_record_where_hmc_alone_did_not(hydro_unit)
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
 
-
     tw = Twin(hydro_unit, read_modes(DATA / "modes_fsi_per_mode_10034.nc"))
     tw.add_effect("fsi_per_mode")
     with warnings.catch_warnings():

@@ -500,7 +500,7 @@ def mode_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | Non
         try:
             L = np.linalg.cholesky(Vi)
         except np.linalg.LinAlgError:  # find the modes whose V_i is not positive definite
-            ok = np.array([np.all(np.linalg.eigvalsh(v) > 0) for v in Vi])
+            ok = np.all(np.linalg.eigvalsh(Vi) > 0, axis=1)
             L = np.linalg.cholesky(np.where(ok[:, None, None], Vi, np.eye(n_r)))
         z = np.linalg.solve(L, r[:, :, None])[:, :, 0]
         kernel = tail_kernel(np.einsum("ir,ir->i", z, z), n_r, nu)[0]
