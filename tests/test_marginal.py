@@ -248,24 +248,47 @@ def test_default_mixes_every_case_b_parameter(hydro_unit, case_b_posterior):
     assert float(inside.mean()) >= 0.8  # 90% intervals; 46 values
 
 
+def _update_record(hydro_unit, name: str, effect: str, seed: int):
+    """The default update of ``effect`` on the extracted modes ``tests/data/<name>``: the posterior and its table."""
+    from twin.extract.modesfile import read_modes
+    from twin.loop.demo import posterior_table
+    from twin.loop.twin import Twin
+
+    tw = Twin(hydro_unit, read_modes(DATA / name))
+    tw.add_effect(effect)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        post = tw.update(tw.added_parameters(), seed=seed, progress=False)
+    return post, posterior_table(post, tw.model)
+
+
 @pytest.mark.slow
 def test_default_mixes_a_per_mode_fsi_record_where_hmc_alone_did_not(hydro_unit):
     # issue 18: modes extracted from the 20-min FMU record of seed 10034 with per-mode FSI in its truth; mode
     # 5's added damping is barely determined, with a long tail. HMC alone (per_mode_slice=False, sampler seed
     # 10034) had a chain set its metric in that tail: R-hat 1.034 and bulk ESS 168 for determined values of
     # other modes. With the per-mode slice step every determined value mixes (1.003 and 1853 measured)
-    from twin.extract.modesfile import read_modes
-    from twin.loop.demo import posterior_table
-    from twin.loop.twin import Twin
-
-    tw = Twin(hydro_unit, read_modes(DATA / "modes_fsi_per_mode_10034.nc"))
-    tw.add_effect("fsi_per_mode")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", TwinWarning)
-        post = tw.update(tw.added_parameters(), seed=10034, progress=False)
-    table = posterior_table(post, tw.model)
+    _, table = _update_record(hydro_unit, "modes_fsi_per_mode_10034.nc", "fsi_per_mode", seed=10034)
     determined = table["determined"].values.astype(bool)
     assert determined.sum() >= 14  # of 20: mode 5's damping and a few others are reported as not determined
     assert float(table["r_hat"].values[determined].max()) <= 1.01
     assert float(table["ess_bulk"].values[determined].min()) >= 400  # 100 per chain of 500
 
+
+def test_one_parameter_chains_take_two_leapfrog_steps_and_agree(hydro_unit):
+    # issue 18: modes extracted from the 20-min FMU record of seed 10130 with a seal cross-coupling in its truth,
+    # one parameter. When a trajectory could be one leapfrog step, each chain's dual averaging ended either side
+    # of the path length, by chance: the four chains of sampler seed 10130 accepted 71-96% (one step of about
+    # the path length, or two), bulk ESS 855 and R-hat 1.0118. With two steps at least (and the step size capped
+    # where that many steps cover the longest path) they accept alike: 95% each, ESS 1581, R-hat 1.0047 measured
+    from twin.update.marginal import MIN_STEPS, PATH_JITTER, PATH_LENGTH
+
+    post, table = _update_record(hydro_unit, "modes_seal_10130.nc", "seal_cross_coupling", seed=10130)
+    assert table.sizes["parameter"] == 1 and bool(table["determined"][0])
+    assert float(table["r_hat"][0]) <= 1.01
+    assert float(table["ess_bulk"][0]) >= 1000  # of 2000 draws: about a quarter turn a trajectory
+    stats = post["sample_stats"]
+    assert int(stats["n_steps"].min()) >= MIN_STEPS == 2
+    assert float(stats["step_size"].max()) <= PATH_LENGTH * (1 + PATH_JITTER) / MIN_STEPS
+    rates = stats["acceptance_rate"].mean("draw").values
+    assert np.all((rates > 0.85) & (rates < 1.0)), rates  # one step of about the path length accepts 71-80%

@@ -135,6 +135,12 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
         },  # fmt: skip
         coords={**coords, **mode_coord},
     )
+    if np.any(chains.n_steps):  # HMC (the marginal model): ArviZ's names for its step statistics
+        stats["acceptance_rate"] = (("chain", "draw"), chains.acceptance_rate,
+                                    {"long_name": "Metropolis acceptance probability of the HMC trajectory"})
+        stats["step_size"] = (("chain", "draw"), chains.step_size,
+                              {"long_name": "leapfrog step, in the parameters whitened by the metric"})
+        stats["n_steps"] = (("chain", "draw"), chains.n_steps, {"long_name": "leapfrog steps of the trajectory"})
     observed = observed_data(modes)
     constant = xr.Dataset(
         {

@@ -180,6 +180,9 @@ class Chain:
     noise: np.ndarray  # (draws, I): mean of Δ_i over rows
     lp: np.ndarray  # (draws,): log joint density, up to a constant
     accepted: np.ndarray  # (draws,): whether the collapsed step moved the parameters (all False without it)
+    acceptance_rate: np.ndarray  # (draws,): HMC's Metropolis acceptance probability (NaN for the Gibbs sampler)
+    step_size: np.ndarray  # (draws,): HMC's leapfrog step, whitened units (NaN for the Gibbs sampler)
+    n_steps: np.ndarray  # (draws,): HMC's leapfrog steps in the trajectory (0 for the Gibbs sampler)
 
 
 def gaussian_draw(
@@ -457,7 +460,8 @@ def run_chain(
             noise[k] = _mean_variance(state.w)
             lps[k] = lp
             accepted[k] = state.accepted
-    return Chain(out_t, out_eta, out_psi, noise, lps, accepted)
+    none = np.full(draws, np.nan)
+    return Chain(out_t, out_eta, out_psi, noise, lps, accepted, none, none, np.zeros(draws, int))
 
 
 def run_chains(

@@ -90,6 +90,8 @@ WARMUP = 250
 PATH_LENGTH = 0.5 * np.pi
 #: Relative jitter of the path length: uniform within ``PATH_LENGTH (1 ± PATH_JITTER)``.
 PATH_JITTER = 0.2
+#: Fewest leapfrog steps of a trajectory (see :func:`run_chain`).
+MIN_STEPS = 2
 #: Acceptance rate the step size is tuned to.
 TARGET_ACCEPT = 0.8
 #: Most steps of each kind on the way to the posterior mode (see :func:`posterior_mode`).
@@ -549,6 +551,16 @@ def run_chain(
     length rounded up to a whole number of steps, keeps a few large steps
     from falling on the same turn every time.
 
+    A trajectory takes at least :data:`MIN_STEPS` (two) leapfrog steps. With
+    one or two parameters the dual averaging otherwise ends either side of
+    the path length: a chain whose step is longer takes the whole path in
+    one leapfrog step (accepting about 71%), one whose step is shorter takes
+    two (about 95%), and the step size it settles on is a matter of chance
+    (1.1 to 270 across the four chains of one update). On seal record 10130
+    of the FMU benchmark the four chains of sampler seed 10130 accepted
+    71-96%, bulk ESS was 855 and R-hat 1.0118; with two steps at least they
+    accepted 94-97%, bulk ESS was 1581 and R-hat 1.0047.
+
     With ``per_mode_slice`` (and per-mode parameters), each iteration's HMC
     trajectory is followed by a slice-sampling update of every mode's own
     parameters given the shared ones (:func:`twin.update.slice.slice_blocks`,
@@ -568,7 +580,8 @@ def run_chain(
     The chain starts from a draw of the Gaussian at the posterior mode.
     Returns a :class:`twin.update.gibbs.Chain` (``noise`` is the mean
     residual variance ``diag V_i``, ``accepted`` whether the trajectory was
-    accepted).
+    accepted, ``acceptance_rate`` its Metropolis acceptance probability,
+    ``step_size`` and ``n_steps`` its leapfrog steps).
 
     Examples
     --------
@@ -616,13 +629,15 @@ def run_chain(
     warm = max(burn_in, WARMUP)
     window = _mass_window(warm) if adapt_mass else None
     eps, log_eps_bar, h_bar, mu, k = 0.5, 0.0, 0.0, np.log(5.0), 0
+    log_eps_max = np.log(PATH_LENGTH * (1 + PATH_JITTER) / MIN_STEPS)  # any longer step gives MIN_STEPS steps too
     seen = []
     out = np.empty((draws, n))
     psi = np.empty((draws, p.n_modes, len(p.data_index)))
     noise, lps, accepted = np.empty((draws, p.n_modes)), np.empty(draws), np.zeros(draws, bool)
+    rates, step_sizes, n_steps = np.empty(draws), np.empty(draws), np.empty(draws, int)
     for it in bar(range(warm + draws), desc=label, progress=progress, leave=False):
         length = rng.uniform(1 - PATH_JITTER, 1 + PATH_JITTER) * PATH_LENGTH
-        steps = max(1, int(np.ceil(length / eps)))
+        steps = max(MIN_STEPS, int(np.ceil(length / eps)))
         step = length / steps  # the jittered length exactly: a whole number of steps of at most eps
         mom = rng.standard_normal(n)
         h0 = -here.log_p + 0.5 * mom @ mom
@@ -649,7 +664,7 @@ def run_chain(
         if it < warm:  # dual averaging (Hoffman and Gelman 2014)
             k += 1
             h_bar += ((TARGET_ACCEPT - a) - h_bar) / (k + 10)
-            log_eps = mu - np.sqrt(k) / 0.05 * h_bar
+            log_eps = min(mu - np.sqrt(k) / 0.05 * h_bar, log_eps_max)
             log_eps_bar = k**-0.75 * log_eps + (1 - k**-0.75) * log_eps_bar
             eps = float(np.exp(log_eps if it < warm - 1 else log_eps_bar))
             if window is not None and window[0] <= it < window[1]:
@@ -661,11 +676,15 @@ def run_chain(
                     axes, widths = block_axes(Lm @ Lm.T, p.n_global, p.n_modes, p.n_per_mode)
                 log_eps_bar, h_bar, mu, k = 0.0, 0.0, np.log(10 * eps), 0
             continue
+        if it == warm:
+            log.debug("%s: step size %.3g after the warm-up", label, eps)
         j = it - warm
         out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
+        rates[j], step_sizes[j], n_steps[j] = a, step, steps
         psi[j] = shape_draw(marg, theta, rng)
     Kg = p.n_global
-    return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted)
+    return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted,
+                 rates, step_sizes, n_steps)  # fmt: skip
 
 
 def _mass_window(warm: int) -> tuple[int, int]:

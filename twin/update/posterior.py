@@ -7,8 +7,10 @@ Groups (DESIGN section 6), readable by ``arviz.from_netcdf`` and
   model's names (``UGB.kxx``); with per-mode FSI ``added_mass`` [kg] and
   ``added_damping`` [N s/m] (chain, draw, mode); the observed shape
   ``shape_real``/``shape_imag`` (chain, draw, mode, channel);
-* ``sample_stats``: ``lp`` (log joint density, up to a constant) and
-  ``noise_variance`` (mean of Δ_i over the rows, relative units);
+* ``sample_stats``: ``lp`` (log joint density, up to a constant),
+  ``noise_variance`` (mean of Δ_i over the rows, relative units) and
+  ``accepted``; from the HMC of the marginal model also ArviZ's
+  ``acceptance_rate``, ``step_size`` and ``n_steps`` (chain, draw);
 * ``observed_data``: the pole and shape samples updated on;
 * ``constant_data``: nominal values and scales of the parameters.
 
