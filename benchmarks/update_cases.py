@@ -111,7 +111,7 @@ def main() -> None:
                       f"{float(r['std']) / abs(float(r.truth)):>11.2%} {float(r.z_score):>+6.2f}  "
                       f"{float(r.r_hat) if 'r_hat' in r else float('nan'):>5.3f}  {paper_figure(str(p))}{mark}")  # fmt: skip
             print("* mode flagged: its pole lies within 5 pole-sample stds of a resonance of the unobserved DOFs")
-        rhat = f"; max R-hat {float(table['r_hat'].max()):.2f}" if "r_hat" in table else ""
+        rhat = f"; max R-hat {float(table['r_hat'].max()):.3f}" if "r_hat" in table else ""
         print(f"seed {seed}: 90% interval coverage {covered[-1]:.0%} (all), {covered_ok[-1]:.0%} (unflagged); "
               f"max |z| unflagged {zmax[-1]:.1f}{rhat}; {elapsed:.1f} s", flush=True)  # fmt: skip
     print(f"coverage over {args.seeds} seeds: mean {np.mean(covered):.1%} (all parameters), "
