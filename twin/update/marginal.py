@@ -676,12 +676,11 @@ def run_chain(
                     axes, widths = block_axes(Lm @ Lm.T, p.n_global, p.n_modes, p.n_per_mode)
                 log_eps_bar, h_bar, mu, k = 0.0, 0.0, np.log(10 * eps), 0
             continue
-        if it == warm:
-            log.debug("%s: step size %.3g after the warm-up", label, eps)
         j = it - warm
         out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
         rates[j], step_sizes[j], n_steps[j] = a, step, steps
         psi[j] = shape_draw(marg, theta, rng)
+    log.debug("%s: step size %.3g after the warm-up, accepted %.0f%%", label, eps, 100 * accepted.mean())
     Kg = p.n_global
     return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted,
                  rates, step_sizes, n_steps)  # fmt: skip
