@@ -202,6 +202,24 @@ def record_interval(rows: list[dict], level: float = 0.9, resamples: int = 2000)
     return float(lo), float(hi)
 
 
+def mixing(rows: list[dict], limit: float = 1.01) -> str:
+    """How many of ``rows`` have an R-hat at most ``limit``, of how many, and the highest R-hat.
+
+    A share rounded to a whole percent would hide one value above the limit among a few hundred.
+
+    Examples
+    --------
+    >>> mixing([{"r_hat": 1.002}, {"r_hat": 1.0136}])
+    '1 of 2 (highest 1.014)'
+    >>> mixing([])
+    '-'
+    """
+    if not rows:
+        return "-"
+    r_hat = [r["r_hat"] for r in rows]
+    return f"{sum(v <= limit for v in r_hat)} of {len(r_hat)} (highest {max(r_hat):.3f})"
+
+
 def report(rows: list[dict]) -> list[str]:
     """Coverage (the model's posterior, the update's default, and the jackknife-adjusted one), accuracy and
     mixing by scenario and group.
@@ -223,7 +241,7 @@ def report(rows: list[dict]) -> list[str]:
         err = np.median([abs(r["map"] / r["truth"] - 1) for r in sel if r["truth"] != 0] or [np.nan])
         det = [r for r in sel if r["determined"]]
         und = [r for r in sel if not r["determined"]]
-        mixed = f"{np.mean([r['r_hat'] <= 1.01 for r in det]):.0%}" if det else "-"
+        mixed = mixing(det)
         least = f"{min(r['ess_bulk'] for r in det):.0f}" if det else "-"
         covered = sum(_covers(r) for r in und)
         if det:
