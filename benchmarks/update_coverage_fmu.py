@@ -43,6 +43,7 @@ from extraction_options import add_extraction_options, extraction_flags, extract
 from numpy_records import STREAMS, numpy_signals
 
 from twin.update.marginal import SHAPE_COVARIANCES
+from twin.update.posterior import RHAT_LIMIT
 from twin.update.poles import POLE_ERRORS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -202,7 +203,7 @@ def record_interval(rows: list[dict], level: float = 0.9, resamples: int = 2000)
     return float(lo), float(hi)
 
 
-def mixing(rows: list[dict], limit: float = 1.01) -> str:
+def mixing(rows: list[dict], limit: float = RHAT_LIMIT) -> str:
     """How many of ``rows`` have an R-hat at most ``limit``, of how many, and the highest R-hat.
 
     A share rounded to a whole percent would hide one value above the limit among a few hundred.
