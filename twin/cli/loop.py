@@ -215,7 +215,7 @@ def _demo(args: argparse.Namespace) -> int:
     model = load_model(args.model) if args.model else None
     with _tasks(args) as client:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
-                     samples=args.samples, method=args.method, tasks=client)  # fmt: skip
+                     samples=args.samples, method=args.method, bootstrap=args.bootstrap, tasks=client)  # fmt: skip
     print(f"hidden in the truth: {r.hidden_text()}")
     for k, d in enumerate(r.twin.diagnoses, start=1):
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
@@ -256,7 +256,10 @@ def _loop(args: argparse.Namespace) -> int:
 
         select(model, labels)  # unknown candidates fail before any work
     tw = Twin(model, modes, tolerance=args.tolerance)
-    kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed}
+    if args.bootstrap and args.method == "laplace":
+        raise TwinError("--bootstrap calibrates the sampler's posterior: it needs --method gibbs")
+    kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed,
+                                                  "bootstrap": args.bootstrap}  # fmt: skip
     with _tasks(args) as client:
         tw.run(method=args.method, max_rounds=args.rounds, candidates=labels, tasks=client, progress=True, **kwargs)
     out.mkdir(parents=True, exist_ok=True)
@@ -298,7 +301,7 @@ def _sweep(args: argparse.Namespace) -> int:
     else:
         hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
         scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
-    settings = Settings(duration_s=args.duration, samples=args.samples, method=args.method)
+    settings = Settings(duration_s=args.duration, samples=args.samples, method=args.method, bootstrap=args.bootstrap)
     with _tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
     print(sweep_text(table))

@@ -88,6 +88,10 @@ def _add_model_and_posterior(p: argparse.ArgumentParser) -> None:
     _add_tolerance(p)
 
 
+BOOTSTRAP_HELP = ("gibbs only: records to simulate at each update's estimate, through the FMU, to calibrate its "
+                  "spread (twin.loop.bootstrap; about 17 s a 20-min record on one core, on the Dask workers); "
+                  "0: none")
+
 def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     """The demo's record and model options, shared by ``demo`` and ``sweep``."""
     from twin.loop.demo import DEMO_SAMPLES
@@ -99,6 +103,7 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
                    help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default: HMC "
                         "on the marginal, 4 chains x 500 draws) "
                         "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
+    p.add_argument("--bootstrap", type=int, default=0, metavar="R", help=BOOTSTRAP_HELP)
 
 
 def _add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
@@ -390,6 +395,7 @@ def _add_loop(sub) -> None:
     p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
                    help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default) or the Laplace "
                         "approximation of the pole fit")
+    p.add_argument("--bootstrap", type=int, default=0, metavar="R", help=BOOTSTRAP_HELP)
     p.add_argument("--rounds", type=int, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import re
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -33,6 +34,9 @@ from twin.update.problem import Problem, UpdateError, build_problem, select_para
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, observed_data, summary, write_posterior
 
 log = logging.getLogger(__name__)
+
+#: A per-mode FSI parameter's label, ``FSI.added_mass_<mode>`` or ``FSI.added_damping_<mode>``.
+PER_MODE_LABEL = re.compile(r"FSI\.added_(mass|damping)_\d+")
 
 #: Condensation margin (pole spreads to the nearest resonance of the unobserved DOFs) below which a mode is flagged.
 MIN_MARGIN = 5.0
@@ -84,6 +88,53 @@ def _prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, n
             raise UpdateError(f"prior given for '{name}', which is not updated "
                               f"(updated: {', '.join(problem.parameter_labels)})")  # fmt: skip
     return prior
+
+
+def marginal_of(problem: Problem, modes: xr.Dataset, *, shape_covariance: str = "shrunk", logdet: bool = False,
+                pole_error: str = "samples+orders", combine: str = "intersection") -> Marginal:  # fmt: skip
+    """The marginal model (:mod:`twin.update.marginal`) of ``problem`` on ``modes``, as :func:`update` samples it.
+
+    The keywords are :func:`update`'s (its defaults for the marginal model).
+    """
+    order_cov = order_covariance(modes) if pole_error == "samples+orders" else None
+    marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, shape_covariance,
+                            logdet=logdet, order_cov=order_cov)  # fmt: skip
+    return intersected(marg) if combine == "intersection" else marg
+
+
+def marginal_setup(model: RotorModel, modes: xr.Dataset, settings: Mapping[str, Any]) -> tuple[Marginal, Prior]:
+    """The marginal model and the prior of an update of ``model`` on ``modes`` with ``settings``.
+
+    ``settings`` is a marginal-model posterior's (its attr ``settings``, parsed): the parameters, ``fsi``,
+    ``eps_std``, the priors and the marginal's options. Used to repeat an update's density on other modes
+    (:mod:`twin.loop.bootstrap`): priors of per-mode FSI of modes these modes lack are left out.
+
+    Examples
+    --------
+    >>> import json
+    >>> from twin import load_model, shipped_model
+    >>> from twin.update import synthesize_modes
+    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3, 9])
+    >>> marg, prior = marginal_setup(m, data, {"params": ["UGB.kxx"], "priors": {"UGB.kxx": [5e8, 1e8]}})
+    >>> marg.problem.parameter_labels, float(prior.parameter_mean[0]) > 0
+    (['UGB.kxx'], True)
+    """
+    if settings.get("pole_model", "marginal") != "marginal":
+        raise UpdateError(f"the posterior's pole model is {settings['pole_model']!r}: only the marginal model's "
+                          "density can be repeated (pole_model='marginal')")  # fmt: skip
+    problem = build_problem(model, modes, list(settings["params"]), fsi=bool(settings.get("fsi", False)),
+                            eps_std=float(settings.get("eps_std", 1e-6)), pole_model="marginal")  # fmt: skip
+    priors = settings.get("priors", "flat")
+    priors = {} if priors == "flat" else {k: (float(v[0]), float(v[1])) for k, v in priors.items()}
+    labels = set(problem.parameter_labels)
+    priors = {k: v for k, v in priors.items() if k in labels or not PER_MODE_LABEL.fullmatch(k)}
+    prior = _prior(problem, priors, "full", 0.0)
+    marg = marginal_of(problem, modes, shape_covariance=settings.get("shape_covariance", "shrunk"),
+                       logdet=bool(settings.get("logdet", False)),
+                       pole_error=settings.get("pole_error") or "samples+orders",
+                       combine=settings.get("combine") or "intersection")  # fmt: skip
+    return marg, prior
 
 
 def _warn_margins(problem: Problem, frequency_hz: np.ndarray, n_samples: int, marginal: bool) -> None:
@@ -340,11 +391,8 @@ def update(
     frequency = np.abs(modes["pole"].mean("sample").values.imag) / (2 * np.pi)
     _warn_margins(problem, frequency, modes.sizes["sample"], pole_model == "marginal")
     if pole_model == "marginal":
-        order_cov = order_covariance(modes) if pole_error == "samples+orders" else None
-        marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, shape_covariance,
-                                logdet=logdet, order_cov=order_cov)  # fmt: skip
-        if combine == "intersection":
-            marg = intersected(marg)
+        marg = marginal_of(problem, modes, shape_covariance=shape_covariance, logdet=logdet, pole_error=pole_error,
+                           combine=combine)  # fmt: skip
         bad = weak_parameters(problem.parameter_labels, marginal_precision(marg))
     else:
         bad = not_identifiable(problem, initial_state(problem))

@@ -1,0 +1,160 @@
+"""Tests of twin.loop.bootstrap: the posterior's spread calibrated on records simulated at its estimate."""
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.errors import TwinError, TwinWarning
+from twin.loop.bootstrap import MIN_RECORDS, bootstrap_factors, calibrated, record_seeds, record_settings
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def _seal_update(hydro_unit, draws: int = 500):
+    """The default update of the seal on the modes of FMU record 10130 (a 20-min record): twin, posterior."""
+    from twin.extract.modesfile import read_modes
+    from twin.loop.twin import Twin
+
+    tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
+    tw.add_effect("seal_cross_coupling")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        post = tw.update(tw.added_parameters(), seed=10130, draws=draws, progress=False)
+    return tw, post
+
+
+def test_the_fitted_density_is_the_update_s(hydro_unit):
+    # each bootstrap record is fitted with the update's own density (marginal_setup from the posterior's
+    # settings): on the measured modes themselves its mode and Laplace std must be the HMC posterior's, within
+    # the draws' Monte Carlo error (bulk ESS about 1500: the mean to 0.03 std) and the Laplace's curvature
+    from twin.update.core import marginal_setup
+    from twin.update.marginal import posterior_mode
+
+    tw, post = _seal_update(hydro_unit)
+    settings = json.loads(post.attrs["settings"])
+    marg, prior = marginal_setup(tw.model, tw.modes, settings)
+    theta, here = posterior_mode(marg, prior.parameter_mean, prior.parameter_precision)
+    scale = marg.problem.global_scale[0]
+    draws = post["posterior"]["theta"].sel(parameter="SEAL.kxy").values.ravel()
+    std = np.sqrt(np.linalg.inv(here.precision)[0, 0]) * scale
+    assert abs(theta[0] * scale - draws.mean()) < 0.1 * draws.std()
+    assert std == pytest.approx(draws.std(), rel=0.1)
+
+
+def test_factors_are_the_rms_of_the_records_errors_in_their_own_std(hydro_unit):
+    # the records' fits given (a mapper that stands for the simulation): z = (mode - estimate) / std
+    tw, post = _seal_update(hydro_unit, draws=50)
+    estimate = {"SEAL.kxy": 5.0e7}
+    fits = [{"SEAL.kxy": (5.0e7 + 1e6, 1e6)}, {"SEAL.kxy": (5.0e7 - 4e6, 2e6)}, "record 3: no mode",
+            {"SEAL.kxy": (5.0e7, 5e5)}, {"SEAL.kxy": (5.0e7 + 3e6, 1e6)}]  # fmt: skip
+    factors = bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
+                                tasks=lambda function, items, **shared: fits)  # fmt: skip
+    z = factors["z"].sel(parameter="SEAL.kxy").values
+    np.testing.assert_allclose(z, [1.0, -2.0, np.nan, 0.0, 3.0])
+    assert float(factors["rms_z"][0]) == pytest.approx(np.sqrt((1 + 4 + 0 + 9) / 4))
+    # the 90% interval of an error whose variance comes from 4 records: Student's t, 4 degrees of freedom
+    assert float(factors["factor"][0]) == pytest.approx(np.sqrt(14 / 4) * 2.131847 / 1.644854, rel=1e-6)
+    assert int(factors["records_used"][0]) == 4
+    with pytest.raises(TwinError, match="fitted on 2 of 5"):
+        bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
+                          tasks=lambda function, items, **shared: fits[:2] + ["x"] * 3)  # fmt: skip
+    with pytest.raises(TwinError, match=f"integer >= {MIN_RECORDS}"):
+        bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=2)
+    with pytest.raises(TwinError, match="lacks SEAL.kxy"):
+        bootstrap_factors(tw.model, tw.model, tw.modes, post, {}, records=5)
+
+
+def test_calibrated_stretches_determined_draws_only_and_keeps_the_mean(hydro_unit):
+    import xarray as xr
+
+    _, post = _seal_update(hydro_unit, draws=50)
+    factors = xr.Dataset({"factor": ("parameter", [1.5])}, coords={"parameter": ["SEAL.kxy"], "record": [1, 2, 3]})
+    before = post["posterior"]["theta"].values
+    out = calibrated(post, factors, ["SEAL.kxy"])
+    after = out["posterior"]["theta"].values
+    assert after.mean() == pytest.approx(before.mean(), rel=1e-12)
+    assert after.std() == pytest.approx(1.5 * before.std(), rel=1e-12)
+    assert json.loads(out.attrs["bootstrap_calibration"]) == {"SEAL.kxy": 1.5}
+    assert json.loads(out.attrs["bootstrap_records"]) == [1, 2, 3]
+    np.testing.assert_array_equal(post["posterior"]["theta"].values, before)  # the input is left alone
+    kept = calibrated(post, factors, [])  # not determined: its prior-bound draws stay
+    np.testing.assert_array_equal(kept["posterior"]["theta"].values, before)
+
+
+def test_record_settings_say_what_is_missing():
+    import xarray as xr
+
+    with pytest.raises(TwinError, match="attr 'settings'"):
+        record_settings(xr.Dataset())
+    assert record_seeds(7, 3) != record_seeds(8, 3)
+
+
+@pytest.mark.slow
+def test_bootstrap_update_of_a_short_record_end_to_end(hydro_unit):
+    # the whole path on 4-min records (the fixture's settings with the length shortened): simulate through the
+    # FMU, extract with the modes' settings, fit, stretch. Each record's fit finds the seal
+    from twin.extract.modesfile import read_modes
+    from twin.loop.twin import Twin
+
+    modes = read_modes(DATA / "modes_seal_10130.nc")
+    settings = json.loads(modes.attrs["settings"])
+    modes.attrs["settings"] = json.dumps({**settings, "duration_s": 240.0})
+    tw = Twin(hydro_unit, modes)
+    tw.add_effect("seal_cross_coupling")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        post = tw.update(tw.added_parameters(), seed=1, draws=100, progress=False, bootstrap=3)
+    applied = json.loads(post.attrs["bootstrap_calibration"])
+    assert set(applied) == {"SEAL.kxy"} and 0.1 < applied["SEAL.kxy"] < 10
+    assert len(json.loads(post.attrs["bootstrap_records"])) == 3
+    assert tw.model.parameter("SEAL.kxy").nominal > 0
+    assert tw.history[-1].action == "update SEAL.kxy, calibrated on 3 simulated records"
+    assert [s.action for s in tw.history].count("update SEAL.kxy") == 0  # the step is replaced, not added
+
+
+def test_calibrate_needs_the_sampler_s_update(hydro_unit):
+    from twin.extract.modesfile import read_modes
+    from twin.loop.twin import Twin
+
+    tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
+    with pytest.raises(ValueError, match="needs the sampler's update"):
+        tw.calibrate(5)
+    tw.add_effect("seal_cross_coupling")
+    with pytest.raises(ValueError, match="needs method='gibbs'"):
+        tw.update(["SEAL.kxy"], method="laplace", bootstrap=5)
+    with pytest.raises(ValueError, match="needs method='gibbs'"):
+        tw.run(method="laplace", bootstrap=5)
+
+
+def test_a_simulated_record_s_modes_take_the_measured_numbers():
+    # a record that lacks a mode (here the 3.84 Hz one of the seal record, dropped) keeps the numbers of the
+    # others, so its per-mode FSI parameters are the measured modes'
+    from twin.extract.modesfile import read_modes
+    from twin.loop.bootstrap import matched_modes
+
+    modes = read_modes(DATA / "modes_seal_10130.nc")
+    reference = {int(m): float(f) for m, f in zip(modes["mode"].values, modes["frequency"].values)}
+    assert matched_modes(modes, reference)["mode"].values.tolist() == list(range(1, 12))
+    fewer = modes.drop_sel(mode=3).assign_coords(mode=range(1, 11))
+    assert matched_modes(fewer, reference)["mode"].values.tolist() == [1, 2, *range(4, 12)]
+    low = modes.isel(mode=range(7))  # up to 17.15 Hz, where 2% moves no mode onto another one
+    shifted = low.assign(frequency=low["frequency"] * 1.02)  # 2% off: no mode is the measured one
+    assert matched_modes(shifted, reference).sizes["mode"] == 0
+
+
+def test_the_widened_interval_covers_a_new_error_90_percent_of_the_time():
+    # the exact property the t widening stands on: z ~ N(0, c^2), c^2 estimated by the mean square of R draws,
+    # a new z falls inside +-1.645 c_hat widening for 90% of repetitions (40000: 0.90 to +-0.004 at 2.7 sigma)
+    from twin.loop.bootstrap import predictive_widening
+
+    rng = np.random.default_rng(62)
+    for records in (4, 12):
+        z = 1.3 * rng.standard_normal((40000, records + 1))
+        c_hat = np.sqrt(np.mean(z[:, :records] ** 2, axis=1))
+        inside = np.abs(z[:, -1]) <= 1.6448536 * c_hat * predictive_widening(records)
+        assert inside.mean() == pytest.approx(0.90, abs=0.004)
+        bare = np.abs(z[:, -1]) <= 1.6448536 * c_hat
+        assert bare.mean() < 0.885  # without it: 83.5% (R = 4), 87.4% (R = 12)
