@@ -43,6 +43,9 @@ from twin.errors import ModelError
 from twin.fem.elements import POSITIVE, UNBOUNDED, node_dofs
 from twin.fem.parameters import Parameter, Term
 
+#: Names of per-mode parameters (``FSI.added_mass_3``), as :class:`FluidAddedMassPerMode` names them.
+PER_MODE_NAME = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
+
 #: Ratio of a plausible water added damping to added mass [1/s] (the paper's
 #: Table 2 spans 13 to 2700 1/s over its 15 modes).
 FSI_DAMPING_PER_MASS = 1000.0

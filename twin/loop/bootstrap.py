@@ -202,7 +202,7 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         raise TwinError(f"bootstrap records must be an integer >= {MIN_RECORDS}, got {records}")
     settings = json.loads(posterior.attrs.get("settings", "{}"))
     duration_s, fs_hz, extraction = record_settings(modes)
-    labels = [str(p) for p in _labels(posterior)]
+    labels = posterior_labels(posterior)
     missing = [p for p in labels if p not in estimate]
     if missing:
         raise TwinError(f"the estimate lacks {', '.join(missing)}")
@@ -259,7 +259,7 @@ def predictive_widening(records: np.ndarray | int, level: float = LEVEL) -> np.n
         return np.where(r >= MIN_RECORDS, t.ppf(q, np.maximum(r, 1)) / norm.ppf(q), np.nan)
 
 
-def _labels(posterior: xr.DataTree) -> list[str]:
+def posterior_labels(posterior: xr.DataTree) -> list[str]:
     """The posterior's parameter labels: shared ones, then ``FSI.<kind>_<mode>`` mode by mode."""
     from twin.update.posterior import parameter_draws
 
@@ -289,15 +289,14 @@ def calibrated(posterior: xr.DataTree, factors: xr.Dataset, determined: Sequence
         if str(p) in determined and np.isfinite(c) and c > 0:
             applied[str(p)] = float(c)
     post = posterior["posterior"].to_dataset()
-    if "theta" in post:
-        f = np.array([applied.get(str(p), 1.0) for p in post["parameter"].values])
-        post["theta"] = post["theta"].copy(data=stretch(post["theta"].values.reshape(-1, len(f)), f)
-                                           .reshape(post["theta"].shape))  # fmt: skip
+    labels = {"theta": [str(p) for p in post["parameter"].values] if "theta" in post else []}
     for kind in ("added_mass", "added_damping"):
-        if kind in post:
-            f = np.array([applied.get(f"FSI.{kind}_{int(m)}", 1.0) for m in post["mode"].values])
-            post[kind] = post[kind].copy(data=stretch(post[kind].values.reshape(-1, len(f)), f)
-                                         .reshape(post[kind].shape))  # fmt: skip
+        labels[kind] = [f"FSI.{kind}_{int(m)}" for m in post["mode"].values] if kind in post else []
+    for name, names in labels.items():
+        if names:  # draws (chain, draw, parameter or mode): one factor along the last axis
+            f = np.array([applied.get(n, 1.0) for n in names])
+            post[name] = post[name].copy(data=stretch(post[name].values.reshape(-1, len(f)), f)
+                                         .reshape(post[name].shape))  # fmt: skip
     tree = posterior.copy()
     tree["posterior"] = xr.DataTree(post)
     tree.attrs["bootstrap_calibration"] = json.dumps({k: round(v, 4) for k, v in applied.items()})

@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -45,7 +44,7 @@ from scipy.optimize import linear_sum_assignment
 
 from twin import __version__
 from twin.errors import ModelError, TwinError
-from twin.fem.effects import with_shared_fsi
+from twin.fem.effects import PER_MODE_NAME, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.loop.sensitivity import ModalSolution, solve_modes
 from twin.modes.analysis import damping_ratio
@@ -66,8 +65,6 @@ ERROR_DEFINITION = ("RMS over the measured modes of |model pole - measured pole|
                     "imaginary parts weighed by the inverse variance of the measured pole")
 #: A measured mode whose partner has a MAC below this is reported as one the model cannot reproduce.
 MIN_MAC = 0.5
-#: Names of per-mode parameters (``FSI.added_mass_3``).
-PER_MODE_NAME = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
 
 
 class CompareError(TwinError, ValueError):

@@ -264,14 +264,14 @@ class Twin:
         ``bootstrap_calibration``, ``bootstrap_records``) is returned and kept in :attr:`posterior`.
         ``tasks``: where the records run (:func:`twin.tasks.mapper`).
         """
-        from twin.loop.bootstrap import bootstrap_factors, calibrated
-        from twin.update import apply_posterior, summary
+        from twin.loop.bootstrap import bootstrap_factors, calibrated, posterior_labels
+        from twin.update import apply_posterior
 
         last = self.history[-1]
         if not isinstance(self.posterior, xr.DataTree) or not last.action.startswith("update"):
             raise ValueError("calibrate needs the sampler's update (method='gibbs') as the twin's last step")
         before, tree = self.history[-2].model, self.posterior
-        labels = [str(p) for p in summary(tree["posterior"].to_dataset())["parameter"].values]
+        labels = posterior_labels(tree)
         factors = bootstrap_factors(before, last.model, self.modes, tree,
                                     {p: last.model.parameter(p).nominal for p in labels}, records=records,
                                     seed=seed, tasks=tasks, progress=progress)  # fmt: skip

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import re
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -18,7 +17,7 @@ import xarray as xr
 from twin import __version__
 from twin.errors import TwinWarning
 from twin.extract.modesfile import read_modes, split_complex
-from twin.fem.effects import effect_label
+from twin.fem.effects import PER_MODE_NAME, effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
 from twin.netcdf import check_writable
@@ -34,9 +33,6 @@ from twin.update.problem import Problem, UpdateError, build_problem, select_para
 from twin.update.posterior import RHAT_LIMIT, diagnostics_json, observed_data, summary, write_posterior
 
 log = logging.getLogger(__name__)
-
-#: A per-mode FSI parameter's label, ``FSI.added_mass_<mode>`` or ``FSI.added_damping_<mode>``.
-PER_MODE_LABEL = re.compile(r"FSI\.added_(mass|damping)_\d+")
 
 #: Condensation margin (pole spreads to the nearest resonance of the unobserved DOFs) below which a mode is flagged.
 MIN_MARGIN = 5.0
@@ -128,7 +124,7 @@ def marginal_setup(model: RotorModel, modes: xr.Dataset, settings: Mapping[str, 
     priors = settings.get("priors", "flat")
     priors = {} if priors == "flat" else {k: (float(v[0]), float(v[1])) for k, v in priors.items()}
     labels = set(problem.parameter_labels)
-    priors = {k: v for k, v in priors.items() if k in labels or not PER_MODE_LABEL.fullmatch(k)}
+    priors = {k: v for k, v in priors.items() if k in labels or not PER_MODE_NAME.match(k)}
     prior = _prior(problem, priors, "full", 0.0)
     marg = marginal_of(problem, modes, shape_covariance=settings.get("shape_covariance", "shrunk"),
                        logdet=bool(settings.get("logdet", False)),
