@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError, TwinWarning
-from twin.loop.bootstrap import MIN_RECORDS, bootstrap_factors, calibrated, record_seeds, record_settings
+from twin.loop.bootstrap import (MIN_RECORDS, bootstrap_factors, calibrated, pooled_rms, record_seeds,
+                                 record_settings)
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -58,6 +59,7 @@ def test_factors_are_the_rms_of_the_records_errors_in_their_own_std(hydro_unit):
     # the 90% interval of an error whose variance comes from 4 records: Student's t, 4 degrees of freedom
     assert float(factors["factor"][0]) == pytest.approx(np.sqrt(14 / 4) * 2.131847 / 1.644854, rel=1e-6)
     assert int(factors["records_used"][0]) == 4
+    assert float(factors["pooled_rms_z"][0]) == float(factors["rms_z"][0])  # one parameter: nothing to pool
     with pytest.raises(TwinError, match="fitted on 2 of 5"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
                           tasks=lambda function, items, **shared: fits[:2] + ["x"] * 3)  # fmt: skip
@@ -65,6 +67,32 @@ def test_factors_are_the_rms_of_the_records_errors_in_their_own_std(hydro_unit):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=2)
     with pytest.raises(TwinError, match="lacks SEAL.kxy"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, {}, records=5)
+
+
+def test_pooled_rms_shrinks_the_records_noise_and_keeps_real_differences():
+    from scipy.special import polygamma
+
+    rng = np.random.default_rng(5)
+    # the noise the shrinkage assumes: log of a mean of 12 squared normals has variance psi'(6) = 0.1813
+    y = np.log(np.mean(rng.standard_normal((200_000, 12)) ** 2, axis=1))
+    assert np.var(y) == pytest.approx(polygamma(1, 6), rel=0.02)
+    records, members = np.full(16, 12), np.ones(16, bool)
+    # sixteen parameters with one true RMS error 1.3, each seen on 12 records: their spread (20% here) is
+    # the records' noise, and every one is pulled to the pooled value sqrt(mean c²)
+    rng = np.random.default_rng(1)
+    c = np.sqrt(np.mean((1.3 * rng.standard_normal((12, 16))) ** 2, axis=0))
+    shrunk, tau2 = pooled_rms(c, records, members)
+    assert c.std() / c.mean() > 0.15 and tau2 == 0.0
+    np.testing.assert_allclose(shrunk, np.sqrt(np.mean(c**2)), rtol=1e-12)
+    # true RMS errors 0.4 and 4 (ten times apart): a difference 12 records cannot blur, each value stays
+    true = np.repeat([0.4, 4.0], 8)
+    c = np.sqrt(np.mean((true * rng.standard_normal((12, 16))) ** 2, axis=0))
+    shrunk, tau2 = pooled_rms(c, records, members)
+    assert tau2 > 2.0
+    assert np.max(np.abs(np.log(shrunk / c))) < 0.1
+    # non-members are left alone and do not move the pool
+    alone, _ = pooled_rms(np.append(c, 50.0), np.append(records, 12), np.append(members, False))
+    np.testing.assert_array_equal(alone, np.append(shrunk, 50.0))
 
 
 def test_calibrated_stretches_determined_draws_only_and_keeps_the_mean(hydro_unit):

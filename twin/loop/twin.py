@@ -259,7 +259,8 @@ class Twin:
 
         The model after the update is simulated through its FMU ``records`` times, each record is extracted
         as the measured modes were and fitted with the update's density; every determined parameter's draws
-        are stretched by its RMS error in its own std over them (:mod:`twin.loop.bootstrap`). The last step
+        are stretched by its RMS error in its own std over them, shrunk towards the determined parameters'
+        common value (:mod:`twin.loop.bootstrap`). The last step
         of the history is replaced by the model at the calibrated posterior's estimate; the posterior (attrs
         ``bootstrap_calibration``, ``bootstrap_records``) is returned and kept in :attr:`posterior`.
         ``tasks``: where the records run (:func:`twin.tasks.mapper`).
@@ -272,11 +273,12 @@ class Twin:
             raise ValueError("calibrate needs the sampler's update (method='gibbs') as the twin's last step")
         before, tree = self.history[-2].model, self.posterior
         labels = posterior_labels(tree)
+        undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))
+        determined = [p for p in labels if p not in undetermined]
         factors = bootstrap_factors(before, last.model, self.modes, tree,
                                     {p: last.model.parameter(p).nominal for p in labels}, records=records,
-                                    seed=seed, tasks=tasks, progress=progress)  # fmt: skip
-        undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))
-        tree = calibrated(tree, factors, [p for p in labels if p not in undetermined])
+                                    seed=seed, pooled=determined, tasks=tasks, progress=progress)  # fmt: skip
+        tree = calibrated(tree, factors, determined)
         self.history.pop()
         self._record(f"{last.action}, calibrated on {records} simulated records",
                      apply_posterior(before, tree, estimate))  # fmt: skip
