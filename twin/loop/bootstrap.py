@@ -249,8 +249,8 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
          "rms_z": ("parameter", rms, {"long_name": "RMS z over the records"}),
          "pooled_rms_z": ("parameter", shrunk, {"long_name": "RMS z shrunk towards the pooled parameters' "
                                                 "common value (empirical Bayes, on log RMS z squared)"}),
-         "factor": ("parameter", factor, {"long_name": "the posterior std's calibration: RMS z times the "
-                                          "Student t widening of a variance from that many records"}),
+         "factor": ("parameter", factor, {"long_name": "the posterior std's calibration: pooled RMS z "
+                                          "times the Student t widening of a variance from that many records"}),
          "records_used": ("parameter", used)},
         coords={"record": seeds, "parameter": labels},
         attrs={"duration_s": duration_s, "fs_hz": fs_hz, "extraction": json.dumps(extraction),
