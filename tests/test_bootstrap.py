@@ -9,7 +9,7 @@ import pytest
 
 from twin.errors import TwinError, TwinWarning
 from twin.loop.bootstrap import (MIN_RECORDS, bootstrap_factors, calibrated, pooled_rms, record_seeds,
-                                 record_settings)
+                                 record_settings, target_numbered)
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -171,6 +171,25 @@ def test_a_simulated_record_s_modes_take_the_measured_numbers():
     low = modes.isel(mode=range(7))  # up to 17.15 Hz, where 2% moves no mode onto another one
     shifted = low.assign(frequency=low["frequency"] * 1.02)  # 2% off: no mode is the measured one
     assert matched_modes(shifted, reference).sizes["mode"] == 0
+
+
+def test_an_updated_per_mode_model_is_simulated_with_each_value_on_its_measured_mode(hydro_unit):
+    # the update numbers per-mode FSI by measured mode; target mode 3 (9.2 Hz) unmeasured, the third measured
+    # mode is target mode 4: simulated, each measured mode must come out as the comparison reads it
+    from twin.fem.effects import FluidAddedMassPerMode
+    from twin.fmu.statespace import model_state_space
+    from twin.loop.compare import measured_modes, model_modes
+    from twin.update import synthesize_modes
+
+    modes = synthesize_modes(hydro_unit, samples=20, seed=1).sel(mode=[1, 2, 4, 5]).assign_coords(mode=[1, 2, 3, 4])
+    updated = hydro_unit.with_effects(FluidAddedMassPerMode((1e5, 2e5, 4e5, 5e4), (1e7, 0.0, 5e6, 2e6)))
+    expected = model_modes(updated, measured_modes(modes)).poles
+    simulated = model_state_space(target_numbered(updated, modes)).poles
+    nearest = simulated[np.argmin(np.abs(simulated[None, :] - expected[:, None]), axis=1)]
+    np.testing.assert_allclose(nearest, expected, rtol=1e-9)
+    as_numbered = model_state_space(updated).poles  # values by target number: measured mode 3 comes out wrong
+    assert np.min(np.abs(as_numbered - expected[2])) > 1e-3 * abs(expected[2])
+    assert target_numbered(hydro_unit, modes) is hydro_unit
 
 
 def test_the_widened_interval_covers_a_new_error_90_percent_of_the_time():

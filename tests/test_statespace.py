@@ -5,9 +5,13 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from twin import ModelError, modal
+from twin.fem.effects import FluidAddedMassPerMode
+from twin.fem.truthfile import Truth
 from twin.fmu.statespace import (
-    StateSpace, discretize, full_state_space, simulate_reference, state_modes, truncated_state_space,
+    StateSpace, discretize, full_state_space, model_state_space, simulate_reference, state_modes,
+    truncated_state_space,
 )  # fmt: skip
+from twin.fmu.truth import target_mode_indices, truth_state_space
 
 
 def _oscillator(wn=2 * np.pi * 3.0, zeta=0.05):
@@ -65,6 +69,25 @@ def test_truncated_basis_keeps_low_modes_and_low_frequency_response(hydro_unit):
         assert abs(h_trunc - h_full) < 0.05 * abs(h_full)
     with pytest.raises(ModelError, match="positive frequency"):
         truncated_state_space(full, 0.0)
+
+
+def test_a_model_with_per_mode_fsi_is_simulated_with_it(hydro_unit):
+    # an update's per-mode estimate is not one FEM: the model's state space must be its modal synthesis, the
+    # same system a per-mode truth of those values gives (the FEM assembly alone leaves per-mode values out)
+    effect = FluidAddedMassPerMode((8e4, 0.0, 5e4), (2e7, 0.0, 1e6))
+    ss = model_state_space(hydro_unit.with_effects(effect))
+    expected = truth_state_space(hydro_unit, Truth((effect,)))
+    np.testing.assert_allclose(np.sort_complex(ss.poles), np.sort_complex(expected.poles), rtol=1e-12)
+    np.testing.assert_allclose(ss.C @ ss.B, expected.C @ expected.B, rtol=1e-9, atol=1e-12 * np.abs(expected.C @
+                               expected.B).max())  # fmt: skip
+    dry, wet = modal(hydro_unit).pole.values, ss.poles
+    dry, wet = dry[dry.imag > 0], wet[wet.imag > 0]
+    dry, wet = dry[np.argsort(dry.imag)], wet[np.argsort(wet.imag)]
+    dry = dry[target_mode_indices(dry, 3)]  # the over-damped bearing mode is no target
+    assert wet[0].imag < 0.995 * dry[0].imag and wet[0].real < dry[0].real  # mode 1: heavier, more damped
+    np.testing.assert_allclose(wet[1], dry[1], rtol=1e-9)  # mode 2 has none
+    with pytest.raises(ModelError, match="already has"):
+        truth_state_space(hydro_unit.with_effects(effect), Truth((effect,)))
 
 
 def test_bad_step():

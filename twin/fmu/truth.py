@@ -55,9 +55,9 @@ def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
 
 
 def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
-    """The model with the truth's mode-independent effects switched on."""
+    """The model with the truth's mode-independent effects switched on (its per-mode one is not one FEM)."""
     present = {effect_label(e) for e in model.effects}
-    clash = present & {effect_label(e) for e in truth.mode_independent}
+    clash = present & {effect_label(e) for e in truth.effects}
     if clash:
         raise ModelError(f"the model already has effect(s) {sorted(clash)} that the truth sets")
     return dataclasses.replace(model, effects=tuple(model.effects) + truth.mode_independent)
@@ -93,7 +93,7 @@ def truth_state_space(
     altered = truth_model(model, truth)
     per_mode = truth.per_mode
     if per_mode is None:
-        ss = model_state_space(altered, basis, fmax_hz)
+        ss = model_state_space(altered, basis, fmax_hz)  # the model's own per-mode FSI, if any, included
     else:
         ss = synthesize_per_mode_fsi(altered, per_mode.added_mass, per_mode.added_damping)
     poles = ss.poles[ss.poles.imag > 0]

@@ -50,6 +50,7 @@ minutes per update; it is an option of :meth:`twin.loop.twin.Twin.update`
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import warnings
@@ -103,6 +104,56 @@ def matched_modes(modes: xr.Dataset, reference: Mapping[int, float], tolerance: 
     order = np.argsort(numbers)
     picked = modes.isel(mode=[keep[i] for i in order])
     return picked.assign_coords(mode=[numbers[i] for i in order])
+
+
+def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
+    """The model with its per-mode FSI renumbered from measured modes to target modes, ready to simulate.
+
+    An update's per-mode values belong to the measured modes (``FSI.added_mass_<label>``, label of
+    ``modes``; :func:`twin.loop.compare.model_modes` reads them so), while a simulation's modal synthesis
+    takes value ``i`` for the model's target mode ``i`` (:func:`twin.fmu.truth.synthesize_per_mode_fsi`).
+    The two agree only when every target mode up to the last was measured. Each measured mode's values go to
+    the target mode it pairs with (:func:`twin.loop.compare.pair_with_measured`); target modes no measured
+    mode pairs with get none. A model without per-mode FSI is returned as it is.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fem.effects import FluidAddedMassPerMode
+    >>> from twin.update import synthesize_modes
+    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> modes = synthesize_modes(model, samples=20, seed=1).sel(mode=[1, 2, 4])  # target mode 3 not measured
+    >>> updated = model.with_effects(FluidAddedMassPerMode((1e5, 2e5, 4e5), (0.0, 0.0, 0.0)))
+    >>> target_numbered(updated, modes.assign_coords(mode=[1, 2, 3])).effects[-1].added_mass
+    (100000.0, 200000.0, 0.0, 400000.0)
+    """
+    from twin.fmu.truth import MAX_TARGET_DAMPING
+    from twin.loop.compare import channel_dofs, measured_modes, pair_with_measured
+    from twin.loop.sensitivity import solve_modes
+    from twin.modes.analysis import damping_ratio
+
+    per_mode = next((e for e in model.effects if e.per_mode), None)
+    if per_mode is None:
+        return model
+    meas = measured_modes(modes)
+    sol = solve_modes(model)  # the single FEM: the per-mode values left out, as the synthesis's dry modes
+    _, cols = pair_with_measured(sol, meas, channel_dofs(model, meas.channels))
+    light = np.flatnonzero(damping_ratio(sol.poles) < MAX_TARGET_DAMPING)
+    mass, damping = np.zeros(len(light)), np.zeros(len(light))
+    for label, col in zip(meas.mode, cols):
+        if not 0 < label <= per_mode.n_modes:
+            continue
+        if col not in light:
+            raise TwinError(f"measured mode {label} pairs with the model's mode at "
+                            f"{sol.poles[col].imag / (2 * np.pi):.3f} Hz, damped more than a target mode "
+                            f"({MAX_TARGET_DAMPING:.0%}): its per-mode FSI cannot be simulated")  # fmt: skip
+        j = int(np.flatnonzero(light == col)[0])
+        mass[j], damping[j] = per_mode.added_mass[label - 1], per_mode.added_damping[label - 1]
+    n = int(np.flatnonzero((mass != 0) | (damping != 0)).max(initial=-1)) + 1
+    effect = dataclasses.replace(per_mode, added_mass=tuple(map(float, mass[:n])),
+                                 added_damping=tuple(map(float, damping[:n])))  # fmt: skip
+    others = tuple(e for e in model.effects if not e.per_mode)
+    return dataclasses.replace(model, effects=(*others, effect) if n else others)
 
 
 def record_settings(modes: xr.Dataset) -> tuple[float, float, dict[str, Any]]:
@@ -222,6 +273,7 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
     if missing:
         raise TwinError(f"the estimate lacks {', '.join(missing)}")
     seeds = record_seeds(seed, int(records))
+    simulated = target_numbered(simulated, modes)
     fits = mapper(tasks, progress=progress, desc="bootstrap records")(
         _record_fit, seeds, simulated=simulated, model=model, settings=settings, duration_s=duration_s,
         fs_hz=fs_hz, extraction=extraction,
