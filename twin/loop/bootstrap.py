@@ -302,7 +302,7 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
                         f"(at least {MIN_RECORDS} are needed to calibrate)")  # fmt: skip
     with np.errstate(invalid="ignore"):
         rms = np.sqrt(np.nanmean(np.where(used >= MIN_RECORDS, 1.0, np.nan) * z**2, axis=0))
-    members = np.isin(labels, labels if pooled is None else list(pooled))
+    members = np.ones(len(labels), dtype=bool) if pooled is None else np.isin(labels, list(pooled))
     shrunk, tau2 = pooled_rms(rms, used, members)
     factor = shrunk * predictive_widening(used)
     return xr.Dataset(
