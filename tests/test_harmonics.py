@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.signal as sg
 
-from twin.extract.harmonics import band_kurtosis, harmonic_test, remove_running_harmonics
+from twin.extract.harmonics import _line_power, band_kurtosis, grid_power, harmonic_test, remove_running_harmonics
 
 
 def test_kurtosis_of_sinusoid_plus_noise_follows_the_mixture_formula():
@@ -88,3 +88,18 @@ def test_running_speed_lines_are_removed_at_the_refined_speed_and_nothing_else(m
     # a record without lines loses nothing
     same, none = remove_running_harmonics(y - y.mean(0), 20.0, 134 / 60, 8.0)
     assert none == [] and np.array_equal(same, y - y.mean(0))
+
+
+def test_the_speed_search_grid_power_is_each_frequency_s_periodogram():
+    # the chirp-z transform against one complex exponential per frequency, on the running speed's search grid
+    # of a 10-min record at 64 Hz with a 1X line inside it
+    rng = np.random.default_rng(3)
+    fs, n = 64.0, 38_400
+    t = np.arange(n) / fs
+    y = rng.standard_normal((n, 3)) + np.outer(np.cos(2 * np.pi * 2.2351 * t), [2.0, 1.0, 0.5])
+    grid = 134 / 60 * (1 + np.linspace(-0.005, 0.005, 41))
+    direct = np.array([_line_power(y, t, f) for f in grid])
+    fast = grid_power(y, fs, grid)
+    assert np.max(np.abs(fast - direct)) < 1e-9 * direct.max()
+    assert np.argmax(fast) == np.argmax(direct)
+    assert grid_power(y, fs, grid[:1]) == pytest.approx(direct[:1], rel=1e-12)
