@@ -15,7 +15,8 @@ DATA = Path(__file__).resolve().parent / "data"
 
 
 def _seal_update(hydro_unit, draws: int = 500):
-    """The default update of the seal on the modes of FMU record 10130 (a 20-min record): twin, posterior."""
+    """The sampler's update of the seal on the modes of FMU record 10130 (a 20-min record), not calibrated:
+    twin, posterior."""
     from twin.extract.modesfile import read_modes
     from twin.loop.twin import Twin
 
@@ -23,7 +24,7 @@ def _seal_update(hydro_unit, draws: int = 500):
     tw.add_effect("seal_cross_coupling")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        post = tw.update(tw.added_parameters(), seed=10130, draws=draws, progress=False)
+        post = tw.update(tw.added_parameters(), seed=10130, draws=draws, progress=False, bootstrap=0)
     return tw, post
 
 
@@ -155,6 +156,32 @@ def test_calibrate_needs_the_sampler_s_update(hydro_unit):
         tw.update(["SEAL.kxy"], method="laplace", bootstrap=5)
     with pytest.raises(ValueError, match="needs method='gibbs'"):
         tw.run(method="laplace", bootstrap=5)
+
+
+def test_the_sampler_s_update_of_a_record_is_calibrated_by_default(hydro_unit, monkeypatch):
+    # the loop's default: DEFAULT_RECORDS records for the sampler on modes extracted from a record, none for the
+    # Laplace fit or when told 0, and none for modes that came from no record (synthesize_modes)
+    from twin.extract.modesfile import read_modes
+    from twin.loop.bootstrap import DEFAULT_RECORDS
+    from twin.loop.twin import Twin
+    from twin.update import synthesize_modes
+
+    asked = []
+    monkeypatch.setattr(Twin, "calibrate", lambda self, records, **kw: asked.append(records) or self.posterior)
+    tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
+    tw.add_effect("seal_cross_coupling")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        tw.update(["SEAL.kxy"], seed=1, draws=20, chains=1, progress=False)
+        tw.update(["SEAL.kxy"], seed=1, draws=20, chains=1, progress=False, bootstrap=0)
+        tw.update(["SEAL.kxy"], method="laplace")
+    assert asked == [DEFAULT_RECORDS] == [12]
+    synthetic = Twin(hydro_unit, synthesize_modes(hydro_unit, samples=20, seed=1))
+    synthetic.add_effect("seal_cross_coupling")
+    synthetic.update(["SEAL.kxy"], seed=1, draws=20, chains=1, progress=False)
+    assert asked == [12]
+    with pytest.raises(ValueError, match="whole number of records"):
+        tw.update(["SEAL.kxy"], bootstrap=2.5)
 
 
 def test_a_simulated_record_s_modes_take_the_measured_numbers():

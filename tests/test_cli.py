@@ -228,7 +228,7 @@ def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, 
     out = tmp_path / "loop"
     assert main(["loop", "models/hydro_unit.toml", modes, "--out", str(out),
                  "--candidates", "magnetic_pull,seal_cross_coupling,thrust_tilt:thrust", "--draws", "200", "--chains", "2",
-                 "--seed", "1"]) == 0  # fmt: skip  (the default update: the Gibbs sampler)
+                 "--seed", "1", "--scheduler", "sync"]) == 0  # fmt: skip  (the default update: the Gibbs sampler)
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
     rounds = json.loads((out / "diagnosis.json").read_text())["rounds"]

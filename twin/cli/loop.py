@@ -235,13 +235,15 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _print_history(tw) -> None:
-    print(f"{'step':>4}  {'action':<44} {'error E':>9} {'chi2':>9}")
+    width = max(44, *(len(step.action) for step in tw.history))
+    print(f"{'step':>4}  {'action':<{width}} {'error E':>9} {'chi2':>9}")
     for k, step in enumerate(tw.history):
-        print(f"{k:>4}  {step.action:<44} {100 * step.error:>8.3f}% {float(step.table.attrs['chi2']):>9.1f}")
+        print(f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {float(step.table.attrs['chi2']):>9.1f}")
 
 
 def _loop(args: argparse.Namespace) -> int:
     from twin.extract import read_modes
+    from twin.loop.bootstrap import check_records
     from twin.loop.history import write_history
     from twin.loop.twin import Twin
     from twin.netcdf import atomic_output, write_netcdf
@@ -256,8 +258,7 @@ def _loop(args: argparse.Namespace) -> int:
 
         select(model, labels)  # unknown candidates fail before any work
     tw = Twin(model, modes, tolerance=args.tolerance)
-    if args.bootstrap and args.method == "laplace":
-        raise TwinError("--bootstrap calibrates the sampler's posterior: it needs --method gibbs")
+    check_records(args.bootstrap, args.method)
     kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed,
                                                   "bootstrap": args.bootstrap}  # fmt: skip
     with _tasks(args) as client:

@@ -88,9 +88,14 @@ def _add_model_and_posterior(p: argparse.ArgumentParser) -> None:
     _add_tolerance(p)
 
 
-BOOTSTRAP_HELP = ("gibbs only: records to simulate at each update's estimate, through the FMU, to calibrate its "
-                  "spread (twin.loop.bootstrap; about 17 s a 20-min record on one core, on the Dask workers); "
-                  "0: none")
+def _add_bootstrap(p: argparse.ArgumentParser) -> None:
+    """``--bootstrap``, the calibration of the last update on records simulated at its estimate."""
+    from twin.loop.bootstrap import DEFAULT_RECORDS
+
+    p.add_argument("--bootstrap", type=int, default=None, metavar="R",
+                   help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
+                        "(twin.loop.bootstrap; about 11 s a 20-min record on one core, on the Dask workers); "
+                        f"default: {DEFAULT_RECORDS} with --method gibbs, none with laplace; 0: none")  # fmt: skip
 
 def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     """The demo's record and model options, shared by ``demo`` and ``sweep``."""
@@ -103,7 +108,7 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
                    help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default: HMC "
                         "on the marginal, 4 chains x 500 draws) "
                         "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
-    p.add_argument("--bootstrap", type=int, default=0, metavar="R", help=BOOTSTRAP_HELP)
+    _add_bootstrap(p)
 
 
 def _add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
@@ -395,7 +400,7 @@ def _add_loop(sub) -> None:
     p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
                    help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default) or the Laplace "
                         "approximation of the pole fit")
-    p.add_argument("--bootstrap", type=int, default=0, metavar="R", help=BOOTSTRAP_HELP)
+    _add_bootstrap(p)
     p.add_argument("--rounds", type=int, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
@@ -404,7 +409,7 @@ def _add_loop(sub) -> None:
     p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="Gibbs draws per chain")
     p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="Gibbs chains")
     p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
-    _add_scheduler(p, "candidate fits", default="sync")
+    _add_scheduler(p, "candidate fits and calibration records")
 
     p = _command(sub, "demo", "the whole loop on a truth with hidden changes, with a report folder",
                  "Exports the FMU, simulates a truth with a hidden change, extracts the modes, and runs the\n"
@@ -420,8 +425,8 @@ def _add_loop(sub) -> None:
                         "or none")  # fmt: skip
     p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise")
     _add_loop_settings(p)
-    # the demo's candidate fits take a few seconds, less than starting a cluster: in this process by default
-    _add_scheduler(p, "candidate fits", default="sync")
+    # the calibration's records (twin.loop.bootstrap) take most of the demo's time: on a local cluster by default
+    _add_scheduler(p, "candidate fits and calibration records")
 
     p = _command(sub, "sweep", "the demo's loop over hidden changes and seeds, one Dask task per scenario",
                  "Runs the demo for every scenario and tabulates the verdict, the error's fall and the parameter\n"

@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from twin.errors import TwinError
+from twin.errors import TwinError, UpdateError
 from twin.fem.model import RotorModel
 from twin.tasks import mapper, one_blas_thread
 
@@ -76,6 +76,56 @@ MIN_RECORDS = 3
 LEVEL = 0.90
 #: A simulated record's mode is the measured mode whose frequency is within this fraction of its own.
 MATCH_TOLERANCE = 0.01
+#: Records the loop calibrates the sampler's posterior on when not told otherwise (``bootstrap=None``):
+#: the number every calibrated coverage figure was measured with (README, stops 63-64). About 2 min on
+#: 2 cores for 20-min records at 256 Hz.
+DEFAULT_RECORDS = 12
+
+
+def check_records(records: int | None, method: str) -> None:
+    """Refuse a bootstrap that cannot run: not a whole number >= 0, or given for a posterior not the sampler's.
+
+    Examples
+    --------
+    >>> check_records(None, "laplace"), check_records(12, "gibbs")
+    (None, None)
+    >>> check_records(5, "laplace")
+    Traceback (most recent call last):
+    twin.errors.UpdateError: bootstrap=5 calibrates the sampler's posterior: it needs method='gibbs'
+    """
+    if records is None:
+        return
+    if isinstance(records, bool) or int(records) != records or records < 0:
+        raise UpdateError(f"bootstrap must be a whole number of records >= 0 (0: none), got {records!r}")
+    if records and method != "gibbs":
+        raise UpdateError(f"bootstrap={records} calibrates the sampler's posterior: it needs method='gibbs'")
+
+
+def records_for(records: int | None, modes: xr.Dataset, method: str) -> int:
+    """The records a calibration runs on: ``records`` as given, or by default (None) :data:`DEFAULT_RECORDS`
+    for the sampler's update of modes extracted from a record (their attr ``settings`` says how, as
+    :func:`twin.extract.extract` writes it) and none otherwise: the Laplace fit, or modes with no record to
+    repeat (:func:`twin.update.synthesize_modes`'s).
+
+    Examples
+    --------
+    >>> import json, xarray as xr
+    >>> extracted = xr.Dataset(attrs={"settings": json.dumps({"duration_s": 1200.0, "fs_hz": 256.0})})
+    >>> records_for(None, extracted, "gibbs"), records_for(None, extracted, "laplace"), records_for(3, extracted, "gibbs")
+    (12, 0, 3)
+    >>> records_for(None, xr.Dataset(), "gibbs")
+    0
+    """
+    check_records(records, method)
+    if records is not None:
+        return int(records)
+    if method != "gibbs":
+        return 0
+    try:
+        record_settings(modes)
+    except TwinError:
+        return 0
+    return DEFAULT_RECORDS
 
 
 def matched_modes(modes: xr.Dataset, reference: Mapping[int, float], tolerance: float = MATCH_TOLERANCE) -> xr.Dataset:

@@ -27,6 +27,7 @@ import xarray as xr
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
 from twin.fem.model import RotorModel
+from twin.loop.bootstrap import check_records
 from twin.loop.compare import PER_MODE_NAME, Measured, error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.history import write_history
@@ -199,7 +200,7 @@ def run_demo(
     fmax_hz: float = 60.0,
     seed: int = 1,
     method: str = "gibbs",
-    bootstrap: int = 0,
+    bootstrap: int | None = None,
     progress: bool = True,
     tasks: Any = None,
 ) -> DemoResult:
@@ -230,10 +231,11 @@ def run_demo(
         sampler (:func:`twin.update.update` with :data:`twin.update.CALIBRATED`,
         HMC on the marginal, 4 chains x 500 draws) or the
         Laplace approximation of the pole fit (:func:`twin.loop.fit.laplace_update`).
-    bootstrap : int
-        Gibbs only: records simulated at each update's estimate to calibrate
-        its spread (:mod:`twin.loop.bootstrap`; about 17 s a 20-min record on
-        one core); 0: none.
+    bootstrap : int, optional
+        Gibbs only: records simulated at the last update's estimate to
+        calibrate its spread (:mod:`twin.loop.bootstrap`; about 11 s a 20-min
+        record on one core, on ``tasks``); default
+        :data:`twin.loop.bootstrap.DEFAULT_RECORDS` with the sampler; 0: none.
     progress : bool
         Progress bars.
     tasks : distributed.Client or mapper, optional
@@ -252,8 +254,7 @@ def run_demo(
     from twin.loop.plots import _pyplot, comparison_figures
     from twin.progress import stage
 
-    if bootstrap and method != "gibbs":
-        raise TwinError(f"bootstrap={bootstrap} calibrates the sampler's posterior: it needs method 'gibbs'")
+    check_records(bootstrap, method)
     scenario = parse_scenario(hidden)
     if model is None:
         path = default_model_path()

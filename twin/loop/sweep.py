@@ -62,7 +62,7 @@ class Settings:
     samples: int = DEMO_SAMPLES
     fmax_hz: float = 60.0
     method: str = "gibbs"
-    bootstrap: int = 0
+    bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.records_for)
 
 
 def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:

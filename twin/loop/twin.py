@@ -146,9 +146,12 @@ class Twin:
         has added is updated jointly (``method`` and ``kwargs`` as
         :meth:`update`). The loop stops when a diagnosis names nothing new
         ("nothing missing", "unexplained", "not enough data", or the same
-        effects again), or after ``max_rounds`` rounds. ``bootstrap=R`` (in
-        ``kwargs``) then calibrates the last update's posterior on ``R``
-        records simulated at its estimate, on ``tasks`` (:meth:`calibrate`).
+        effects again), or after ``max_rounds`` rounds. The last update's
+        posterior is then calibrated on records simulated at its estimate, on
+        ``tasks`` (:meth:`calibrate`): ``bootstrap=R`` (in ``kwargs``) records,
+        by default :data:`twin.loop.bootstrap.DEFAULT_RECORDS` when the modes
+        were extracted from a record and the method is the sampler's
+        (:func:`twin.loop.bootstrap.records_for`); ``bootstrap=0``: none.
         ``progress`` draws
         bars over the candidate fits (and the chains) on a terminal; each
         round's stages are logged on ``twin.progress`` (:mod:`twin.progress`).
@@ -173,9 +176,9 @@ class Twin:
         from twin.progress import log as progress_log
         from twin.progress import stage
 
-        bootstrap = kwargs.pop("bootstrap", 0)
-        if bootstrap and method != "gibbs":
-            raise ValueError(f"bootstrap={bootstrap} calibrates the sampler's posterior: it needs method='gibbs'")
+        from twin.loop.bootstrap import records_for
+
+        bootstrap = records_for(kwargs.pop("bootstrap", None), self.modes, method)
         d = None
         for k in range(1, max_rounds + 1):
             with stage(f"round {k}: diagnose"):
@@ -189,7 +192,7 @@ class Twin:
                 self.add_effect(label)
             with stage(f"round {k}: update {', '.join(self.added)} ({method})"):
                 extra = {"progress": progress} if method == "gibbs" and "progress" not in kwargs else {}
-                self.update(self.added_parameters(), method=method, **kwargs, **extra)
+                self.update(self.added_parameters(), method=method, bootstrap=0, **kwargs, **extra)
             progress_log.info("round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error,
                               100 * self.history[-1].error)  # fmt: skip
         if bootstrap and isinstance(self.posterior, xr.DataTree) and self.history[-1].action.startswith("update"):
@@ -198,7 +201,7 @@ class Twin:
         return d
 
     def update(
-        self, params: str | Sequence[str], *, method: str = "gibbs", estimate: str = "map", bootstrap: int = 0,
+        self, params: str | Sequence[str], *, method: str = "gibbs", estimate: str = "map", bootstrap: int | None = None,
         **kwargs,
     ) -> xr.DataTree | xr.Dataset:
         """Bayesian update of ``params``, then the model at the posterior estimate.
@@ -215,9 +218,11 @@ class Twin:
             of MAP and std.
         estimate : {"map", "mean"}
             Which estimate of a Gibbs posterior the model takes.
-        bootstrap : int
+        bootstrap : int, optional
             Records to simulate at the posterior's estimate to calibrate its spread
-            (:mod:`twin.loop.bootstrap`; about 17 s a record on one core, on ``tasks`` when given); 0: none.
+            (:meth:`calibrate`; about 11 s a 20-min record on one core, on ``tasks`` when given); 0: none.
+            Default: :data:`twin.loop.bootstrap.DEFAULT_RECORDS` for the sampler on modes extracted from a
+            record, none otherwise (:func:`twin.loop.bootstrap.records_for`).
         """
         from twin.update.problem import select_parameters
 
@@ -226,8 +231,9 @@ class Twin:
                                                if n not in per_mode]) + per_mode  # fmt: skip
         label = params if isinstance(params, str) else (", ".join(params) if len(params) <= 4
                                                          else f"{len(params)} parameters ({params[0]}, ...)")
-        if bootstrap and method != "gibbs":
-            raise ValueError(f"bootstrap={bootstrap} calibrates the sampler's posterior: it needs method='gibbs'")
+        from twin.loop.bootstrap import records_for
+
+        bootstrap = records_for(bootstrap, self.modes, method)
         if method == "laplace":
             if kwargs:
                 raise TypeError(f"method 'laplace' takes no sampler settings, got {sorted(kwargs)}")
