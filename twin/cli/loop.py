@@ -100,11 +100,9 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     meas = measured_modes(modes)
     names = select_parameters(model, args.params)
     if args.fsi:
-        per_mode = [e for e in model.effects if e.per_mode]
-        if not per_mode:
+        if model.per_mode_effect is None:
             model = _model_with_effects(args.model, [*(args.effect or []), "fsi_per_mode"], modes)
-            per_mode = [e for e in model.effects if e.per_mode]
-        names += free_names(model, per_mode[0], meas.mode)
+        names += free_names(model, model.per_mode_effect, meas.mode)
     updated, post = laplace_update(model, meas, names)
     attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
              "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),

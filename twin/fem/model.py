@@ -245,6 +245,38 @@ class RotorModel:
         """
         return dataclasses.replace(self, effects=(*self.effects, *effects))
 
+    @property
+    def per_mode_effect(self):
+        """The effect that acts mode by mode (:class:`twin.fem.effects.FluidAddedMassPerMode`), if any.
+
+        The FEM assembly leaves it out; the simulation synthesises it on the dry modes
+        (:func:`twin.fmu.truth.synthesize_per_mode_fsi`), the comparison adds it to each mode's pole.
+
+        Examples
+        --------
+        >>> from twin import load_model, shipped_model
+        >>> from twin.fem.effects import FluidAddedMassPerMode, MagneticPull
+        >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull(-1e8))
+        >>> m.per_mode_effect is None
+        True
+        >>> m.with_effects(FluidAddedMassPerMode((1e5,), (0.0,))).per_mode_effect.added_mass
+        (100000.0,)
+        """
+        return next((e for e in self.effects if e.per_mode), None)
+
+    def without_per_mode_effect(self) -> RotorModel:
+        """A copy of the model without its per-mode effect: the single FEM the assembly builds.
+
+        Examples
+        --------
+        >>> from twin import load_model, shipped_model
+        >>> from twin.fem.effects import FluidAddedMassPerMode
+        >>> m = load_model(shipped_model("hydro_unit"))
+        >>> m.with_effects(FluidAddedMassPerMode((1e5,), (0.0,))).without_per_mode_effect().effects == m.effects
+        True
+        """
+        return dataclasses.replace(self, effects=tuple(e for e in self.effects if not e.per_mode))
+
     # -- assembly -----------------------------------------------------------------
     @cached_property
     def fixed_matrices(self) -> dict[str, np.ndarray]:

@@ -22,7 +22,6 @@ exponential of an augmented matrix (Van Loan).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -234,12 +233,11 @@ def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | N
         raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
     if basis == "modal" and fmax_hz is None:
         raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
-    per_mode = [e for e in model.effects if e.per_mode]
-    if per_mode:
+    per_mode = model.per_mode_effect
+    if per_mode is not None:
         from twin.fmu.truth import synthesize_per_mode_fsi
 
-        dry = dataclasses.replace(model, effects=tuple(e for e in model.effects if not e.per_mode))
-        return synthesize_per_mode_fsi(dry, per_mode[0].added_mass, per_mode[0].added_damping)
+        return synthesize_per_mode_fsi(model.without_per_mode_effect(), per_mode.added_mass, per_mode.added_damping)
     ss = full_state_space(model)
     return ss if basis == "full" else truncated_state_space(ss, fmax_hz)
 

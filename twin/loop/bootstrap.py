@@ -188,7 +188,7 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
     from twin.loop.sensitivity import solve_modes
     from twin.modes.analysis import damping_ratio
 
-    per_mode = next((e for e in model.effects if e.per_mode), None)
+    per_mode = model.per_mode_effect
     if per_mode is None:
         return model
     meas = measured_modes(modes)
@@ -211,8 +211,8 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
         damping[:n] = np.where(np.isfinite(damping[:n]), damping[:n], np.nanmedian(damping[:n]))
     effect = dataclasses.replace(per_mode, added_mass=tuple(map(float, mass[:n])),
                                  added_damping=tuple(map(float, damping[:n])))  # fmt: skip
-    others = tuple(e for e in model.effects if not e.per_mode)
-    return dataclasses.replace(model, effects=(*others, effect) if n else others)
+    dry = model.without_per_mode_effect()
+    return dry.with_effects(effect) if n else dry
 
 
 def record_settings(modes: xr.Dataset) -> tuple[float, float, dict[str, Any]]:

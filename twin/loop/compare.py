@@ -177,10 +177,6 @@ def channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
     return np.array([dofs[c] for c in channels])
 
 
-def _per_mode_effect(model: RotorModel):
-    return next((e for e in model.effects if e.per_mode), None)
-
-
 @dataclass(frozen=True)
 class ModelModes:
     """The model's partner of each measured mode: ``poles[k]``, ``shapes[k]`` (all DOFs) for measured index ``measured[k]``."""
@@ -235,7 +231,7 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
     sol = solve_modes(model, values)
     m, cols = pair_with_measured(sol, meas, dofs)
     rows = np.arange(len(meas.mode))
-    per_mode = _per_mode_effect(model)
+    per_mode = model.per_mode_effect
     if per_mode is None:
         return ModelModes(rows, sol.poles[cols], sol.right[cols], m[rows, cols], m, sol.poles.imag / (2 * np.pi), cols)
     poles, shapes, macs = [], [], []

@@ -51,7 +51,6 @@ from twin.fem.model import RotorModel
 from twin.loop.compare import (
     PER_MODE_NAME,
     Measured,
-    _per_mode_effect,
     channel_dofs,
     overall_error,
     pair_with_measured,
@@ -168,7 +167,7 @@ class PoleModel:
     def __init__(self, model: RotorModel, meas: Measured) -> None:
         self.model, self.meas = model, meas
         self.dofs = channel_dofs(model, meas.channels)
-        self.per_mode = _per_mode_effect(model) is not None
+        self.per_mode = model.per_mode_effect is not None
         self.base = with_shared_fsi(model) if self.per_mode else model
         self._followed: dict[int, tuple[complex, np.ndarray]] = {}  # per-mode partners, by measured index
 
