@@ -29,8 +29,13 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     assert "Round 1: **missing effect** (magnetic_pull)" in report and "![history](history.png)" in report
     rounds = json.loads((out / "diagnosis.json").read_text())["rounds"]
     assert rounds[0]["ranking"][0]["effect"] == "magnetic_pull" and rounds[1]["verdict"] == "nothing missing"
-    errors = read_history(out / "history.csv")["error"].values
+    history = read_history(out / "history.csv")
+    errors = history["error"].values
     assert len(errors) == 3 and errors[-1] < 0.2 * errors[0]
+    # the update's E with its 90% interval over the posterior (E at the estimate: 0.0790%, in 0.0763-0.0828%)
+    low, high = history["error_low"].values, history["error_high"].values
+    assert np.isnan(low[:2]).all() and errors[-1] * 0.5 < low[-1] < high[-1] < 0.2 * errors[0]
+    assert "| E, 90% over the posterior [%] |" in report
     # the update is the APerCEM sampler's (HMC on the marginal): its posterior, interval and diagnostics in the report
     assert "jointly: APerCEM, HMC on the marginal (pole deviations and shapes integrated out), 4 chains x 500 draws" in report
     row = next(line for line in report.splitlines() if line.startswith("| MAG.stiffness"))

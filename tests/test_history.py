@@ -1,5 +1,6 @@
 """The error history file: round trip, appending, refusals, the chart."""
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -17,10 +18,45 @@ def test_round_trip_keeps_actions_errors_and_the_modes(tmp_path):
 def test_file_is_a_plain_csv_with_the_error_in_percent(tmp_path):
     import pandas as pd
 
-    h = history_dataset(["start", "add a, b"], [0.0851, 0.00226], [912.5, 14.0], "m.nc")
+    h = history_dataset(["start", "add a, b"], [0.0851, 0.00226], [912.5, 14.0], "m.nc", [None, (0.0022, 0.0031)])
     frame = pd.read_csv(write_history(h, tmp_path / "h.csv"))
-    assert frame.columns.tolist() == ["step", "action", "error_percent", "chi2", "modes"]
+    assert frame.columns.tolist() == ["step", "action", "error_percent", "chi2", "modes", "error_low_percent",
+                                      "error_high_percent"]  # fmt: skip
     assert frame["error_percent"].tolist() == pytest.approx([8.51, 0.226]) and frame["action"][1] == "add a, b"
+    assert np.isnan(frame["error_low_percent"][0]) and frame["error_high_percent"][1] == pytest.approx(0.31)
+    back = read_history(tmp_path / "h.csv")
+    xr.testing.assert_allclose(back, h, rtol=1e-14)
+
+
+def test_a_history_written_without_the_interval_is_read_and_extended(tmp_path):
+    # the header twin wrote before the error's interval (stop 65): read, and appended to in the new layout
+    path = tmp_path / "h.csv"
+    path.write_text("step,action,error_percent,chi2,modes\n0,start,8.51,912.5,m.nc\n")
+    old = read_history(path)
+    assert old["error"].values.tolist() == [0.0851] and np.isnan(old["error_low"].values).all()
+    h = append_step(path, "again", xr.Dataset(attrs={"error": 0.05, "chi2": 400.0}), "m.nc")
+    assert h["error"].values.tolist() == [0.0851, 0.05]
+    assert path.read_text().splitlines()[0].endswith("error_low_percent,error_high_percent")
+
+
+def test_the_error_interval_is_the_quantiles_of_e_over_the_draws(hydro_unit):
+    # E at each of 40 posterior draws of a hidden pull against exact modes: the interval's ends are the 5% and
+    # 95% quantiles of those errors, computed here directly with compare at each draw
+    from twin.fem.effects import MagneticPull
+    from twin.fem.truthfile import Truth
+    from twin.loop.compare import compare, measured_modes
+    from twin.loop.history import error_interval
+    from twin.update import synthesize_modes
+
+    meas = measured_modes(synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3))
+    model = hydro_unit.with_effects(MagneticPull(0.0))
+    values = np.random.default_rng(1).normal(-1e8, 3e6, (2, 20))
+    post = xr.Dataset({"theta": (("chain", "draw", "parameter"), values[..., None])},
+                      coords={"parameter": ["MAG.stiffness"]})  # fmt: skip
+    errors = [compare(model.with_values({"MAG.stiffness": v}), meas).attrs["error"] for v in values.ravel()]
+    assert error_interval(model, post, meas, draws=40) == pytest.approx(tuple(np.quantile(errors, [0.05, 0.95])))
+    at_map = compare(model.with_values({"MAG.stiffness": -1e8}), meas).attrs["error"]
+    assert error_interval(model, post, meas, draws=40)[1] > at_map
 
 
 def test_append_refuses_other_modes_and_leaves_the_file(tmp_path):

@@ -12,7 +12,7 @@ from twin.loop.sweep import Settings, scenario_grid, sweep, tabulate
 def _row(verdict, missing, before, after, params, location=""):
     params = {n: dict(zip(("map", "std", "truth"), v)) for n, v in params.items()}  # a Laplace update: no R-hat
     return {"verdict": verdict, "missing": missing, "top_score": 40.0, "lead": 12.0, "error_before": before,
-            "error_after": after, "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": [],
+            "error_after": after, "error_after_interval": (np.nan, np.nan), "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": [],
             "final_verdict": "nothing missing", "rounds": 2, "chi2_before": 900.0, "chi2_after": 18.0, "n_data": 20}  # fmt: skip
 
 

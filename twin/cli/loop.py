@@ -233,10 +233,14 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _print_history(tw) -> None:
+    from twin.loop.history import interval_text
+
     width = max(44, *(len(step.action) for step in tw.history))
-    print(f"{'step':>4}  {'action':<{width}} {'error E':>9} {'chi2':>9}")
+    print(f"{'step':>4}  {'action':<{width}} {'error E':>9} {'90% over the posterior':>23} {'chi2':>9}")
     for k, step in enumerate(tw.history):
-        print(f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {float(step.table.attrs['chi2']):>9.1f}")
+        interval = "-" if step.interval is None else interval_text(step.interval) + "%"
+        print(f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {interval:>23} "
+              f"{float(step.table.attrs['chi2']):>9.1f}")
 
 
 def _loop(args: argparse.Namespace) -> int:

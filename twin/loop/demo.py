@@ -30,7 +30,7 @@ from twin.fem.model import RotorModel
 from twin.loop.bootstrap import check_records
 from twin.loop.compare import PER_MODE_NAME, Measured, error_text
 from twin.loop.diagnose import Diagnosis
-from twin.loop.history import write_history
+from twin.loop.history import INTERVAL_DRAWS, interval_text, write_history
 from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
 from twin.design.observe import target_lines
@@ -366,9 +366,12 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
                       "its own std, over those records: "
                       + (", ".join(f"{k} x{v:.2f}" for k, v in calibration.items()) or "none determined") + ".", ""]
     lines += ["## History", ""]
-    rows = [[str(k), s.action, f"{100 * s.error:.3f}", f"{float(s.table.attrs['chi2']):.1f}"]
+    rows = [[str(k), s.action, f"{100 * s.error:.3f}", interval_text(s.interval), f"{float(s.table.attrs['chi2']):.1f}"]
             for k, s in enumerate(tw.history)]  # fmt: skip
-    lines += _md_table(["step", "action", "E [%]", "chi2"], rows)
+    lines += _md_table(["step", "action", "E [%]", "E, 90% over the posterior [%]", "chi2"], rows)
+    lines += ["", f"The interval is E's spread over the update's posterior: E of the model at {INTERVAL_DRAWS} of "
+              "its draws (twin.loop.history.error_interval). E is not the density the update fits, so E at the "
+              "estimate need not be the interval's least."]  # fmt: skip
     first, last = tw.history[0].error, tw.history[-1].error
     lines += ["", f"The error fell from {100 * first:.2f}% to {100 * last:.3f}% ({100 * (1 - last / first):.1f}% less).",
               "", "![history](history.png)", ""]  # fmt: skip

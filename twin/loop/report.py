@@ -80,6 +80,13 @@ def _named(row: xr.Dataset) -> str:
     return " + ".join(x for x in (named, f"at {location}" if location else "") if x) or "-"
 
 
+def _interval(row: xr.Dataset) -> str:
+    """A sweep row's 90% interval of E after the update, in percent ('-' without the sampler's posterior)."""
+    if "error_after_low" not in row or not np.isfinite(float(row.error_after_low)):
+        return "-"
+    return f"{100 * float(row.error_after_low):.3f}-{100 * float(row.error_after_high):.3f}%"
+
+
 def sweep_text(table: xr.Dataset) -> str:
     """One line per scenario of :func:`twin.loop.sweep.sweep`: verdict, error fall, parameter errors.
 
@@ -88,7 +95,8 @@ def sweep_text(table: xr.Dataset) -> str:
     """
     width = max([22] + [len(str(h)) for h in table["hidden"].values])
     lines = [f"{'hidden':<{width}} {'seed':>4} {'verdict':<17} {'named':<34} {'lnB lead':>8} {'E before':>9} "
-             f"{'E after':>8} {'fall':>6} {'time':>6} {'passed':<6} {'strict':<6} parameter errors (std)"]  # fmt: skip
+             f"{'E after':>8} {'its 90% interval':>17} {'fall':>6} {'time':>6} {'passed':<6} {'strict':<6} "
+             "parameter errors (std)"]  # fmt: skip
     names = table["parameter"].values
     for k in range(table.sizes["scenario"]):
         r = table.isel(scenario=k)
@@ -99,7 +107,8 @@ def sweep_text(table: xr.Dataset) -> str:
                          if np.isfinite(e))  # fmt: skip
         lines.append(f"{str(r.hidden.values):<{width}} {int(r.seed):>4} {str(r.verdict.values):<17} "
                      f"{_named(r):<34} {float(r.lead):>8.1f} {100 * float(r.error_before):>8.3f}% "
-                     f"{100 * float(r.error_after):>7.3f}% {100 * float(r.fall):>5.1f}% {float(r.elapsed_s):>5.0f}s "
+                     f"{100 * float(r.error_after):>7.3f}% {_interval(r):>17} {100 * float(r.fall):>5.1f}% "
+                     f"{float(r.elapsed_s):>5.0f}s "
                      f"{'yes' if bool(r.passed) else 'NO':<6} {'yes' if bool(r.passed_strict) else 'NO':<6} {errs}")  # fmt: skip
     n = table.sizes["scenario"]
     lines.append(f"{int(table['passed'].sum())} of {n} scenarios passed (the right diagnosis, error fall >= "

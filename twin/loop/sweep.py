@@ -171,6 +171,7 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
         "lead": ranking[0].log_bayes_factor - ranking[1].log_bayes_factor if len(ranking) > 1 else np.nan,
         "error_before": r.twin.history[0].error,
         "error_after": r.twin.history[-1].error,
+        "error_after_interval": r.twin.history[-1].interval or (np.nan, np.nan),
         "chi2_before": float(r.twin.history[0].table.attrs["chi2"]),
         "chi2_after": float(r.twin.history[-1].table.attrs["chi2"]),
         "n_data": int(r.twin.history[0].table.attrs["n_data"]),
@@ -184,7 +185,8 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
 def _failed_row(message: str, elapsed_s: float, caught) -> dict:
     """A scenario whose run raised: verdict ``error``, nothing measured, the message as the last warning."""
     return {"verdict": "error", "missing": "", "rounds": 0, "final_verdict": "error", "top_score": np.nan,
-            "lead": np.nan, "error_before": np.nan, "error_after": np.nan, "chi2_before": np.nan,
+            "lead": np.nan, "error_before": np.nan, "error_after": np.nan, "error_after_interval": (np.nan, np.nan),
+            "chi2_before": np.nan,
             "chi2_after": np.nan, "n_data": 0, "parameters": {}, "location": "", "elapsed_s": elapsed_s,
             "warnings": [(w.category, str(w.message)) for w in caught] + [(TwinWarning, f"the run failed: {message}")]}  # fmt: skip
 
@@ -221,7 +223,8 @@ def sweep(
     xarray.Dataset
         Over ``scenario`` (coordinates ``hidden``, ``seed``): ``verdict``,
         ``missing``, ``expected``, ``location``, ``rounds``, ``top_score``, ``lead``,
-        ``error_before``, ``error_after``, ``chi2_before``, ``chi2_after``, ``n_data``,
+        ``error_before``, ``error_after`` (and its 90% interval over the posterior, ``error_after_low``,
+        ``error_after_high``), ``chi2_before``, ``chi2_after``, ``n_data``,
         ``fall``, ``found``, ``passed``, ``passed_strict``, ``elapsed_s``; over
         ``scenario`` x ``parameter``: ``map``, ``std``, ``truth``, ``relative_error``, ``z``.
 
@@ -280,6 +283,7 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
         z = (par["map"] - par["truth"]) / par["std"]
     before = np.array([r["error_before"] for r in rows])
     after = np.array([r["error_after"] for r in rows])
+    after_interval = np.array([r["error_after_interval"] for r in rows], dtype=float).reshape(len(rows), 2)
     fall = 1.0 - after / before
     hidden = [h for h, _ in scenarios]
     parsed = [parse_scenario(h) for h in hidden]
@@ -304,6 +308,10 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
             "lead": (dims, [r["lead"] for r in rows], {"long_name": "log Bayes factor of the top over the runner-up"}),
             "error_before": (dims, before, {"units": "1", "long_name": "overall error E before the update"}),
             "error_after": (dims, after, {"units": "1", "long_name": "overall error E after the update"}),
+            "error_after_low": (dims, after_interval[:, 0], {"units": "1", "long_name": "5% quantile of E after the "
+                                                             "update over its posterior (NaN: no sampler's posterior)"}),
+            "error_after_high": (dims, after_interval[:, 1], {"units": "1", "long_name": "95% quantile of E after the "
+                                                              "update over its posterior"}),
             "fall": (dims, fall, {"units": "1", "long_name": "1 - E after / E before"}),
             "found": (dims, found, {"long_name": "the diagnosis is right: exactly the hidden effects named, nothing "
                                                  "missing with none hidden, unexplained at the hidden local change"}),

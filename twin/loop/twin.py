@@ -24,7 +24,7 @@ from twin.loop.candidates import add_effects, free_names, replaces
 from twin.loop.compare import PER_MODE_NAME, TOLERANCE, Measured, compare, measured_modes
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.fit import laplace_update
-from twin.loop.history import history_dataset, plot_history
+from twin.loop.history import error_interval, history_dataset, plot_history
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +39,8 @@ class Step:
     action: str
     model: RotorModel
     table: xr.Dataset
+    #: the 90% interval of E over the posterior of the update the step made (:func:`twin.loop.history.error_interval`)
+    interval: tuple[float, float] | None = None
 
     @property
     def error(self) -> float:
@@ -91,10 +93,13 @@ class Twin:
         """The model after the last step."""
         return self.history[-1].model
 
-    def _record(self, action: str, model: RotorModel) -> Step:
-        step = Step(action, model, compare(model, self.measured))
+    def _record(self, action: str, model: RotorModel, posterior: xr.DataTree | None = None) -> Step:
+        """Append a step; with the sampler's ``posterior`` (of the update from the last model), E's interval too."""
+        interval = None if posterior is None else error_interval(self.model, posterior, self.measured)
+        step = Step(action, model, compare(model, self.measured), interval)
         self.history.append(step)
-        log.info("%s: error %.3f%%", action, 100 * step.error)
+        log.info("%s: error %.3f%%%s", action, 100 * step.error,
+                 "" if interval is None else f" (90% over the posterior: {100 * interval[0]:.3g}-{100 * interval[1]:.3g}%)")
         return step
 
     def compare(self) -> xr.Dataset:
@@ -252,7 +257,7 @@ class Twin:
                                  f"all of {', '.join(every)}, or use method='laplace'")  # fmt: skip
         shared = [n for n in names if n not in per_mode]
         tree = update(self.model, self.modes, shared, fsi=bool(per_mode), **kwargs)
-        self._record(f"update {label}", apply_posterior(self.model, tree, estimate))
+        self._record(f"update {label}", apply_posterior(self.model, tree, estimate), tree)
         self.posterior = tree
         if bootstrap:
             self.calibrate(bootstrap, estimate=estimate, seed=kwargs.get("seed"), tasks=kwargs.get("tasks"),
@@ -287,7 +292,7 @@ class Twin:
         tree = calibrated(tree, factors, determined)
         self.history.pop()
         self._record(f"{last.action}, calibrated on {records} simulated records",
-                     apply_posterior(before, tree, estimate))  # fmt: skip
+                     apply_posterior(before, tree, estimate), tree)  # fmt: skip
         self.posterior = tree
         return tree
 
@@ -295,7 +300,8 @@ class Twin:
         """The error after each step: ``action``, ``error`` and ``chi2`` over dimension ``step``."""
         table = history_dataset([s.action for s in self.history], [s.error for s in self.history],
                                 [float(s.table.attrs["chi2"]) for s in self.history],
-                                str(self.modes.attrs.get("title", "measured modes")))  # fmt: skip
+                                str(self.modes.attrs.get("title", "measured modes")),
+                                [s.interval for s in self.history])  # fmt: skip
         table.attrs["error_definition"] = self.history[0].table.attrs["error_definition"]
         return table
 
