@@ -239,8 +239,8 @@ def report(rows: list[dict], second: str = "adjusted (adjust='jackknife')") -> l
     alone is given with its 90% interval over records (:func:`record_interval`): an undetermined value's wide
     interval covers whatever the truth, and the values of one record err together.
     """
-    lines = ["| scenario | parameter group | values | 90% interval covers: model posterior (default) | "
-             f"{second} | determined, default [90% over records] | determined, {second.split(' (')[0]} | median abs. error of the MAP | not determined (covered) | "
+    lines = ["| scenario | parameter group | values | 90% interval covers: the sampler's posterior | "
+             f"{second} | determined, sampler [90% over records] | determined, {second.split(' (')[0]} | median abs. error of the MAP | not determined (covered) | "
              "R-hat <= 1.01 (determined) | least bulk ESS (determined) |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (SCENARIOS.index(k[0]), k[1]))
@@ -265,7 +265,7 @@ def report(rows: list[dict], second: str = "adjusted (adjust='jackknife')") -> l
     model = np.mean([_covers(r, "model") for r in rows])
     inside = np.mean([_covers(r, "adjusted") for r in rows])
     lines += ["", f"All: the 90% intervals cover the truth for {model:.0%} of {len(rows)} values with the model's "
-                  f"posterior (the default), {inside:.0%} {second}."]  # fmt: skip
+                  f"posterior (uncalibrated), {inside:.0%} {second}."]  # fmt: skip
     return lines
 
 
@@ -372,7 +372,8 @@ def main() -> None:
              f"{' --logdet' if args.logdet else ''}{' --flat-priors' if args.flat_priors else ''}"
              f"{f' --bootstrap {args.bootstrap}' if args.bootstrap != DEFAULT_RECORDS else ''}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
-             ""] + report(rows, f"calibrated on {args.bootstrap} simulated records" if args.bootstrap
+             ""] + report(rows, f"calibrated on {args.bootstrap} simulated records"
+                          + (" (the default)" if args.bootstrap == DEFAULT_RECORDS else "") if args.bootstrap
                           else "adjusted (adjust='jackknife')")  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"
               for r in refused]  # fmt: skip

@@ -8,7 +8,6 @@ from twin.cli import main
 from twin.design import identifiability
 from twin.design.identify import _data_vector, data_precision, fisher_covariance, modal_jacobian, sample_covariance
 from twin.errors import ModelError
-from twin.fmu.statespace import full_state_space, state_modes
 from twin.loop.sensitivity import pole_jacobian, solve_modes
 from twin.modes.shapes import normalise_shapes
 from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV

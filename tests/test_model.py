@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from twin import ModelError, load_model, modal
+from twin import ModelError, modal
 from twin.fem.parameters import MATRIX_KINDS
 
-from conftest import DATA, ROOT
+from conftest import DATA
 
 
 def test_matrices_match_ross(ross_model):

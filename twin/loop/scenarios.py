@@ -27,7 +27,6 @@ from twin.errors import TwinError
 from twin.fem.effects import (
     BearingChange,
     FluidAddedMass,
-    FluidAddedMassPerMode,
     MagneticPull,
     SealCrossCoupling,
     ThrustTilt,
