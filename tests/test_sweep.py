@@ -114,6 +114,10 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     assert "posteriors: the 90% interval covers the truth for" in printed and "R-hat <= 1.01 for 1 of 1" in printed
     mag = table.sel(parameter="MAG.stiffness")
     assert abs(float(mag["relative_error"][0])) < 0.10 and np.isnan(float(mag["map"][1]))
+    # E after the update with its 90% interval over the (calibrated) posterior; none where nothing was updated
+    low, high = table["error_after_low"].values, table["error_after_high"].values
+    assert 0 < low[0] < high[0] < float(table["error_before"][0]) and np.isnan(low[1])
+    assert "its 90% interval" in printed
 
 
 def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
