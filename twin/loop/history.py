@@ -223,8 +223,8 @@ def error_interval(model: RotorModel, posterior: xr.DataTree | xr.Dataset, measu
 
     if isinstance(posterior, xr.DataTree):
         posterior = posterior["posterior"].to_dataset()
-    stacked = posterior.stack(sample=("chain", "draw"))
-    picks = np.unique(np.linspace(0, stacked.sizes["sample"] - 1, min(int(draws), stacked.sizes["sample"])).round())
+    samples = posterior.sizes["chain"] * posterior.sizes["draw"]
+    picks = np.unique(np.linspace(0, samples - 1, min(int(draws), samples)).round())
     errors = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a draw outside a bound: put on it, as the estimate would be

@@ -257,7 +257,8 @@ class Twin:
                                  f"all of {', '.join(every)}, or use method='laplace'")  # fmt: skip
         shared = [n for n in names if n not in per_mode]
         tree = update(self.model, self.modes, shared, fsi=bool(per_mode), **kwargs)
-        self._record(f"update {label}", apply_posterior(self.model, tree, estimate), tree)
+        # a calibration replaces this step at once, with the interval of its own posterior
+        self._record(f"update {label}", apply_posterior(self.model, tree, estimate), None if bootstrap else tree)
         self.posterior = tree
         if bootstrap:
             self.calibrate(bootstrap, estimate=estimate, seed=kwargs.get("seed"), tasks=kwargs.get("tasks"),

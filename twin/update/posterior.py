@@ -20,7 +20,6 @@ Vehtari et al. 2021): the reference implementation our users check against.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import re
 import warnings
@@ -196,17 +195,16 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
         return updated
     if modes.min() < 1 or len(set(modes)) != len(modes):
         raise TwinError(f"per-mode FSI needs distinct target modes numbered from 1; the posterior has {list(modes)}")
-    old = [e for e in updated.effects if isinstance(e, FluidAddedMassPerMode)]
-    n = max(int(modes.max()), len(old[0].added_mass) if old else 0)
+    old = updated.per_mode_effect
+    n = max(int(modes.max()), len(old.added_mass) if old is not None else 0)
     mass, damping = np.zeros(n), np.zeros(n)
-    if old:
-        mass[: len(old[0].added_mass)], damping[: len(old[0].added_damping)] = old[0].added_mass, old[0].added_damping
+    if old is not None:
+        mass[: len(old.added_mass)], damping[: len(old.added_damping)] = old.added_mass, old.added_damping
     for m in modes:
         mass[m - 1] = _within_bounds(f"FSI.added_mass_{m}", values[f"FSI.added_mass_{m}"], (0.0, np.inf))
         damping[m - 1] = _within_bounds(f"FSI.added_damping_{m}", values[f"FSI.added_damping_{m}"], (0.0, np.inf))
     effect = FluidAddedMassPerMode(tuple(map(float, mass)), tuple(map(float, damping)))
-    others = tuple(e for e in updated.effects if not isinstance(e, FluidAddedMassPerMode))
-    return dataclasses.replace(updated, effects=(*others, effect))
+    return updated.without_per_mode_effect().with_effects(effect)
 
 
 def _within_bounds(name: str, value: float, bounds: tuple[float, float]) -> float:
