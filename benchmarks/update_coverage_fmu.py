@@ -169,6 +169,16 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     inverse = np.array([1.0 / factors.get(str(p), 1.0) for p in draws["parameter"].values])
     q_model = draws.copy(data=stretch(draws.values, inverse)).quantile([0.05, 0.95], "sample")
     elapsed = time.perf_counter() - started
+    seen = {}  # {label: {records it was seen on, of them in the first batch, the records' RMS error and RMS z}}
+    if "bootstrap" in post.children:
+        boot = post["bootstrap"].to_dataset()
+        for p in boot["parameter"].values:
+            z, error = boot["z"].sel(parameter=p).values, boot["error"].sel(parameter=p).values
+            seen[str(p)] = {"records_seen": int(np.isfinite(z).sum()),
+                            "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum()),
+                            "bootstrap_rms_error": float(np.sqrt(np.nanmean(error**2))) if np.isfinite(z).any() else None,
+                            "bootstrap_rms_z": float(np.sqrt(np.nanmean(z**2))) if np.isfinite(z).any() else None}  # fmt: skip
+    sampler_std = draws.std("sample")
     rows = []
     for k, p in enumerate(table["parameter"].values):
         p = str(p)
@@ -178,6 +188,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
                      **{v: float(table[v][k]) for v in ("map", "q05", "q95", "r_hat", "ess_bulk")},
                      "q05_model": float(q_model.sel(parameter=p)[0]), "q95_model": float(q_model.sel(parameter=p)[1]),
                      "determined": bool(table["determined"][k]), "factor": factors.get(p, 1.0),
+                     "sampler_std": float(sampler_std.sel(parameter=p)) / factors.get(p, 1.0), **seen.get(p, {}),
                      "elapsed_s": elapsed})  # fmt: skip
     return rows
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError, TwinWarning
-from twin.loop.bootstrap import (MIN_RECORDS, bootstrap_factors, calibrated, pooled_rms, record_seeds,
+from twin.loop.bootstrap import (MAX_BATCHES, MIN_RECORDS, bootstrap_factors, calibrated, pooled_rms, record_seeds,
                                  record_settings, target_numbered)
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -61,13 +61,42 @@ def test_factors_are_the_rms_of_the_records_errors_in_their_own_std(hydro_unit):
     assert float(factors["factor"][0]) == pytest.approx(np.sqrt(14 / 4) * 2.131847 / 1.644854, rel=1e-6)
     assert int(factors["records_used"][0]) == 4
     assert float(factors["pooled_rms_z"][0]) == float(factors["rms_z"][0])  # one parameter: nothing to pool
-    with pytest.raises(TwinError, match="fitted on 2 of 5"):
+    # seen on 2 records of 5: two more batches of 5 (MAX_BATCHES), which find none, then too few to calibrate
+    batches = iter([fits[:2] + ["x"] * 3, ["x"] * 5, ["x"] * 5])
+    with pytest.raises(TwinError, match=f"fitted on 2 of {5 * MAX_BATCHES}"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
-                          tasks=lambda function, items, **shared: fits[:2] + ["x"] * 3)  # fmt: skip
+                          tasks=lambda function, items, **shared: next(batches))  # fmt: skip
     with pytest.raises(TwinError, match=f"integer >= {MIN_RECORDS}"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=2)
     with pytest.raises(TwinError, match="lacks SEAL.kxy"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, {}, records=5)
+
+
+def test_a_parameter_seen_on_too_few_records_is_seen_on_more(hydro_unit):
+    # a mode found in one simulated record of five: batches of five more records until it was seen on
+    # MIN_RECORDS; a parameter never seen asks for none (it has no factor); the first batch's seeds are the
+    # seeds of a bootstrap of 5 records
+    tw, post = _seal_update(hydro_unit, draws=50)
+    estimate = {"SEAL.kxy": 5.0e7}
+    seen, unseen = {"SEAL.kxy": (5.0e7 + 1e6, 1e6)}, "record: no mode"
+    asked = []
+
+    def tasks(function, items, **shared):
+        asked.append(list(items))
+        return [seen if (len(asked) - 1) * 5 + k in (2, 6, 7) else unseen for k in range(len(items))]
+
+    factors = bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5, seed=3, tasks=tasks)
+    assert [len(a) for a in asked] == [5, 5] and asked[0] == record_seeds(3, 5)
+    assert factors.sizes["record"] == 10 and factors["record"].values.tolist() == asked[0] + asked[1]
+    assert int(factors["records_used"][0]) == 3
+    assert float(factors["rms_z"][0]) == pytest.approx(1.0)
+    # seen on none of the first five (the estimate's mode is not what the sensors see): no more records,
+    # and nothing to calibrate on
+    asked.clear()
+    with pytest.raises(TwinError, match="fitted on 0 of 5"):
+        bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
+                          tasks=lambda function, items, **shared: asked.append(items) or [unseen] * len(items))  # fmt: skip
+    assert len(asked) == 1
 
 
 def test_pooled_rms_shrinks_the_records_noise_and_keeps_real_differences():
@@ -108,6 +137,7 @@ def test_calibrated_stretches_determined_draws_only_and_keeps_the_mean(hydro_uni
     assert after.std() == pytest.approx(1.5 * before.std(), rel=1e-12)
     assert json.loads(out.attrs["bootstrap_calibration"]) == {"SEAL.kxy": 1.5}
     assert json.loads(out.attrs["bootstrap_records"]) == [1, 2, 3]
+    assert float(out["bootstrap"]["factor"][0]) == 1.5  # the records' errors travel with the posterior
     np.testing.assert_array_equal(post["posterior"]["theta"].values, before)  # the input is left alone
     kept = calibrated(post, factors, [])  # not determined: its prior-bound draws stay
     np.testing.assert_array_equal(kept["posterior"]["theta"].values, before)

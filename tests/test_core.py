@@ -246,3 +246,24 @@ def test_orders_used_leave_out_unconverged_low_orders():
     # a cluster whose poles all agree keeps its lowest orders
     diag = SimpleNamespace(pole=np.full(len(orders), -0.15 + 2j * np.pi), order=orders)
     assert list(_orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))) == list(range(ORDERS_PER_MODE))
+
+
+def test_the_extraction_runs_on_one_blas_thread(make_record, monkeypatch):
+    # many small SVDs and QRs: OpenBLAS's threads cost more than they gain (benchmarks/extract_threads.py);
+    # the limit holds inside the SSI passes and is lifted again afterwards
+    from threadpoolctl import threadpool_info
+
+    import twin.extract.core as core
+
+    def blas_threads() -> int:
+        return max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+
+    seen, ssi_pass = [], core.ssi_pass
+    monkeypatch.setattr(core, "ssi_pass", lambda *a, **k: seen.append(blas_threads()) or ssi_pass(*a, **k))
+    outside = blas_threads()
+    ds = make_record(np.array([-0.1 + 2j * np.pi * 2.0]), np.array([[1.0, 1j]]), fs_hz=20.0, duration_s=600.0, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        extract(ds, samples=4, max_order=8, fmax_hz=8.0, progress=False)
+    assert seen and set(seen) == {1}
+    assert blas_threads() == outside

@@ -90,12 +90,14 @@ def _add_model_and_posterior(p: argparse.ArgumentParser) -> None:
 
 def _add_bootstrap(p: argparse.ArgumentParser) -> None:
     """``--bootstrap``, the calibration of the last update on records simulated at its estimate."""
-    from twin.loop.bootstrap import DEFAULT_RECORDS
+    from twin.loop.bootstrap import DEFAULT_RECORDS, MAX_BATCHES
 
     p.add_argument("--bootstrap", type=int, default=None, metavar="R",
                    help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
-                        "(twin.loop.bootstrap; about 11 s a 20-min record on one core, on the Dask workers); "
-                        f"default: {DEFAULT_RECORDS} with --method gibbs, none with laplace; 0: none")  # fmt: skip
+                        "(twin.loop.bootstrap; about 12 s a 20-min record on one core; up to "
+                        f"{MAX_BATCHES} x R when a mode came out of too few; on the Dask workers, within a sweep "
+                        f"in its scenario's worker); default: {DEFAULT_RECORDS} with --method gibbs, none with "
+                        "laplace; 0: none")  # fmt: skip
 
 def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     """The demo's record and model options, shared by ``demo`` and ``sweep``."""

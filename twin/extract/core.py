@@ -34,6 +34,7 @@ from twin.extract.ssi import hankel_max_lag
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mpc, mpd
 from twin.netcdf import check_writable, load_netcdf
+from twin.tasks import one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,7 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
     return y, rec.fs_hz / q, q
 
 
+@one_blas_thread  # many small SVDs and QRs: 3.6 times faster than with two OpenBLAS threads (see the docstring)
 def extract(
     signals: xr.Dataset | str | Path,
     *,
@@ -233,6 +235,12 @@ def extract(
         covariance of the pole's real and imaginary parts over the model
         orders ``pole_order_cov`` [1/s²] (dims ``pole_part``, ``pole_part_2``),
         ``sensor_shape``, ``MPC``, ``MPD`` [deg], ``model_order``.
+
+    Notes
+    -----
+    Runs with one BLAS thread (:func:`twin.tasks.one_blas_thread`): its work is
+    many small SVDs, QRs and eigen-solutions, on which OpenBLAS's threads cost
+    more in hand-over than they gain (``benchmarks/extract_threads.py``).
 
     Examples
     --------

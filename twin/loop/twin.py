@@ -272,9 +272,10 @@ class Twin:
         The model after the update is simulated through its FMU ``records`` times, each record is extracted
         as the measured modes were and fitted with the update's density; every determined parameter's draws
         are stretched by its RMS error in its own std over them, shrunk towards the determined parameters'
-        common value (:mod:`twin.loop.bootstrap`). The last step
+        common value (:mod:`twin.loop.bootstrap`; more records when a determined parameter's mode came out of
+        too few). The last step
         of the history is replaced by the model at the calibrated posterior's estimate; the posterior (attrs
-        ``bootstrap_calibration``, ``bootstrap_records``) is returned and kept in :attr:`posterior`.
+        ``bootstrap_calibration``, ``bootstrap_records``, group ``bootstrap``) is returned and kept in :attr:`posterior`.
         ``tasks``: where the records run (:func:`twin.tasks.mapper`).
         """
         from twin.loop.bootstrap import bootstrap_factors, calibrated, posterior_labels
@@ -292,7 +293,7 @@ class Twin:
                                     seed=seed, pooled=determined, tasks=tasks, progress=progress)  # fmt: skip
         tree = calibrated(tree, factors, determined)
         self.history.pop()
-        self._record(f"{last.action}, calibrated on {records} simulated records",
+        self._record(f"{last.action}, calibrated on {factors.sizes['record']} simulated records",
                      apply_posterior(before, tree, estimate), tree)  # fmt: skip
         self.posterior = tree
         return tree
