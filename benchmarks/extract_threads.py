@@ -31,12 +31,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=2, help="runs per setting; the fastest counts")
     args = ap.parse_args()
-    from threadpoolctl import threadpool_info
-
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
     from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.tasks import blas_threads
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
@@ -52,7 +51,7 @@ def main() -> None:
                 out[name] = function(signals, **options)
             best[name] = min(best[name], time.perf_counter() - t0)
     one, many = out.values()
-    threads = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+    threads = blas_threads()
     lines = ["# Extraction: one BLAS thread against the machine's", "",
              f"Command: `python benchmarks/extract_threads.py --seed {args.seed} --repeat {args.repeat}`; one 20-min "
              f"record at 256 Hz, fmax 60 Hz, {DEMO_SAMPLES} samples and {SHAPE_SAMPLES_PER_SAMPLE * DEMO_SAMPLES} shape samples; best of "

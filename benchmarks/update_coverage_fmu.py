@@ -174,7 +174,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         boot = post["bootstrap"].to_dataset()
         for p in boot["parameter"].values:
             z, error = boot["z"].sel(parameter=p).values, boot["error"].sel(parameter=p).values
-            seen[str(p)] = {"records_seen": int(np.isfinite(z).sum()),
+            seen[str(p)] = {"records_seen": int(boot["records_used"].sel(parameter=p)),
                             "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum()),
                             "bootstrap_rms_error": float(np.sqrt(np.nanmean(error**2))) if np.isfinite(z).any() else None,
                             "bootstrap_rms_z": float(np.sqrt(np.nanmean(z**2))) if np.isfinite(z).any() else None}  # fmt: skip

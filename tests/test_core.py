@@ -251,12 +251,8 @@ def test_orders_used_leave_out_unconverged_low_orders():
 def test_the_extraction_runs_on_one_blas_thread(make_record, monkeypatch):
     # many small SVDs and QRs: OpenBLAS's threads cost more than they gain (benchmarks/extract_threads.py);
     # the limit holds inside the SSI passes and is lifted again afterwards
-    from threadpoolctl import threadpool_info
-
     import twin.extract.core as core
-
-    def blas_threads() -> int:
-        return max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+    from twin.tasks import blas_threads
 
     seen, ssi_pass = [], core.ssi_pass
     monkeypatch.setattr(core, "ssi_pass", lambda *a, **k: seen.append(blas_threads()) or ssi_pass(*a, **k))

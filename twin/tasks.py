@@ -72,6 +72,19 @@ def one_blas_thread(function: Callable[..., R]) -> Callable[..., R]:
     return run
 
 
+def blas_threads() -> int:
+    """The threads the loaded BLAS libraries use now (the most of them; 1 with none loaded).
+
+    Examples
+    --------
+    >>> one_blas_thread(blas_threads)()
+    1
+    """
+    from threadpoolctl import threadpool_info
+
+    return max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+
+
 def in_process(function: Callable[..., R], items: Sequence[T], **shared: Any) -> list[R]:
     """Run ``function(item, **shared)`` for each item here, in order.
 

@@ -87,7 +87,7 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
     return y, rec.fs_hz / q, q
 
 
-@one_blas_thread  # many small SVDs and QRs: 3.6 times faster than with two OpenBLAS threads (see the docstring)
+@one_blas_thread  # many small SVDs and QRs: faster than with OpenBLAS's threads (see the docstring's Notes)
 def extract(
     signals: xr.Dataset | str | Path,
     *,
