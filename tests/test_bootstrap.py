@@ -46,21 +46,27 @@ def test_the_fitted_density_is_the_update_s(hydro_unit):
     assert std == pytest.approx(draws.std(), rel=0.1)
 
 
-def test_factors_are_the_rms_of_the_records_errors_in_their_own_std(hydro_unit):
-    # the records' fits given (a mapper that stands for the simulation): z = (mode - estimate) / std
+def test_factors_are_the_records_rms_error_in_the_posterior_s_std(hydro_unit):
+    # the records' fits given (a mapper that stands for the simulation): error = mode - estimate, its RMS over
+    # the records that have it, in the std of the measured posterior's draws
     tw, post = _seal_update(hydro_unit, draws=50)
     estimate = {"SEAL.kxy": 5.0e7}
     fits = [{"SEAL.kxy": (5.0e7 + 1e6, 1e6)}, {"SEAL.kxy": (5.0e7 - 4e6, 2e6)}, "record 3: no mode",
             {"SEAL.kxy": (5.0e7, 5e5)}, {"SEAL.kxy": (5.0e7 + 3e6, 1e6)}]  # fmt: skip
     factors = bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
                                 tasks=lambda function, items, **shared: fits)  # fmt: skip
-    z = factors["z"].sel(parameter="SEAL.kxy").values
-    np.testing.assert_allclose(z, [1.0, -2.0, np.nan, 0.0, 3.0])
+    np.testing.assert_allclose(factors["error"].sel(parameter="SEAL.kxy").values, [1e6, -4e6, np.nan, 0.0, 3e6])
+    np.testing.assert_allclose(factors["z"].sel(parameter="SEAL.kxy").values, [1.0, -2.0, np.nan, 0.0, 3.0])
     assert float(factors["rms_z"][0]) == pytest.approx(np.sqrt((1 + 4 + 0 + 9) / 4))
+    sigma = post["posterior"]["theta"].sel(parameter="SEAL.kxy").values.std()
+    assert float(factors["posterior_std"][0]) == pytest.approx(sigma, rel=1e-12)
+    assert float(factors["rms_error"][0]) == pytest.approx(np.sqrt(26 / 4) * 1e6)
+    assert float(factors["error_ratio"][0]) == pytest.approx(np.sqrt(26 / 4) * 1e6 / sigma)
     # the 90% interval of an error whose variance comes from 4 records: Student's t, 4 degrees of freedom
-    assert float(factors["factor"][0]) == pytest.approx(np.sqrt(14 / 4) * 2.131847 / 1.644854, rel=1e-6)
+    widening = 2.131847 / 1.644854
+    assert float(factors["factor"][0]) == pytest.approx(np.sqrt(26 / 4) * 1e6 / sigma * widening, rel=1e-6)
     assert int(factors["records_used"][0]) == 4
-    assert float(factors["pooled_rms_z"][0]) == float(factors["rms_z"][0])  # one parameter: nothing to pool
+    assert float(factors["pooled_error_ratio"][0]) == float(factors["error_ratio"][0])  # one parameter: no pool
     # seen on 2 records of 5: two more batches of 5 (MAX_BATCHES), which find none, then too few to calibrate
     batches = iter([fits[:2] + ["x"] * 3, ["x"] * 5, ["x"] * 5])
     with pytest.raises(TwinError, match=f"fitted on 2 of {5 * MAX_BATCHES}"):
@@ -90,6 +96,7 @@ def test_a_parameter_seen_on_too_few_records_is_seen_on_more(hydro_unit):
     assert factors.sizes["record"] == 10 and factors["record"].values.tolist() == asked[0] + asked[1]
     assert int(factors["records_used"][0]) == 3
     assert float(factors["rms_z"][0]) == pytest.approx(1.0)
+    assert float(factors["rms_error"][0]) == pytest.approx(1e6)
     # seen on none of the first five (the estimate's mode is not what the sensors see): no more records,
     # and nothing to calibrate on
     asked.clear()

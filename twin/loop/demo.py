@@ -362,8 +362,8 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
         if calibration is not None:
             records = len(json.loads(result.posterior.attrs["bootstrap_records"]))
             lines += [f"The intervals are calibrated on {records} records simulated at the estimate "
-                      "(twin.loop.bootstrap): each determined parameter's draws stretched by its RMS error, in "
-                      "its own std, over those records: "
+                      "(twin.loop.bootstrap): each determined parameter's draws stretched by its RMS error over "
+                      "those records in the posterior's std: "
                       + (", ".join(f"{k} x{v:.2f}" for k, v in calibration.items()) or "none determined") + ".", ""]
     lines += ["## History", ""]
     rows = [[str(k), s.action, f"{100 * s.error:.3f}", interval_text(s.interval), f"{float(s.table.attrs['chi2']):.1f}"]

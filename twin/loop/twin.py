@@ -271,7 +271,7 @@ class Twin:
 
         The model after the update is simulated through its FMU ``records`` times, each record is extracted
         as the measured modes were and fitted with the update's density; every determined parameter's draws
-        are stretched by its RMS error in its own std over them, shrunk towards the determined parameters'
+        are stretched by its RMS error over them in the posterior's std, shrunk towards the determined parameters'
         common value (:mod:`twin.loop.bootstrap`; more records when a determined parameter's mode came out of
         too few). The last step
         of the history is replaced by the model at the calibrated posterior's estimate; the posterior (attrs
