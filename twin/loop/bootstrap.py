@@ -59,14 +59,9 @@ and 94.3%.
 
 A simulated record's modes are numbered as the measured ones by frequency:
 each measured mode is the simulated system's mode nearest it
-(:func:`simulated_reference`), and a record's mode within
-:data:`MATCH_TOLERANCE` of that mode's frequency takes its number. Matched
-against the measured frequencies themselves (stops 62-67, within 1%), a
-record lost a mode whenever its extraction error and the measured record's
-added up beyond the tolerance: on the seal records of stop 68 the 3.81 Hz
-mode, damped 13.6%, was measured 1.3% off on record 10406 (the seal 3.4 of
-its std from the truth), and the records simulated at its estimate kept
-only the ones that found that mode as badly, or lost it.
+(:func:`simulated_reference`, which says why not the measured frequency
+itself), and a record's mode within :data:`MATCH_TOLERANCE` of that mode's
+frequency takes its number.
 
 A mode the sensors hardly see may come out of few simulated records, and a
 parameter seen on fewer than :data:`MIN_RECORDS` has no factor: its draws
@@ -230,7 +225,7 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     >>> {k: round(v, 2) for k, v in simulated_reference(poles, m).items()}
     {3: 3.81, 5: 11.64, 8: 30.0}
     """
-    system_hz = np.abs(poles[poles.imag > 0].imag) / (2 * np.pi)
+    system_hz = poles[poles.imag > 0].imag / (2 * np.pi)
     labels = [int(m) for m in modes["mode"].values]
     measured_hz = np.abs(modes["frequency"].values).astype(float)
     reference = dict(zip(labels, map(float, measured_hz)))
@@ -425,10 +420,10 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         ``factor``, ``pooled_error_ratio`` times :func:`predictive_widening` of the records used; and
         ``rms_z`` ``sqrt(mean z²)``, a diagnostic (the ratio the factor came from up to stop 66).
     """
-    if int(records) != records or records < MIN_RECORDS:
-        raise TwinError(f"bootstrap records must be an integer >= {MIN_RECORDS}, got {records}")
     from twin.fmu.statespace import model_state_space
 
+    if int(records) != records or records < MIN_RECORDS:
+        raise TwinError(f"bootstrap records must be an integer >= {MIN_RECORDS}, got {records}")
     settings = json.loads(posterior.attrs.get("settings", "{}"))
     duration_s, fs_hz, extraction = record_settings(modes)
     labels = posterior_labels(posterior)
