@@ -13,7 +13,7 @@ from twin.extract.modesfile import write_modes
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import CALIBRATED, PAPER, UpdateError, apply_posterior, read_posterior, summary, synthesize_modes, update
-from twin.update.problem import select_parameters
+from twin.update.problem import build_problem, select_parameters
 
 
 def _truth(model):
@@ -131,6 +131,23 @@ def test_apply_posterior_updates_the_twin(hydro_unit):
     assert fsi[0].added_mass == (5.0e4, 5.0e4, 1.0e5, 5.0e4)  # modes 1, 2 kept, 3 and 4 replaced
     with pytest.raises(Exception, match="distinct target modes numbered from 1"):
         apply_posterior(hydro_unit, post.assign_coords(mode=[0, 1]))
+
+
+def test_a_mode_with_samples_below_the_axis_is_updated_and_a_conjugate_mode_refused(hydro_unit, paper_modes, caplog):
+    """An extraction's scaled jackknife samples of a heavily damped mode may reach Im <= 0 (FMU record 10445,
+    3.5 Hz at 16% damping: 4 of 60): the mean pole is the mode, so the update takes it and says so; a mode
+    whose mean pole is the conjugate one is refused, naming it."""
+    sub = paper_modes.isel(mode=[2, 3]).copy(deep=True)
+    sub["pole"][0, :3] = sub["pole"][0, :3].real - 1j * abs(sub["pole"][0, :3].imag) * 0.1
+    assert sub["pole"][0].mean().imag > 0
+    with caplog.at_level("WARNING", logger="twin.update.problem"):
+        problem = build_problem(hydro_unit, sub, [], fsi=True, pole_model="marginal")
+    assert problem is not None
+    assert "mode 3 has 3 of 100 pole samples with Im <= 0" in caplog.text
+    flipped = sub.copy(deep=True)
+    flipped["pole"][1] = flipped["pole"][1].conj()
+    with pytest.raises(UpdateError, match="mode 4 has its mean pole at Im <= 0"):
+        update(hydro_unit, flipped, None, fsi=True, progress=False)
 
 
 def test_bad_requests_are_named(hydro_unit, paper_modes):
