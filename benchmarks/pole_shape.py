@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from update_coverage_fmu import SCENARIOS, dataset_benchmark, scenario_record
+from update_coverage_fmu import dataset_benchmark, scenario_order, scenario_record
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "pole_shape.md"
@@ -125,7 +125,7 @@ def rms(z) -> float:
 def report(rows: list[dict]) -> list[str]:
     """Per parameter: each mode's line, then the records' RMS z of the linearised and the updated estimates."""
     lines = []
-    for scenario, p in sorted({(r["scenario"], r["parameter"]) for r in rows}, key=lambda k: SCENARIOS.index(k[0])):
+    for scenario, p in sorted({(r["scenario"], r["parameter"]) for r in rows}, key=lambda k: scenario_order(k[0])):
         sel = [r for r in rows if r["scenario"] == scenario and r["parameter"] == p]
         lines += [f"## {scenario}: {p} ({len(sel)} records)", "",
                   "| mode [Hz] | records | information: shapes, pole | RMS z: shapes, pole, both independent | "

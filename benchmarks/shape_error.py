@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from update_coverage_fmu import SCENARIOS, dataset_benchmark, group, scenario_record
+from update_coverage_fmu import dataset_benchmark, group, scenario_order, scenario_record
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "shape_error.md"
@@ -115,7 +115,7 @@ def report(rows: list[dict]) -> list[str]:
     lines = ["| scenario | parameter group | values | " + " | ".join(f"{v}: RMS z (covered)" for v in VARIANTS)
              + " | sandwich / posterior std | median abs. error: default, true shapes, poles only |",
              "| --- | --- | --- | " + " | ".join("---" for _ in VARIANTS) + " | --- | --- |"]  # fmt: skip
-    keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (SCENARIOS.index(k[0]), k[1]))
+    keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (scenario_order(k[0]), k[1]))
     for scenario, grp in keys:
         sel = [r for r in rows if r["scenario"] == scenario and r["group"] == grp and r["default"]["determined"]]
         if not sel:

@@ -254,7 +254,7 @@ def report(rows: list[dict], second: str = "adjusted (adjust='jackknife')") -> l
              f"{second} | determined, sampler [90% over records] | determined, {second.split(' (')[0]} | median abs. error of the MAP | not determined (covered) | "
              "R-hat <= 1.01 (determined) | least bulk ESS (determined) |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
-    keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (SCENARIOS.index(k[0]), k[1]))
+    keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (scenario_order(k[0]), k[1]))
     for scenario, grp in keys:
         sel = [r for r in rows if r["scenario"] == scenario and r["group"] == grp]
         model = np.mean([_covers(r, "model") for r in sel])
@@ -298,11 +298,51 @@ def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int,
 
 def dataset_jobs(args: argparse.Namespace) -> list[tuple[str, int]]:
     """``(scenario, seed)`` of every dataset the options ask for; exits naming an unknown scenario."""
-    names = args.scenarios.split(",")
-    unknown = [n for n in names if n not in SCENARIOS]
-    if unknown:
-        raise SystemExit(f"unknown scenario(s) {', '.join(unknown)}; choose from {', '.join(SCENARIOS)}")
+    names = [n.strip() for n in args.scenarios.split(",")]
+    for n in names:
+        problem = scenario_problem(n)
+        if problem:
+            raise SystemExit(f"--scenarios: {problem}")
     return [(n, args.first_seed + k) for n in names for k in range(args.seeds)]
+
+
+def scenario_problem(name: str) -> str | None:
+    """Why ``name`` cannot be a scenario of these benchmarks, or None: one of :data:`SCENARIOS`, or any hidden
+    change of library effects :func:`twin.loop.scenarios.parse_scenario` reads (other sizes, several effects
+    at once), whose parameters the twin can add and update.
+
+    Examples
+    --------
+    >>> scenario_problem("magnetic_pull@2.5") is None, scenario_problem("seal_cross_coupling+fsi") is None
+    (True, True)
+    >>> scenario_problem("shaft_stiffness:18")
+    "'shaft_stiffness:18' changes the model outside the effect library: nothing to add and update"
+    """
+    from twin.errors import TwinError
+    from twin.loop.scenarios import parse_scenario
+
+    if name in SCENARIOS:
+        return None
+    try:
+        scenario = parse_scenario(name)
+    except TwinError as err:
+        return f"{err}; or one of {', '.join(SCENARIOS)}"
+    if scenario.changes:
+        return f"'{name}' changes the model outside the effect library: nothing to add and update"
+    if not scenario.effects:
+        return f"'{name}' hides nothing: use 'bearings' to update the bearings of a model without a hidden effect"
+    return None
+
+
+def scenario_order(name: str) -> tuple[int, str]:
+    """Sort key of a scenario in the reports: :data:`SCENARIOS`' order, then other specs by name.
+
+    Examples
+    --------
+    >>> sorted(["fsi", "magnetic_pull@2.5", "magnetic_pull"], key=scenario_order)
+    ['magnetic_pull', 'fsi', 'magnetic_pull@2.5']
+    """
+    return (SCENARIOS.index(name), "") if name in SCENARIOS else (len(SCENARIOS), name)
 
 
 def run_datasets(function, jobs: list[tuple[str, int]], workers: int, **shared) -> list:
