@@ -169,7 +169,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     inverse = np.array([1.0 / factors.get(str(p), 1.0) for p in draws["parameter"].values])
     q_model = draws.copy(data=stretch(draws.values, inverse)).quantile([0.05, 0.95], "sample")
     elapsed = time.perf_counter() - started
-    seen = {}  # {label: {records it was seen on, of them in the first batch, the records' RMS error and RMS z}}
+    seen = {}  # {label: {records it was seen on, of them in the first batch, the records' RMS and mean error and RMS z}}
     if "bootstrap" in post.children:
         boot = post["bootstrap"].to_dataset()
         for p in boot["parameter"].values:
@@ -177,6 +177,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
             seen[str(p)] = {"records_seen": int(boot["records_used"].sel(parameter=p)),
                             "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum()),
                             "bootstrap_rms_error": float(np.sqrt(np.nanmean(error**2))) if np.isfinite(z).any() else None,
+                            "bootstrap_mean_error": float(np.nanmean(error)) if np.isfinite(z).any() else None,
                             "bootstrap_rms_z": float(np.sqrt(np.nanmean(z**2))) if np.isfinite(z).any() else None}  # fmt: skip
     sampler_std = draws.std("sample")
     rows = []
