@@ -5,7 +5,10 @@ simulated through its FMU (20-min record), the modes are extracted, the
 hidden effect is added to the twin's model and its parameters are updated by
 :func:`twin.update.update` with its defaults (the default sampler, 4 chains
 x 500 draws). The scenario ``bearings`` hides nothing and updates the 16
-guide-bearing coefficients (truth: the model's values).
+guide-bearing coefficients (truth: the model's values). Any other hidden
+change of library effects :func:`twin.loop.scenarios.parse_scenario` reads
+is a scenario too: another size (``magnetic_pull@0.3``) or several effects
+at once (``seal_cross_coupling+fsi``), all their parameters updated.
 
 Each update is calibrated on ``R`` records simulated at its estimate
 (``Twin.update(bootstrap=R)``, :mod:`twin.loop.bootstrap`; by default the
