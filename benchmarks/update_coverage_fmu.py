@@ -172,7 +172,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     inverse = np.array([1.0 / factors.get(str(p), 1.0) for p in draws["parameter"].values])
     q_model = draws.copy(data=stretch(draws.values, inverse)).quantile([0.05, 0.95], "sample")
     elapsed = time.perf_counter() - started
-    seen = {}  # {label: {records it was seen on, of them in the first batch, the records' RMS and mean error and RMS z}}
+    seen = {}  # {label: {records it was seen on, of them in the first batch, records' RMS and mean error, RMS z}}
     if "bootstrap" in post.children:
         boot = post["bootstrap"].to_dataset()
         for p in boot["parameter"].values:
