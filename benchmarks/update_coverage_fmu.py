@@ -178,10 +178,13 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         for p in boot["parameter"].values:
             z, error = boot["z"].sel(parameter=p).values, boot["error"].sel(parameter=p).values
             seen[str(p)] = {"records_seen": int(boot["records_used"].sel(parameter=p)),
-                            "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum()),
-                            "bootstrap_rms_error": float(np.sqrt(np.nanmean(error**2))) if np.isfinite(z).any() else None,
-                            "bootstrap_mean_error": float(np.nanmean(error)) if np.isfinite(z).any() else None,
-                            "bootstrap_rms_z": float(np.sqrt(np.nanmean(z**2))) if np.isfinite(z).any() else None}  # fmt: skip
+                            "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum())}
+            if np.isfinite(z).any():
+                seen[str(p)].update(bootstrap_rms_error=float(np.sqrt(np.nanmean(error**2))),
+                                    bootstrap_mean_error=float(np.nanmean(error)),
+                                    bootstrap_rms_z=float(np.sqrt(np.nanmean(z**2))))
+            else:
+                seen[str(p)].update(bootstrap_rms_error=None, bootstrap_mean_error=None, bootstrap_rms_z=None)
     sampler_std = draws.std("sample")
     rows = []
     for k, p in enumerate(table["parameter"].values):
@@ -301,7 +304,8 @@ def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int,
 
 
 def dataset_jobs(args: argparse.Namespace) -> list[tuple[str, int]]:
-    """``(scenario, seed)`` of every dataset the options ask for; exits naming an unknown scenario."""
+    """``(scenario, seed)`` of every dataset the options ask for; exits saying why a scenario cannot be one
+    (:func:`scenario_problem`)."""
     names = [n.strip() for n in args.scenarios.split(",")]
     for n in names:
         problem = scenario_problem(n)
