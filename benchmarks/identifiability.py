@@ -46,8 +46,7 @@ def main() -> None:
     for seed in (int(s) for s in args.seeds.split(",")):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TwinWarning)
-            post = update(unit, synthesize_modes(unit, samples=100, seed=seed), names, fsi=True, draws=args.draws,
-                          chains=args.chains, seed=2, adjust="none", progress=False)  # fmt: skip
+            post = update(unit, synthesize_modes(unit, samples=100, seed=seed), names, fsi=True, options={'draws': args.draws, 'chains': args.chains, 'seed': 2, 'progress': False})  # fmt: skip
         sampled = summary(post["posterior"].to_dataset())["std"].sel(parameter=ident.parameter)
         ratio = (sampled / ident["std"]).values
         r = ratio[determined]

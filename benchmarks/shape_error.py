@@ -13,7 +13,7 @@ from the 90% interval's width, ``z = (MAP - truth) / std``):
 
 And the sandwich, the data's own view of the estimate's error: the RMS move of the posterior mode over
 perturbations of the data by its samples, every mode by the same sample
-(:func:`twin.update.adjust.mode_spread`, ``pairing="joint"``), over the default posterior's std. Where it
+(:func:`jackknife.mode_spread`, ``pairing="joint"``), over the default posterior's std. Where it
 is about one while the default's RMS z is above one, the error is one the record cannot see.
 
     python benchmarks/shape_error.py [--scenarios seal_cross_coupling,bearings] [--seeds 16] [--first-seed 601]
@@ -70,7 +70,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
-    from twin.update.adjust import mode_spread
+    from jackknife import mode_spread
     from twin.update.marginal import marginal_problem
     from twin.update.problem import build_problem
 

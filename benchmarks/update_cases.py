@@ -8,9 +8,13 @@ Prints, for the first seed, per parameter: truth, MAP, relative error,
 posterior std, z-score, with the paper's figures beside them; then the
 coverage of the 90% credible intervals over all seeds.
 
-    python benchmarks/update_cases.py --case B [--seeds 20] [--first-seed 1] [--draws 500] [--chains 1] [--burn-in 20]
+    python benchmarks/update_cases.py --case B [--seeds 20] [--first-seed 1] [--draws 500] [--chains 1]
+                                      [--method paper|hmc|gibbs] [--warmup N]
                                       [--noise-model diagonal|full] [--collapsed] [--pole-model samples|linear]
-                                      [--adjust jackknife|none] [--combine intersection|independent]
+                                      [--combine intersection|independent]
+
+``--method paper`` (the default) is the paper's sampler; ``hmc`` the update's default; ``gibbs`` with the
+Gibbs options (``--noise-model``, ``--collapsed``, ``--pole-model``); ``--combine`` is an HMC option.
 """
 
 from __future__ import annotations
@@ -26,9 +30,9 @@ import twin
 from twin.errors import TwinWarning
 from twin.tasks import one_blas_thread
 from twin.update import summary, synthesize_modes, update
-from twin.update.core import BURN_IN, MIN_MARGIN
-from twin.update.gibbs import NOISE_MODELS
-from twin.update.poles import POLE_MODELS
+from twin.update.chain import NOISE_MODELS
+from twin.update.core import MIN_MARGIN
+from twin.update.samplers.gibbs import GIBBS_POLE_MODELS
 
 #: The paper's reported MAP accuracy (relative error), for the table.
 PAPER = {"added_mass": "~1% (modes 1, 2 worse)", "added_damping": "~3% (modes 1, 2 worse)",
@@ -51,16 +55,14 @@ def paper_figure(name: str) -> str:
 
 
 @one_blas_thread  # many small dense problems: a second BLAS thread costs more than it gains (twin.tasks)
-def run(case: str, seed: int, draws: int, chains: int, model, noise_model: str = "diagonal", burn_in: int = BURN_IN,
-        collapsed: bool = False, pole_model: str = "samples", adjust: str | None = None, combine: str | None = None):
+def run(case: str, seed: int, draws: int, chains: int, model, method: str = "paper", **options):
     ds = synthesize_modes(model, samples=100, seed=seed)
     params = "bearings" if case == "B" else None
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
-        tree = update(model, ds, params, fsi=True, draws=draws, chains=chains, seed=seed, progress=False,
-                      noise_model=noise_model, burn_in=burn_in, collapsed=collapsed, pole_model=pole_model,
-                      adjust=adjust, combine=combine)
+        tree = update(model, ds, params, fsi=True, method=method,
+                      options={"draws": draws, "chains": chains, "seed": seed, "progress": False, **options})
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -74,21 +76,20 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=1, help="seeds run: first-seed, ..., first-seed + seeds - 1")
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--chains", type=int, default=1)
-    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="diagonal")
-    ap.add_argument("--burn-in", type=int, default=BURN_IN)
-    ap.add_argument("--collapsed", action="store_true", help="add the collapsed Metropolis step to each sweep")
-    ap.add_argument("--pole-model", choices=POLE_MODELS, default="samples")
-    ap.add_argument("--adjust", choices=("jackknife", "none"), default=None,
-                    help="marginal model only: the spread adjustment (twin update --adjust; default: update's)")
+    ap.add_argument("--method", choices=("paper", "hmc", "gibbs"), default="paper")
+    ap.add_argument("--warmup", type=int, default=None, help="warm-up or burn-in (default: the sampler's)")
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default=None, help="--method gibbs")
+    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None, help="--method gibbs")
+    ap.add_argument("--pole-model", choices=GIBBS_POLE_MODELS, default=None, help="--method gibbs")
     ap.add_argument("--combine", choices=("intersection", "independent"), default=None,
-                    help="marginal model only: how each mode's pole and shape errors are combined (twin update "
-                         "--combine; default: update's)")
+                    help="--method hmc: how each mode's pole and shape errors are combined")
     args = ap.parse_args()
+    options = {k: getattr(args, k) for k in ("warmup", "noise_model", "collapsed", "pole_model", "combine")
+               if getattr(args, k) is not None}  # fmt: skip
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax, rows = [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.noise_model, args.burn_in,
-                                           args.collapsed, args.pole_model, args.adjust, args.combine)
+        table, elapsed, margin, msgs = run(args.case, seed, args.draws, args.chains, model, args.method, **options)
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])

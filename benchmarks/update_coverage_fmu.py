@@ -15,8 +15,7 @@ Each update is calibrated on ``R`` records simulated at its estimate
 loop's :data:`~twin.loop.bootstrap.DEFAULT_RECORDS`, 12) and its draws
 un-stretched by the factors, so one run gives both the sampler's own
 posterior ("model" columns) and the loop's calibrated one. With
-``--bootstrap 0`` the second posterior is instead the sampler's adjusted for
-the modes' correlation (``adjust="jackknife"``).
+``--bootstrap 0`` there is no calibration and the second column is the sampler's again.
 
 Reported per parameter group: the share of 90% intervals that cover the truth
 (85-95% is calibrated), the median relative error of the MAP, the share of
@@ -28,7 +27,7 @@ parameters with R-hat <= 1.01, and the least bulk ESS.
                                              [--orders-per-mode N] [--order-spread {shapes,all,none}]
                                              [--shape-samples M]
                                              [--shape-covariance {held-out,shrunk,sample}] [--combine {intersection,independent}]
-                                             [--pole-error {samples+orders,samples}] [--logdet] [--flat-priors]
+                                             [--pole-error {samples+orders,samples}] [--flat-priors]
                                              [--streams {fmu,numpy}] [--bootstrap R]
 
 One dataset takes about a minute on one core (simulation, extraction, 4
@@ -142,16 +141,16 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
 def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
                 shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None,
-                pole_error: str | None = None, logdet: bool = False, plausible: bool = True,
+                pole_error: str | None = None, plausible: bool = True,
                 streams: str = "fmu", bootstrap: int = 0) -> list[dict]:  # fmt: skip
     """Simulate (``streams`` as :func:`scenario_record`'s), extract (``extraction``: options of
     :func:`twin.extract.extract` other than its defaults) and update one dataset (``shape_covariance``,
-    ``combine``, ``pole_error``, ``logdet`` and ``plausible`` as :func:`twin.update.update`'s); one row per
-    parameter. ``q05_model``/``q95_model`` are the default's interval; ``q05``/``q95`` the jackknife-adjusted
-    one, or with ``bootstrap`` records the one calibrated on them (``bootstrap_factor``)."""
+    ``combine`` and ``pole_error`` as the HMC sampler's options, ``plausible`` its priors); one row per
+    parameter. ``q05_model``/``q95_model`` are the sampler's interval; ``q05``/``q95`` with ``bootstrap``
+    records the one calibrated on them (``bootstrap_factor``), without the sampler's again."""
     from twin.errors import TwinError
     from twin.loop.demo import posterior_table
-    from twin.update.adjust import stretch
+    from twin.update.posterior import stretch
     from twin.update.posterior import parameter_draws
     from twin.update.problem import UpdateError
 
@@ -161,13 +160,13 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            post = tw.update(names, seed=seed, progress=False, adjust="none" if bootstrap else "jackknife",
-                             shape_covariance=shape_covariance, combine=combine, pole_error=pole_error, logdet=logdet,
-                             plausible=plausible, bootstrap=bootstrap)  # fmt: skip
+            options = {"shape_covariance": shape_covariance, "combine": combine, "pole_error": pole_error}
+            post = tw.update(names, seed=seed, progress=False, priors="plausible" if plausible else "flat",
+                             bootstrap=bootstrap, **{k: v for k, v in options.items() if v is not None})  # fmt: skip
         except (UpdateError, TwinError) as err:  # e.g. shape samples that do not span every entry
             return [{"scenario": name, "seed": seed, "refused": str(err)}]
     table = posterior_table(post, tw.model)
-    factors = json.loads(post.attrs.get("bootstrap_calibration" if bootstrap else "spread_adjustment", "{}"))
+    factors = json.loads(post.attrs.get("bootstrap_calibration", "{}"))
     draws = parameter_draws(post["posterior"].to_dataset()).stack(sample=("chain", "draw")).transpose("sample", ...)
     inverse = np.array([1.0 / factors.get(str(p), 1.0) for p in draws["parameter"].values])
     q_model = draws.copy(data=stretch(draws.values, inverse)).quantile([0.05, 0.95], "sample")
@@ -407,33 +406,32 @@ def main() -> None:
                     help="how the update combines each mode's pole and shape errors (twin update --combine)")
     ap.add_argument("--pole-error", choices=POLE_ERRORS, default=POLE_ERRORS[0],
                     help="each mean pole's error (twin update --pole-error)")
-    ap.add_argument("--logdet", action="store_true", help="keep the marginal's -1/2 log|V| (twin update --logdet)")
     ap.add_argument("--flat-priors", action="store_true",
                     help="no prior on the effects' parameters (twin update --flat-priors)")
     ap.add_argument("--bootstrap", type=int, default=DEFAULT_RECORDS, metavar="R",
                     help="calibrate each posterior on R records simulated at its estimate (twin loop --bootstrap; "
-                         f"default {DEFAULT_RECORDS}, the loop's); 0: the second coverage column is the jackknife's "
-                         "adjustment instead")  # fmt: skip
+                         f"default {DEFAULT_RECORDS}, the loop's); 0: none, the second coverage column is the sampler's "
+                         "again")  # fmt: skip
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
     results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
                            extraction=extraction_options(args), shape_covariance=args.shape_covariance,
-                           combine=args.combine, pole_error=args.pole_error, logdet=args.logdet,
+                           combine=args.combine, pole_error=args.pole_error,
                            plausible=not args.flat_priors, streams=args.streams, bootstrap=args.bootstrap)  # fmt: skip
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
-    lines = ["# Calibration of the default APerCEM sampler on FMU data (issue 18)", "",
+    lines = ["# Calibration of the default APerCEM sampler on FMU data", "",
              f"Command: `{dataset_command('update_coverage_fmu.py', args)}"
              f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
              f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
              f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
-             f"{' --logdet' if args.logdet else ''}{' --flat-priors' if args.flat_priors else ''}"
+             f"{' --flat-priors' if args.flat_priors else ''}"
              f"{f' --bootstrap {args.bootstrap}' if args.bootstrap != DEFAULT_RECORDS else ''}`; "
              f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
              ""] + report(rows, f"calibrated on {args.bootstrap} simulated records"
                           + (" (the default)" if args.bootstrap == DEFAULT_RECORDS else "") if args.bootstrap
-                          else "adjusted (adjust='jackknife')")  # fmt: skip
+                          else "not calibrated (--bootstrap 0)")  # fmt: skip
     lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"
               for r in refused]  # fmt: skip
     write_results(RESULTS, lines, rows, args.rows)

@@ -1,17 +1,17 @@
 """Case B, 500 draws, one chain: time and ESS of the updater, beside emcee and NUTS on the same density.
 
-The default configuration (twin.update.CALIBRATED: the errors-in-variables
+The default sampler (``--method hmc``, twin.update's default: the errors-in-variables
 marginal of the parameters, sampled by twin's HMC with its per-mode slice
 step) is compared with the same HMC without that step and with two
 general samplers on the same 46-dimensional log density: emcee (affine-
 invariant ensemble, run for the same wall time) and, when nutpie is
 installed, its NUTS (diagonal mass matrix adapted in 300 tuning steps). For
-the Gibbs configurations (--pole-model linear|samples, --paper) emcee samples
+the Gibbs samplers (``--method gibbs`` with its options, ``--method paper``) emcee samples
 the Gibbs sampler's own joint density (parameters, latent shapes and
 perturbations, log residual variances). ESS is ArviZ's bulk ESS.
 
-    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--paper | [--pole-model marginal|linear|samples]
-                                      [--noise-model full|diagonal] [--collapsed|--no-collapsed]]
+    python benchmarks/update_speed.py [--draws 500] [--seed 1] [--method hmc|gibbs|paper]
+                                      [--pole-model linear|samples] [--noise-model full|diagonal] [--collapsed|--no-collapsed]
 
 emcee and nutpie are optional (``pip install emcee nutpie``).
 """
@@ -25,10 +25,12 @@ import numpy as np
 
 import twin
 from twin.tasks import one_blas_thread
-from twin.update import CALIBRATED, PAPER, synthesize_modes
 from twin.update import marginal as marginal_model
-from twin.update.gibbs import NOISE_MODELS, Prior, State, initial_state, log_density, run_chain, sweep
-from twin.update.poles import POLE_MODELS
+from twin.update import sampler, synthesize_modes
+from twin.update.chain import NOISE_MODELS, Prior, State
+from twin.update.samplers import hmc
+from twin.update.samplers.conditionals import initial_state, log_density, sweep
+from twin.update.samplers.gibbs import GIBBS_POLE_MODELS, run_chain
 from twin.update.posterior import _arviz
 from twin.update.problem import build_problem, select_parameters
 
@@ -53,13 +55,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=500)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--noise-model", choices=NOISE_MODELS, default="full")
-    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=True)
-    ap.add_argument("--pole-model", choices=POLE_MODELS, default=CALIBRATED["pole_model"])
-    ap.add_argument("--paper", action="store_true", help="the paper's sampler (twin.update.PAPER)")
+    ap.add_argument("--method", choices=("hmc", "gibbs", "paper"), default="hmc")
+    ap.add_argument("--noise-model", choices=NOISE_MODELS, default=None, help="--method gibbs")
+    ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None, help="--method gibbs")
+    ap.add_argument("--pole-model", choices=GIBBS_POLE_MODELS, default=None, help="--method gibbs")
     args = ap.parse_args()
-    if args.paper:
-        vars(args).update(PAPER)
+    given = {k: getattr(args, k) for k in ("noise_model", "collapsed", "pole_model") if getattr(args, k) is not None}
+    options = sampler(args.method).options(given)  # the sampler's defaults where not given
+    if args.method == "paper":
+        options = options.gibbs()
+    vars(args).update(pole_model=getattr(options, "pole_model", "marginal"),
+                      noise_model=getattr(options, "noise_model", None), collapsed=getattr(options, "collapsed", None))
     az = _arviz()
     model = twin.load_model(twin.shipped_model("hydro_unit"))
     data = synthesize_modes(model, samples=100, seed=args.seed)
@@ -72,14 +78,14 @@ def main() -> None:
         marg = marginal_model.marginal_problem(problem, data["pole"].values)
         setup = time.perf_counter() - t0
         t0 = time.perf_counter()
-        chain = marginal_model.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed))
+        chain = hmc.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed))
         seconds = time.perf_counter() - t0
         x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
-        _report(f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{marginal_model.WARMUP} warm-up; "
+        _report(f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{hmc.WARMUP} warm-up; "
                 f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}", seconds, _ess(az, x[None]), names, Kg,
                 tail=_ess(az, x[None], "tail"))
         t0 = time.perf_counter()
-        plain = marginal_model.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed), per_mode_slice=False)
+        plain = hmc.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed), per_mode_slice=False)
         plain_s = time.perf_counter() - t0
         x_plain = np.concatenate([plain.t, plain.eta.reshape(args.draws, -1)], axis=1)
         _report(f"the same HMC without the per-mode slice step (its time {plain_s / seconds:.2f} of the default's), "

@@ -114,8 +114,7 @@ def case_b_posterior(hydro_unit, paper_modes):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        return update(hydro_unit, paper_modes, "bearings", fsi=True, draws=500, chains=2, seed=2, adjust="none",
-                      progress=False)  # fmt: skip
+        return update(hydro_unit, paper_modes, 'bearings', fsi=True, options={'draws': 500, 'chains': 2, 'seed': 2, 'progress': False})  # fmt: skip
 
 
 @pytest.fixture(scope="session")
@@ -137,7 +136,7 @@ def toy():
     """Two modes, one shared and one own parameter, 3 residual rows, z = (2 shape entries, 2 perturbations)."""
     import numpy as np
 
-    from twin.update.gibbs import State
+    from twin.update.chain import State
     from twin.update.problem import Problem, sparse_blocks
 
     I, J, N_R, N_PSI, N_E = TOY_SIZES

@@ -9,7 +9,7 @@ import matplotlib
 import nbformat
 import pytest
 
-from conftest import ROOT
+from tests.conftest import ROOT
 
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 OVERRIDES = {

@@ -3,7 +3,7 @@
 import fnmatch
 import tomllib
 
-from conftest import ROOT
+from tests.conftest import ROOT
 
 
 def test_every_data_file_of_the_package_is_declared():

@@ -16,40 +16,44 @@ from twin.errors import TwinError
 log = logging.getLogger("twin")
 
 
-#: Defaults of the options that only the Gibbs sampler takes (``twin update``).
-#: Literal (importing twin.update here would slow every command's start-up); tests/test_cli.py checks that
-#: it matches twin.update.CALIBRATED and BURN_IN.
-GIBBS_DEFAULTS = {"draws": 500, "chains": 4, "burn_in": 20, "noise_model": "full", "collapsed": True,
-                  "pole_model": "marginal"}  # fmt: skip
+#: What ``--method`` takes: the update's samplers (twin.update.SAMPLERS, the default first) and the Laplace fit.
+#: Literal (importing twin.update here would slow every command's start-up); tests/cli/test_update.py checks it.
+METHODS = ("hmc", "gibbs", "paper", "laplace")
+#: The ``twin update`` options that go to the sampler's options (twin.update.samplers), by their field names.
+SAMPLER_OPTIONS = ("draws", "chains", "warmup", "seed", "noise_model", "collapsed", "pole_model")
+
+
+def sampler_options(args: argparse.Namespace) -> dict:
+    """The sampler options given on the command line (those left out keep the sampler's defaults)."""
+    return {k: getattr(args, k) for k in SAMPLER_OPTIONS if getattr(args, k, None) is not None}
 
 
 def _update(args: argparse.Namespace) -> int:
     from twin.extract import read_modes
-    from twin.update import summary, update
+    from twin.netcdf import check_writable
+    from twin.update import sampler, summary, update
+    from twin.update.posterior import write_posterior
 
     if args.params is None and not args.fsi:
         raise TwinError("nothing to update: give --params and/or --fsi")
+    check_writable(args.output)
     modes = read_modes(args.modes)  # a bad modes file fails before a cluster starts
     model = _model_with_effects(args.model, args.effect, modes)
     if args.method == "laplace":
         return _update_laplace(args, model, modes)
-    _paper_settings(args)
     from twin.progress import stage
     from twin.update.problem import select_parameters
 
     if args.params is not None:
         select_parameters(model, args.params)  # unknown names fail before a cluster starts
-
-    sampler = "HMC on the marginal" if args.pole_model == "marginal" else "Gibbs sampler"
-    with _tasks(args) as client, stage(f"APerCEM {sampler}: {args.chains} chains x {args.draws} draws"):
-        tree = update(model, args.modes, args.params, fsi=args.fsi, draws=args.draws, chains=args.chains,
-                      burn_in=args.burn_in, seed=args.seed, noise_model=args.noise_model, collapsed=args.collapsed,
-                      pole_model=args.pole_model, adjust=args.adjust, shape_covariance=args.shape_covariance,
-                      combine=args.combine, pole_error=args.pole_error, logdet=args.logdet,
-                      plausible=not args.flat_priors,
-                      output=args.output, command=" ".join(sys.argv), tasks=client)  # fmt: skip
+    options = sampler(args.method).options(sampler_options(args), progress=True)  # bad options fail here too
+    with _tasks(args) as client, stage(f"APerCEM ({args.method}): {options.chains} chains x {options.draws} draws"):
+        tree = update(model, modes, args.params, fsi=args.fsi, method=args.method, options=options,
+                      priors="flat" if args.flat_priors else "plausible", tasks=client)  # fmt: skip
+    tree.attrs["command"] = " ".join(sys.argv)
+    write_posterior(tree, args.output)
     table = summary(tree["posterior"].to_dataset())
-    print(f"{tree.attrs['condensation']} condensation; {args.chains} chains x {args.draws} draws "
+    print(f"{tree.attrs['condensation']} condensation; {options.chains} chains x {options.draws} draws "
           f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
     print(f"{'parameter':<22} {'MAP':>11} {'mean':>11} {'std':>10} {'5%':>11} {'95%':>11} {'R-hat':>6} {'ESS':>6}")
     has_diag = "r_hat" in table
@@ -61,27 +65,8 @@ def _update(args: argparse.Namespace) -> int:
         mark = "  not determined by the data" if str(p) in undetermined else ""
         print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
               f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}{mark}")  # fmt: skip
-    stretched = {n: f for n, f in json.loads(tree.attrs.get("spread_adjustment", "{}")).items() if f > 1.0}
-    if stretched:
-        print("spread stretched for the modes' correlation (--adjust jackknife): "
-              + ", ".join(f"{n} x{f:.2f}" for n, f in stretched.items()))
     print(f"wrote {args.output}")
     return 0
-
-
-#: The reference paper's sampler (twin.update.PAPER), set by ``--paper``.
-PAPER_SETTINGS = {"noise_model": "diagonal", "collapsed": False, "pole_model": "samples"}
-
-
-def _paper_settings(args: argparse.Namespace) -> None:
-    """With ``--paper``, the paper's sampler settings in ``args`` (an error if another was also given)."""
-    if not args.paper:
-        return
-    given = [f for f in PAPER_SETTINGS if getattr(args, f) != GIBBS_DEFAULTS[f]]
-    if given:
-        raise TwinError(f"--paper sets the sampler; leave out {', '.join('--' + f.replace('_', '-') for f in given)}")
-    for f, value in PAPER_SETTINGS.items():
-        setattr(args, f, value)
 
 
 def _update_laplace(args: argparse.Namespace, model, modes) -> int:
@@ -94,9 +79,9 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     from twin.update.posterior import laplace_tree
     from twin.update.problem import select_parameters
 
-    sampler = [f for f, default in GIBBS_DEFAULTS.items() if getattr(args, f) != default] + ["paper"] * args.paper
-    if sampler:
-        raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in sampler)})")
+    given = [f for f in SAMPLER_OPTIONS if getattr(args, f, None) is not None and f != "seed"]
+    if given:
+        raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in given)})")
     meas = measured_modes(modes)
     names = select_parameters(model, args.params)
     if args.fsi:
@@ -261,8 +246,7 @@ def _loop(args: argparse.Namespace) -> int:
         select(model, labels)  # unknown candidates fail before any work
     tw = Twin(model, modes, tolerance=args.tolerance)
     check_records(args.bootstrap, args.method)
-    kwargs = {} if args.method == "laplace" else {"draws": args.draws, "chains": args.chains, "seed": args.seed,
-                                                  "bootstrap": args.bootstrap}  # fmt: skip
+    kwargs = {} if args.method == "laplace" else {**sampler_options(args), "bootstrap": args.bootstrap}
     with _tasks(args) as client:
         tw.run(method=args.method, max_rounds=args.rounds, candidates=labels, tasks=client, progress=True, **kwargs)
     out.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ import argparse
 
 from twin import __version__
 from twin.cli import design, loop, stages
-from twin.cli.loop import GIBBS_DEFAULTS
+from twin.cli.loop import METHODS
 
 MODEL_HELP = "model file (TOML), or the name of a shipped model (hydro_unit, ross_reference)"
 MODES_HELP = "modes file (NetCDF: mode x sample x channel, from twin extract or twin synthesize-modes)"
@@ -96,8 +96,27 @@ def _add_bootstrap(p: argparse.ArgumentParser) -> None:
                    help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
                         "(twin.loop.bootstrap; about 12 s a 20-min record on one core; up to "
                         f"{MAX_BATCHES} x R when a mode came out of too few; on the Dask workers, within a sweep "
-                        f"in its scenario's worker); default: {DEFAULT_RECORDS} with --method gibbs, none with "
-                        "laplace; 0: none")  # fmt: skip
+                        f"in its scenario's worker); default: {DEFAULT_RECORDS} with --method hmc, none with "
+                        "the other methods; 0: none")  # fmt: skip
+
+def _add_method(p: argparse.ArgumentParser, what: str) -> None:
+    """``--method``: one of the update's samplers, or the Laplace fit."""
+    p.add_argument("--method", choices=METHODS, default=METHODS[0],
+                   help=f"{what}: hmc, HMC on the marginal posterior (the default, calibrated on FMU records); "
+                        "gibbs, the Gibbs sampler of the full APerCEM; paper, the reference paper's Gibbs sampler; "
+                        "laplace, the Gaussian posterior of the pole fit inside the physical bounds (fast, blind to "
+                        "shapes)")  # fmt: skip
+
+
+def _add_chain_options(p: argparse.ArgumentParser) -> None:
+    """The options every sampler takes (their defaults are the sampler's own: twin.update.samplers)."""
+    p.add_argument("--draws", type=int, default=None, help="draws kept per chain (default: 500)")
+    p.add_argument("--chains", type=int, default=None, help="number of chains (default: 4)")
+    p.add_argument("--warmup", type=int, default=None,
+                   help="iterations per chain before the draws kept (default: the sampler's: 250 warm-up "
+                        "iterations of HMC, 20 burn-in sweeps of the Gibbs samplers)")
+    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
+
 
 def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     """The demo's record and model options, shared by ``demo`` and ``sweep``."""
@@ -106,10 +125,7 @@ def _add_loop_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
     p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="jackknife samples per mode")
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
-    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default: HMC "
-                        "on the marginal, 4 chains x 500 draws) "
-                        "or the Laplace approximation of the pole fit (fast, blind to shapes)")  # fmt: skip
+    _add_method(p, "how each round updates the added effects")
     _add_bootstrap(p)
 
 
@@ -311,55 +327,21 @@ def _add_loop(sub) -> None:
                    help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks); twin params "
                         "lists the names (default: none, then --fsi is needed)")  # fmt: skip
     p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
-    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="gibbs: the APerCEM sampler on pole and shape samples (HMC on the marginal by default, "
-                        "see --pole-model); laplace: the Gaussian posterior of "
-                        "the pole fit inside the physical bounds (fast, blind to shapes)")  # fmt: skip
-    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="draws kept per chain")
-    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="number of chains")
-    p.add_argument("--burn-in", type=int, default=GIBBS_DEFAULTS["burn_in"],
-                   help="sweeps discarded per chain (HMC: warm-up iterations, at least 150)")
-    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
-    # literal: importing twin.update.gibbs.NOISE_MODELS here would add 0.4 s to every command's start-up
-    p.add_argument("--noise-model", choices=("full", "diagonal"), default=GIBBS_DEFAULTS["noise_model"],
-                   help="Gibbs sampler only: covariance of the residual realisations: full (correlated rows, better calibrated) or "
-                        "diagonal (the paper's)")  # fmt: skip
-    p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=GIBBS_DEFAULTS["collapsed"],
-                   help="Gibbs sampler only: a Metropolis step of the parameters with the shapes integrated out in every sweep "
-                        "(4-5x the time per sweep; chains mix along the parameter-shape ridge); --no-collapsed: "
-                        "plain Gibbs, the paper's")
-    p.add_argument("--pole-model", choices=("marginal", "linear", "samples"), default=GIBBS_DEFAULTS["pole_model"],
-                   help="how the pole samples enter the condensed model: marginal (the default): the mean pole "
-                        "and its covariance, the pole deviation and the shapes integrated out, the parameters "
-                        "sampled by HMC; linear (Gibbs): linearised about each mode's mean pole; samples "
-                        "(Gibbs): at every sample (the paper's)")
-    p.add_argument("--adjust", choices=("none", "jackknife"), default=None,
-                   help="none (the default): the model's posterior; jackknife (marginal model only): stretch each "
-                        "parameter's draws by what the correlation of the modes adds to the spread of its "
-                        "posterior mode over perturbations of the data by its own samples, where that is more "
-                        "than one (modes from one record are correlated)")
-    p.add_argument("--combine", choices=("intersection", "independent"), default=None,
-                   help="marginal model only (default there: intersection): each mode's pole and shape errors, "
-                        "correlated by an unknown amount, combined by covariance intersection; independent: as if "
-                        "uncorrelated")
-    p.add_argument("--shape-covariance", choices=("shrunk", "held-out", "sample"), default="shrunk",
-                   help="marginal model only: each mode's shape covariance from its samples, correlations shrunk "
-                        "toward zero by Schafer and Strimmer's intensity (the default) or by the one that best "
-                        "predicts each sample held out of the others (held-out: bearings calibrated, a pull or a "
-                        "seal too narrow on FMU records), or the samples' own (sample: needs samples spanning every "
-                        "shape entry: twin extract --delete-half --samples J --blocks B with B above the entries)")
-    p.add_argument("--pole-error", choices=("samples+orders", "samples"), default=None,
-                   help="marginal model only (default there: samples+orders): each mean pole's error is its "
-                        "samples' plus its spread over the model orders the extraction averaged it over "
-                        "(modes.nc pole_order_cov), or the samples' alone")
-    p.add_argument("--logdet", action="store_true",
-                   help="marginal model only: keep each mode's -1/2 log|V(theta)| in the density (the model "
-                        "before stop 44; it biased the lower guide bearing and trapped chains)")
+    _add_method(p, "how to update")
+    _add_chain_options(p)
+    p.add_argument("--noise-model", choices=("full", "diagonal"), default=None,
+                   help="--method gibbs: covariance of the residual realisations: full (correlated rows, the "
+                        "default) or diagonal (the paper's)")  # fmt: skip
+    p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None,
+                   help="--method gibbs: a Metropolis step of the parameters with the shapes integrated out in "
+                        "every sweep (the default; chains mix along the parameter-shape ridge); --no-collapsed: "
+                        "plain Gibbs")
+    p.add_argument("--pole-model", choices=("linear", "samples"), default=None,
+                   help="--method gibbs: the condensed model linearised about each mode's mean pole (the default) "
+                        "or rebuilt at every pole sample (the paper's)")
     p.add_argument("--flat-priors", action="store_true",
                    help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
                         "model's value, as wide as its effect's plausible scale: a bound where the data say little)")
-    p.add_argument("--paper", action="store_true",
-                   help="the reference paper's sampler: --noise-model diagonal --no-collapsed --pole-model samples")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
     _add_scheduler(p, "chains")
@@ -399,18 +381,14 @@ def _add_loop(sub) -> None:
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("modes", help=MODES_HELP)
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
-    p.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs",
-                   help="how each round updates the added effects: gibbs, the APerCEM sampler (twin update's default) or the Laplace "
-                        "approximation of the pole fit")
+    _add_method(p, "how each round updates the added effects")
     _add_bootstrap(p)
     p.add_argument("--rounds", type=int, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect to the model first; repeatable")
     _add_tolerance(p)
-    p.add_argument("--draws", type=int, default=GIBBS_DEFAULTS["draws"], help="Gibbs draws per chain")
-    p.add_argument("--chains", type=int, default=GIBBS_DEFAULTS["chains"], help="Gibbs chains")
-    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
+    _add_chain_options(p)
     _add_scheduler(p, "candidate fits and calibration records")
 
     p = _command(sub, "demo", "the whole loop on a truth with hidden changes, with a report folder",

@@ -64,4 +64,6 @@ def read_modes(path: str | Path) -> xr.Dataset:
     missing = [v for v in ("pole_real", "pole_imag", "shape_real", "shape_imag") if v not in ds]
     if missing:
         raise SignalError(f"{path}: not a modes file: no variable {', '.join(missing)}")
-    return join_complex(ds)
+    out = join_complex(ds)
+    out.encoding["source"] = str(path)  # where the data came from, for the messages of the stages that use them
+    return out

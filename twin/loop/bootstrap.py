@@ -11,7 +11,7 @@ statistic of one record lacks: the simulator that made it.
 So, after an update, the model at the posterior's estimate is simulated
 ``records`` times through its FMU (fresh seeds, the measured record's length
 and sampling rate), each record is extracted with the measured modes'
-settings, and the update's own density (:func:`twin.update.core.marginal_setup`,
+settings, and the update's own density (:func:`twin.update.samplers.hmc.marginal_setup`,
 the same parameters, priors and options) is fitted to it: its mode
 ``θ_r`` and Laplace std ``s_r`` (the Gauss-Newton precision there). The
 records' errors ``θ_r - θ̂`` (``θ̂`` the estimate simulated) are what the
@@ -24,7 +24,7 @@ the error of the measured record is predicted by Student's t with ``R``
 degrees of freedom, and the factor is ``c · t_R / z`` at the 90% interval
 (1.084 for 12 records, :func:`predictive_widening`). The draws of every
 parameter the data determine are stretched about their mean by it
-(:func:`twin.update.adjust.stretch`), narrowed as well as widened.
+(:func:`twin.update.posterior.stretch`), narrowed as well as widened.
 Parameters the data do not determine keep their (prior-bound) draws.
 
 With many parameters, twelve records give each its own ``c`` to about 20%,
@@ -125,18 +125,18 @@ def check_records(records: int | None, method: str) -> None:
 
     Examples
     --------
-    >>> check_records(None, "laplace"), check_records(12, "gibbs")
+    >>> check_records(None, "laplace"), check_records(12, "hmc")
     (None, None)
     >>> check_records(5, "laplace")
     Traceback (most recent call last):
-    twin.errors.UpdateError: bootstrap=5 calibrates the sampler's posterior: it needs method='gibbs'
+    twin.errors.UpdateError: bootstrap=5 calibrates the HMC sampler's posterior: it needs method='hmc'
     """
     if records is None:
         return
     if isinstance(records, bool) or int(records) != records or records < 0:
         raise UpdateError(f"bootstrap must be a whole number of records >= 0 (0: none), got {records!r}")
-    if records and method != "gibbs":
-        raise UpdateError(f"bootstrap={records} calibrates the sampler's posterior: it needs method='gibbs'")
+    if records and method != "hmc":
+        raise UpdateError(f"bootstrap={records} calibrates the HMC sampler's posterior: it needs method='hmc'")
 
 
 def records_for(records: int | None, modes: xr.Dataset, method: str) -> int:
@@ -149,15 +149,15 @@ def records_for(records: int | None, modes: xr.Dataset, method: str) -> int:
     --------
     >>> import json, xarray as xr
     >>> extracted = xr.Dataset(attrs={"settings": json.dumps({"duration_s": 1200.0, "fs_hz": 256.0})})
-    >>> records_for(None, extracted, "gibbs"), records_for(None, extracted, "laplace"), records_for(3, extracted, "gibbs")
+    >>> records_for(None, extracted, "hmc"), records_for(None, extracted, "laplace"), records_for(3, extracted, "hmc")
     (12, 0, 3)
-    >>> records_for(None, xr.Dataset(), "gibbs")
+    >>> records_for(None, xr.Dataset(), "hmc")
     0
     """
     check_records(records, method)
     if records is not None:
         return int(records)
-    if method != "gibbs":
+    if method != "hmc":
         return 0
     try:
         record_settings(modes)
@@ -352,7 +352,7 @@ def _record_fit(seed: int, *, simulated: RotorModel, model: RotorModel, settings
     """
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.update.core import marginal_setup
+    from twin.update.samplers.hmc import marginal_setup
     from twin.update.marginal import posterior_mode
     from twin.update.problem import UpdateError
 
@@ -606,7 +606,7 @@ def calibrated(posterior: xr.DataTree, factors: xr.Dataset, determined: Sequence
     >>> calibrated(tree, f, ["k"])["posterior"]["theta"].values.ravel().tolist()
     [0.0, 4.0]
     """
-    from twin.update.adjust import stretch
+    from twin.update.posterior import stretch
 
     applied = {}
     for p, c in zip(factors["parameter"].values, factors["factor"].values):

@@ -106,7 +106,7 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
     ``determined`` is False for the parameters the update reports as not determined by the data
     (the posterior's ``undetermined`` attr; the Laplace fit reports none).
 
-    From a Gibbs posterior (:func:`twin.update.update`'s DataTree: its
+    From a sampler's posterior (:func:`twin.update.update`'s DataTree: its
     :func:`twin.update.summary`) or a Laplace one
     (:func:`twin.loop.fit.laplace_update`'s Dataset: Gaussian quantiles, no
     R-hat or ESS, which are NaN). The attr ``method`` says which.
@@ -121,11 +121,11 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
         units = [model.parameter(str(n)).unit for n in table["parameter"].values]
         settings = json.loads(posterior.attrs.get("settings", "{}"))
         runs = f"{settings.get('chains', '?')} chains x {settings.get('draws', '?')} draws"
-        if settings.get("pole_model") == "marginal":
+        kind = posterior.attrs.get("method", "hmc")
+        if kind == "hmc":
             method = f"APerCEM, HMC on the marginal (pole deviations and shapes integrated out), {runs}"
         else:
-            method = (f"APerCEM Gibbs sampler, {runs} ({settings.get('noise_model', '?')} noise model, "
-                      f"{settings.get('pole_model', '?')} pole model{', collapsed step' if settings.get('collapsed') else ''})")  # fmt: skip
+            method = f"APerCEM, {posterior.attrs.get('sampler', kind)}, {runs}"
         undetermined = set(json.loads(posterior.attrs.get("undetermined", "[]")))
         determined = [str(n) not in undetermined for n in table["parameter"].values]
         return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(
@@ -199,7 +199,7 @@ def run_demo(
     samples: int = DEMO_SAMPLES,
     fmax_hz: float = 60.0,
     seed: int = 1,
-    method: str = "gibbs",
+    method: str = "hmc",
     bootstrap: int | None = None,
     progress: bool = True,
     tasks: Any = None,
@@ -226,13 +226,13 @@ def run_demo(
         Highest frequency of the extraction [Hz].
     seed : int
         Seed of the turbulence and the sensor noise (and of the sampler's chains).
-    method : {"gibbs", "laplace"}
-        How each round updates the effects the loop added: the APerCEM
-        sampler (:func:`twin.update.update` with :data:`twin.update.CALIBRATED`,
-        HMC on the marginal, 4 chains x 500 draws) or the
-        Laplace approximation of the pole fit (:func:`twin.loop.fit.laplace_update`).
+    method : {"hmc", "gibbs", "paper", "laplace"}
+        How each round updates the effects the loop added: one of the APerCEM
+        samplers of :func:`twin.update.update` (the default: HMC on the marginal,
+        4 chains x 500 draws) or the Laplace approximation of the pole fit
+        (:func:`twin.loop.fit.laplace_update`).
     bootstrap : int, optional
-        Gibbs only: records simulated at the last update's estimate to
+        HMC only: records simulated at the last update's estimate to
         calibrate its spread (:mod:`twin.loop.bootstrap`; about 11 s a 20-min
         record on one core, on ``tasks``); default
         :data:`twin.loop.bootstrap.DEFAULT_RECORDS` with the sampler; 0: none.
@@ -280,7 +280,8 @@ def run_demo(
     with stage("diagnose, add, update (loop rounds)", timings):
         tw = Twin(model, modes)
         tw.run(method=method, tasks=tasks, progress=progress,
-               **({"seed": seed, "bootstrap": bootstrap} if method == "gibbs" else {}))  # fmt: skip
+               **({"seed": seed} if method != "laplace" else {}),
+               **({"bootstrap": bootstrap} if method == "hmc" else {}))  # fmt: skip
     meas = tw.measured
     with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
         tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))

@@ -61,7 +61,7 @@ class Settings:
     fs_hz: float = 256.0
     samples: int = DEMO_SAMPLES
     fmax_hz: float = 60.0
-    method: str = "gibbs"
+    method: str = "hmc"
     bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.records_for)
 
 

@@ -141,7 +141,7 @@ class Twin:
                 for n in free_names(self.model, e, self.measured.mode)]  # fmt: skip
 
     def run(
-        self, *, method: str = "gibbs", max_rounds: int = MAX_ROUNDS, candidates: Sequence[str] | None = None,
+        self, *, method: str = "hmc", max_rounds: int = MAX_ROUNDS, candidates: Sequence[str] | None = None,
         tasks: Any = None, progress: bool = False, **kwargs,
     ) -> Diagnosis:  # fmt: skip
         """Go round the loop to the end; returns the last diagnosis.
@@ -196,8 +196,8 @@ class Twin:
                 self._drop_replaced(label)
                 self.add_effect(label)
             with stage(f"round {k}: update {', '.join(self.added)} ({method})"):
-                extra = {"progress": progress} if method == "gibbs" and "progress" not in kwargs else {}
-                self.update(self.added_parameters(), method=method, bootstrap=0, **kwargs, **extra)
+                extra = {"progress": progress} if method != "laplace" and "progress" not in kwargs else {}
+                self.update(self.added_parameters(), method=method, bootstrap=0, tasks=tasks, **kwargs, **extra)
             progress_log.info("round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error,
                               100 * self.history[-1].error)  # fmt: skip
         if bootstrap and isinstance(self.posterior, xr.DataTree) and self.history[-1].action.startswith("update"):
@@ -206,28 +206,27 @@ class Twin:
         return d
 
     def update(
-        self, params: str | Sequence[str], *, method: str = "gibbs", estimate: str = "map", bootstrap: int | None = None,
-        **kwargs,
-    ) -> xr.DataTree | xr.Dataset:
+        self, params: str | Sequence[str], *, method: str = "hmc", options: Any = None, estimate: str = "map",
+        bootstrap: int | None = None, priors: Any = "plausible", tasks: Any = None, **fields: Any,
+    ) -> xr.DataTree | xr.Dataset:  # fmt: skip
         """Bayesian update of ``params``, then the model at the posterior estimate.
 
         Parameters
         ----------
         params : str or sequence of str
             Parameter names, or a group such as ``"bearings"``.
-        method : {"gibbs", "laplace"}
-            ``"gibbs"``: the APerCEM sampler on pole and shape samples
-            (:func:`twin.update.update`; ``kwargs`` go to it), returns its
-            posterior DataTree. ``"laplace"``: the Gaussian posterior of the
-            pole fit (:func:`twin.loop.fit.laplace_update`), returns a Dataset
-            of MAP and std.
+        method : {"hmc", "gibbs", "paper", "laplace"}
+            One of the samplers of :func:`twin.update.update` on pole and shape samples (``"hmc"``, the
+            default; ``options``, ``priors`` and ``tasks`` go to it, and ``fields`` are fields of its
+            options), which returns its posterior DataTree; or ``"laplace"``: the Gaussian posterior of
+            the pole fit (:func:`twin.loop.fit.laplace_update`), which returns a Dataset of MAP and std.
         estimate : {"map", "mean"}
-            Which estimate of a Gibbs posterior the model takes.
+            Which estimate of a sampler's posterior the model takes.
         bootstrap : int, optional
             Records to simulate at the posterior's estimate to calibrate its spread
             (:meth:`calibrate`; about 11 s a 20-min record on one core, on ``tasks`` when given); 0: none.
-            Default: :data:`twin.loop.bootstrap.DEFAULT_RECORDS` for the sampler on modes extracted from a
-            record, none otherwise (:func:`twin.loop.bootstrap.records_for`).
+            Default: :data:`twin.loop.bootstrap.DEFAULT_RECORDS` for the HMC sampler on modes extracted
+            from a record, none otherwise (:func:`twin.loop.bootstrap.records_for`).
         """
         from twin.update.problem import select_parameters
 
@@ -240,29 +239,28 @@ class Twin:
 
         bootstrap = records_for(bootstrap, self.modes, method)
         if method == "laplace":
-            if kwargs:
-                raise TypeError(f"method 'laplace' takes no sampler settings, got {sorted(kwargs)}")
+            if fields or options is not None:
+                raise TypeError(f"method 'laplace' takes no sampler options, got {sorted(fields) or options}")
             model, post = laplace_update(self.model, self.measured, names)
             self._record(f"update {label} (Laplace)", model)
             self.posterior = post
             return post
-        if method != "gibbs":
-            raise ValueError(f"method must be 'gibbs' or 'laplace', got {method!r}")
-        from twin.update import apply_posterior, update
+        from twin.update import apply_posterior, sampler, update
 
+        opts = sampler(method).options(options, **fields)
         if per_mode:  # the sampler's per-mode FSI covers every mode of the data
             every = [f"FSI.{k}_{int(m)}" for m in self.modes["mode"].values for k in ("added_mass", "added_damping")]
             if sorted(per_mode) != sorted(every):
-                raise ValueError("the Gibbs sampler updates the per-mode FSI of every measured mode at once: give "
+                raise ValueError("the samplers update the per-mode FSI of every measured mode at once: give "
                                  f"all of {', '.join(every)}, or use method='laplace'")  # fmt: skip
         shared = [n for n in names if n not in per_mode]
-        tree = update(self.model, self.modes, shared, fsi=bool(per_mode), **kwargs)
+        tree = update(self.model, self.modes, shared, fsi=bool(per_mode), method=method, options=opts, priors=priors,
+                      tasks=tasks)  # fmt: skip
         # a calibration replaces this step at once, with the interval of its own posterior
         self._record(f"update {label}", apply_posterior(self.model, tree, estimate), None if bootstrap else tree)
         self.posterior = tree
         if bootstrap:
-            self.calibrate(bootstrap, estimate=estimate, seed=kwargs.get("seed"), tasks=kwargs.get("tasks"),
-                           progress=kwargs.get("progress", False))  # fmt: skip
+            self.calibrate(bootstrap, estimate=estimate, seed=opts.seed, tasks=tasks, progress=opts.progress)
         return self.posterior
 
     def calibrate(self, records: int, *, estimate: str = "map", seed: int | None = None, tasks: Any = None,
@@ -283,7 +281,7 @@ class Twin:
 
         last = self.history[-1]
         if not isinstance(self.posterior, xr.DataTree) or not last.action.startswith("update"):
-            raise ValueError("calibrate needs the sampler's update (method='gibbs') as the twin's last step")
+            raise ValueError("calibrate needs the HMC sampler's update (method='hmc') as the twin's last step")
         before, tree = self.history[-2].model, self.posterior
         labels = posterior_labels(tree)
         undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))

@@ -1,15 +1,21 @@
-"""The dense algebra of the Gibbs sweep: residual designs, combined bases, weighting by ``Δ⁻¹``, the shape system.
+"""The dense algebra of the condensed residual: designs, combined bases, weighting by ``Δ⁻¹``, the shape system.
 
-Shared by the Gibbs conditionals (:mod:`twin.update.gibbs`) and the
-collapsed parameter step (:mod:`twin.update.collapsed`). ``w`` is the noise
+Shared by the Gibbs conditionals (:mod:`twin.update.samplers.conditionals`), the
+collapsed parameter step (:mod:`twin.update.samplers.collapsed`), the prior on ``Δ``
+(:func:`residual_scatter`) and every sampler's identifiability check (:func:`weak_parameters`). ``w`` is the noise
 precision: ``(I, n_r)`` for diagonal ``Δ_i``, ``(I, n_r, n_r)`` for full.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from twin.update.problem import Problem
+
+#: Eigenvalue ratio of the (unit-diagonal) parameter precision below which parameters are not identifiable.
+SINGULAR_RATIO = 1e-13
 
 
 def weigh(w: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -100,3 +106,45 @@ def joint_vector(problem: Problem, vectors: np.ndarray) -> np.ndarray:
     """Per-mode ``(K,)`` vectors over ``[t, η_i]`` summed into ``[t, η_1, ..., η_I]`` (see :func:`joint_parameters`)."""
     Kg = problem.n_global
     return np.concatenate([vectors[:, :Kg].sum(axis=0), vectors[:, Kg:].ravel()])
+
+
+def residual_scatter(problem: Problem) -> np.ndarray:
+    """Variance over the pole samples of each residual row at zero parameters and the data's mean shape: (I, n_r).
+
+    ``ε = 0``; latent shape entries (if any) by least squares.
+    """
+    I, J, n_r, n_z = problem.H0.shape
+    Hc = problem.H0.reshape(I, J * n_r, n_z)
+    z = np.zeros((I, n_z))
+    z[:, problem.data_index] = problem.psi_hat.mean(axis=1)
+    latent = np.setdiff1d(np.arange(n_z), np.concatenate([problem.data_index, problem.eps_index]))
+    if latent.size:
+        for i in range(I):
+            z[i, latent] = -np.linalg.lstsq(Hc[i][:, latent], Hc[i] @ z[i], rcond=None)[0]
+    r = (Hc @ z[:, :, None]).reshape(I, J, n_r)
+    var = r.var(axis=1, ddof=1)
+    return np.maximum(var, np.finfo(float).tiny * np.maximum(var.max(axis=1, keepdims=True), 1.0))
+
+
+
+def weak_parameters(names: Sequence[str], P: np.ndarray) -> list[str]:
+    """Names of the parameters a precision matrix ``P`` leaves undetermined.
+
+    Works on the unit-diagonal precision: a parameter with no effect on the
+    residual, or with a large share in a near-null direction (eigenvalue ratio
+    below :data:`SINGULAR_RATIO`), is named.
+
+    Examples
+    --------
+    >>> weak_parameters(["a", "b", "c"], np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))
+    ['a', 'b']
+    """
+    diag = np.diag(P).copy()
+    dead = [names[k] for k in np.flatnonzero(diag <= 0)]
+    if dead:
+        return dead
+    d = 1 / np.sqrt(diag)
+    ev, vec = np.linalg.eigh(P * d[:, None] * d[None, :])
+    small = ev < SINGULAR_RATIO * ev[-1]
+    involved = np.flatnonzero(np.any(np.abs(vec[:, small]) > 0.2, axis=1))
+    return [names[k] for k in involved]

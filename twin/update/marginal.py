@@ -1,4 +1,4 @@
-"""The errors-in-variables PerCEM: the parameters' marginal posterior, sampled by HMC.
+"""The errors-in-variables PerCEM: the parameters' marginal posterior, which the HMC sampler samples.
 
 The data of mode ``i`` are its mean pole ``λ̄_i`` with the covariance ``C_i``
 of that mean (the pole samples' covariance over ``J``, plus the pole's spread
@@ -30,14 +30,13 @@ not ``log |V_i|``; and ``-½ log |V_i(θ)|`` peaks wherever ``V_i(θ)`` nearly
 loses rank. On FMU records that term pulled the lower guide bearing's
 coefficients by 0.3-0.6 posterior std, and on a record with two barely
 observed modes it made a narrow spike that trapped an HMC chain (acceptance
-7%, R-hat up to 1.23 for determined parameters; README, stop 44).
-``logdet=True`` (:func:`marginal_problem`) keeps it.
+7%, R-hat up to 1.23 for determined parameters), so it is left out.
 
 This is the likelihood a Fisher analysis of poles and shapes assumes
 (:mod:`twin.design.identify`): no residual noise to learn, so none of the
 Gibbs sampler's ``Δ``, whose full version was set by the prior in all but
 two directions when ``J`` is small and followed the parameters, which is
-what kept weakly determined parameters from mixing (issue 18).
+what kept weakly determined parameters from mixing.
 
 The covariances are estimated from ``J`` samples and the model is linear in
 the pole only to first order, so a mode's residual is heavier-tailed than
@@ -48,16 +47,11 @@ multivariate Student t with :data:`STUDENT_DOF` degrees of freedom
 with the model weighs as under the Gaussian; one whose residual is far out
 weighs less; none weighs more.
 
-The parameters ``θ = (t, η)`` are sampled by Hamiltonian Monte Carlo with
-the exact gradient, the Gauss-Newton precision at the posterior mode as mass
-matrix, a jittered path length of about a quarter period and the step size
-tuned in the warm-up (dual averaging). Each trajectory is followed by a
-slice-sampling update of every mode's own parameters ``η_i`` given ``t``
-(:mod:`twin.update.slice`): the modes are independent given ``t``, and one
-mode's barely determined, long-tailed parameters no longer hold the others
-back through the joint trajectory's step size and accept-reject. Each kept
-draw is followed by the closed-form draw of the shapes given ``θ``, so the
-output has the same latent shapes as the Gibbs sampler's.
+The density's gradient is exact (:func:`log_density`), each mode's
+density given the shared parameters is available on its own
+(:func:`mode_density`), and the shapes given the parameters are drawn in
+closed form (:func:`shape_draw`): the HMC sampler
+(:mod:`twin.update.samplers.hmc`) uses all three.
 """
 
 from __future__ import annotations
@@ -65,16 +59,11 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
-from twin.progress import bar
-from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import design, joint_parameters, joint_vector
 from twin.update.problem import Problem, UpdateError
-from twin.update.slice import block_axes, slice_blocks
 from twin.update.shrinkage import held_out_intensity, scatters, shrunk_covariance
 
 log = logging.getLogger(__name__)
@@ -83,17 +72,6 @@ log = logging.getLogger(__name__)
 SHAPE_COVARIANCES = ("shrunk", "held-out", "sample")
 #: Degrees of freedom of the Student t tail of each mode's likelihood (see :func:`tail_kernel`).
 STUDENT_DOF = 5.0
-#: Warm-up iterations at least (the step size and the metric are tuned there); ``burn_in`` may ask for more.
-WARMUP = 250
-#: Mean path length of a trajectory in the whitened parameters: a quarter period of the Gaussian at the mode
-#: (see :func:`run_chain`).
-PATH_LENGTH = 0.5 * np.pi
-#: Relative jitter of the path length: uniform within ``PATH_LENGTH (1 ± PATH_JITTER)``.
-PATH_JITTER = 0.2
-#: Fewest leapfrog steps of a trajectory (see :func:`run_chain`).
-MIN_STEPS = 2
-#: Acceptance rate the step size is tuned to.
-TARGET_ACCEPT = 0.8
 #: Most steps of each kind on the way to the posterior mode (see :func:`posterior_mode`).
 NEWTON_STEPS = 50
 #: Newton decrement ``gᵀ S⁻¹ g`` at which the search for the posterior mode stops.
@@ -127,10 +105,6 @@ class Marginal:
         combined by covariance intersection (:mod:`twin.update.intersection`:
         ``cov_z``'s shape block is over ``ω_i``, ``pole_cov`` over ``1 - ω_i``);
         None when they are taken as independent.
-    logdet : bool
-        Whether each mode's density carries ``-½ log |V_i(θ)|`` (the Gaussian
-        marginal of the residual) or not (the default: the errors-in-variables
-        likelihood ``exp(-q_i / 2)``; see :func:`log_density`).
     order_cov : (I, 2, 2) or None
         Each pole's spread over its model orders, included in ``pole_cov``
         (:func:`twin.update.poles.order_covariance`); None when left out.
@@ -144,7 +118,6 @@ class Marginal:
     bases: np.ndarray
     shape_covariance: str = SHAPE_COVARIANCES[0]
     weights: np.ndarray | None = None
-    logdet: bool = False
     order_cov: np.ndarray | None = None
 
     @property
@@ -155,13 +128,12 @@ class Marginal:
 
 
 def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = SHAPE_COVARIANCES[0],
-                     logdet: bool = False, order_cov: np.ndarray | None = None) -> Marginal:  # fmt: skip
+                     order_cov: np.ndarray | None = None) -> Marginal:  # fmt: skip
     """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
 
     ``shape_covariance`` is one of :data:`SHAPE_COVARIANCES`: the mean shape's covariance from the samples
     with their correlations shrunk (:func:`shrunk_covariance`, the default), or their own (``"sample"``),
-    which needs samples that span every entry of every mode's shape. ``logdet`` keeps each mode's
-    ``-½ log |V_i(θ)|`` in the density (:attr:`Marginal.logdet`). ``order_cov`` ``(I, 2, 2)`` is added to
+    which needs samples that span every entry of every mode's shape. ``order_cov`` ``(I, 2, 2)`` is added to
     each mean pole's covariance (:func:`twin.update.poles.order_covariance`).
 
     Examples
@@ -202,7 +174,7 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
         for a, k in enumerate(b.columns):
             bases[:, k][:, b.rows] = b.H[:, a, 0]
     columns = design(problem, mean_z).reshape(I, 1 + K, 3, n_r)
-    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance, logdet=logdet,
+    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance,
                     order_cov=order_cov)
 
 
@@ -351,23 +323,18 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     p = marg.problem
     n_r = p.H0.shape[2]
     m, V, H, B, LH = _moments(marg, theta)
-    L = np.linalg.cholesky(V)  # raises where a V_i is not positive definite; its diagonal gives log|V_i|
+    np.linalg.cholesky(V)  # raises LinAlgError where a V_i is not positive definite
     Vinv = np.linalg.inv(V)
     y = np.einsum("irs,is->ir", Vinv, m)
     q = np.einsum("ir,ir->i", m, y)
     kernel, weight = tail_kernel(q, n_r, nu)
     log_p = float(np.sum(kernel))
-    if marg.logdet:
-        log_p -= float(np.sum(np.log(np.diagonal(L, axis1=1, axis2=2))))
     A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
     dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
     quadratic = (-np.einsum("ikr,ir->ik", A, y)
                  + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
                  + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y)))  # fmt: skip
     grad_blocks = weight[:, None] * quadratic
-    if marg.logdet:
-        grad_blocks -= (np.einsum("ikrz,izr->ik", marg.bases, LH @ Vinv)
-                        + np.einsum("ikra,ira->ik", dB, Vinv @ B @ marg.pole_cov))  # fmt: skip
     gradient = joint_vector(p, grad_blocks)
     residual_variance = np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1)
     if prior_precision is not None:
@@ -506,251 +473,11 @@ def mode_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | Non
             L = np.linalg.cholesky(np.where(ok[:, None, None], Vi, np.eye(n_r)))
         z = np.linalg.solve(L, r[:, :, None])[:, :, 0]
         kernel = tail_kernel(np.einsum("ir,ir->i", z, z), n_r, nu)[0]
-        if marg.logdet:
-            kernel = kernel - np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1)
         kernel = kernel - 0.5 * np.sum(prec * (eta - mean) ** 2, axis=1)
         out[ok] = kernel[ok]
         return out
 
     return f
-
-
-@one_blas_thread
-def run_chain(
-    marg: Marginal,
-    draws: int,
-    *,
-    burn_in: int = 0,
-    prior_mean: np.ndarray | None = None,
-    prior_precision: np.ndarray | None = None,
-    rng: np.random.Generator | None = None,
-    progress: bool = False,
-    label: str = "HMC",
-    nu: float = STUDENT_DOF,
-    adapt_mass: bool = True,
-    per_mode_slice: bool = True,
-):
-    """One HMC chain on the marginal: ``max(burn_in, WARMUP)`` warm-up iterations, then ``draws`` kept.
-
-    The metric (mass matrix) is first the Gauss-Newton precision at the
-    posterior mode; with ``adapt_mass`` it is replaced in the warm-up by the
-    covariance of the warm-up's own draws (:func:`warmup_covariance`), where
-    the posterior is not the Gaussian at its mode (the Student t of each
-    mode's residual gives heavier tails along weakly determined directions).
-
-    Each trajectory runs for a path length drawn uniformly within
-    ``PATH_LENGTH (1 ± PATH_JITTER)``, in a whole number of leapfrog steps no
-    longer than the tuned step size. In the whitened parameters the Gaussian
-    at the mode turns by that length in radians: about a quarter turn takes a
-    draw to one independent of it, in its value and in its square (the
-    spread, which the interval's quantiles and the folded R-hat depend on).
-    A half turn (the earlier length of 3, jittered by ±50%) gave antithetic
-    draws: a bulk ESS above the number of draws, but a lag-one
-    autocorrelation of +0.55 in the square and twice the gradient
-    evaluations. The step size rounded down to fit the length, not the
-    length rounded up to a whole number of steps, keeps a few large steps
-    from falling on the same turn every time.
-
-    A trajectory takes at least :data:`MIN_STEPS` (two) leapfrog steps. With
-    one or two parameters the dual averaging otherwise ends either side of
-    the path length: a chain whose step is longer takes the whole path in
-    one leapfrog step (accepting about 71%), one whose step is shorter takes
-    two (about 95%), and the step size it settles on is a matter of chance
-    (1.1 to 270 over the chains of nine updates of three seal records). On
-    seal record 10130 of the FMU benchmark the four chains of sampler seed
-    10130 accepted 71-96%, bulk ESS was 855 and R-hat 1.0118; with two steps
-    at least they accepted 94-97%, bulk ESS was 1581 and R-hat 1.0047.
-
-    With ``per_mode_slice`` (and per-mode parameters), each iteration's HMC
-    trajectory is followed by a slice-sampling update of every mode's own
-    parameters given the shared ones (:func:`twin.update.slice.slice_blocks`,
-    along the principal axes of each mode's block of the metric, with
-    :func:`mode_density`): given ``t`` the modes are independent, so a mode
-    whose parameters the data barely determine no longer holds the others
-    back through the one step size and the one accept-reject of the joint
-    trajectory. On a per-mode FSI record (10034 of the FMU benchmark) two
-    of four HMC-only chains set their metric in a tail excursion of mode 5's
-    barely determined damping, accepted 47-49% for the whole run, and left
-    determined values of other modes at R-hat up to 1.05. Over sampler
-    seeds on that record and on 10031, 5 of 42 HMC-only updates had a
-    determined value above R-hat 1.01, and the least bulk ESS of one was
-    278; with the slice step (14 seeds each) the highest R-hat of 28 updates
-    was 1.0052 and the least bulk ESS 1352.
-
-    The chain starts from a draw of the Gaussian at the posterior mode.
-    Returns a :class:`twin.update.gibbs.Chain` (``noise`` is the mean
-    residual variance ``diag V_i``, ``accepted`` whether the trajectory was
-    accepted, ``acceptance_rate`` its Metropolis acceptance probability,
-    ``step_size`` and ``n_steps`` its leapfrog steps).
-
-    Examples
-    --------
-    >>> from twin import load_model, shipped_model
-    >>> from twin.update import synthesize_modes
-    >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
-    >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3])
-    >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
-    >>> chain = run_chain(marg, 100, rng=np.random.default_rng(0))
-    >>> mass = chain.eta[:, :, 0] * marg.problem.mode_scale[:, 0]
-    >>> np.round(np.median(mass, axis=0) / [7.80e4, 6.09e4], 1)   # paper Table 2, modes 3 and 4
-    array([1., 1.])
-    """
-    from twin.update.gibbs import Chain  # gibbs imports this module for update's dispatch
-
-    rng = rng or np.random.default_rng()
-    p = marg.problem
-    n = marg.size
-    prior_mean = np.zeros(n) if prior_mean is None else prior_mean
-    prior_precision = np.zeros(n) if prior_precision is None else prior_precision
-    mode, at_mode = posterior_mode(marg, prior_mean, prior_precision, nu)
-    Lm = np.linalg.cholesky(at_mode.precision)  # mass matrix: whitened y = Lmᵀ θ
-
-    def evaluate(y: np.ndarray) -> tuple[Density | None, np.ndarray]:
-        theta = sla.solve_triangular(Lm, y, trans="T", lower=True)
-        try:
-            d = log_density(marg, theta, prior_mean, prior_precision, nu, curvature=False)
-        except np.linalg.LinAlgError:
-            return None, theta
-        return (d if np.isfinite(d.log_p) else None), theta
-
-    def gradient(d: Density) -> np.ndarray:
-        return sla.solve_triangular(Lm, d.gradient, lower=True)
-
-    y = Lm.T @ mode + rng.standard_normal(n)
-    here, theta = evaluate(y)
-    if here is None:
-        y, (here, theta) = Lm.T @ mode, evaluate(Lm.T @ mode)
-    g = gradient(here)
-    slicing = per_mode_slice and p.n_per_mode > 0
-    f = held = None  # each mode's density in its own parameters, and the shared ones it was built at
-    if slicing:
-        axes, widths = block_axes(Lm @ Lm.T, p.n_global, p.n_modes, p.n_per_mode)
-    warm = max(burn_in, WARMUP)
-    window = _mass_window(warm) if adapt_mass else None
-    eps, log_eps_bar, h_bar, mu, k = 0.5, 0.0, 0.0, np.log(5.0), 0
-    log_eps_max = np.log(PATH_LENGTH * (1 + PATH_JITTER) / MIN_STEPS)  # any longer step gives MIN_STEPS steps too
-    seen = []
-    out = np.empty((draws, n))
-    psi = np.empty((draws, p.n_modes, len(p.data_index)))
-    noise, lps, accepted = np.empty((draws, p.n_modes)), np.empty(draws), np.zeros(draws, bool)
-    rates, step_sizes, n_steps = np.empty(draws), np.empty(draws), np.empty(draws, int)
-    for it in bar(range(warm + draws), desc=label, progress=progress, leave=False):
-        length = rng.uniform(1 - PATH_JITTER, 1 + PATH_JITTER) * PATH_LENGTH
-        steps = max(MIN_STEPS, int(np.ceil(length / eps)))
-        step = length / steps  # the jittered length exactly: a whole number of steps of at most eps
-        mom = rng.standard_normal(n)
-        h0 = -here.log_p + 0.5 * mom @ mom
-        yn, gn, pn, new = y.copy(), g, mom + 0.5 * step * g, None
-        for s in range(steps):
-            yn = yn + step * pn
-            new, theta_n = evaluate(yn)
-            if new is None:
-                break
-            gn = gradient(new)
-            pn = pn + (step if s < steps - 1 else 0.5 * step) * gn
-        a = 0.0 if new is None else float(min(1.0, np.exp(h0 - (-new.log_p + 0.5 * pn @ pn))))
-        moved = rng.uniform() < a
-        if moved:
-            y, g, here, theta = yn, gn, new, theta_n
-        if slicing:
-            if f is None or not np.array_equal(theta[: p.n_global], held):  # its coefficients depend on t only
-                f, held = mode_density(marg, theta, prior_mean, prior_precision, nu), theta[: p.n_global].copy()
-            eta = slice_blocks(f, theta[p.n_global:].reshape(p.n_modes, -1), axes, widths, rng)[0]
-            theta = np.concatenate([theta[: p.n_global], eta.ravel()])
-            y = Lm.T @ theta
-            here, _ = evaluate(y)
-            g = gradient(here)
-        if it < warm:  # dual averaging (Hoffman and Gelman 2014)
-            k += 1
-            h_bar += ((TARGET_ACCEPT - a) - h_bar) / (k + 10)
-            log_eps = min(mu - np.sqrt(k) / 0.05 * h_bar, log_eps_max)
-            log_eps_bar = k**-0.75 * log_eps + (1 - k**-0.75) * log_eps_bar
-            eps = float(np.exp(log_eps if it < warm - 1 else log_eps_bar))
-            if window is not None and window[0] <= it < window[1]:
-                seen.append(theta)
-            if window is not None and it == window[1] - 1:  # the warm-up's own covariance becomes the metric
-                Lm = np.linalg.cholesky(np.linalg.inv(warmup_covariance(np.array(seen), at_mode.precision)))
-                y, g = Lm.T @ theta, gradient(here)
-                if slicing:
-                    axes, widths = block_axes(Lm @ Lm.T, p.n_global, p.n_modes, p.n_per_mode)
-                log_eps_bar, h_bar, mu, k = 0.0, 0.0, np.log(10 * eps), 0
-            continue
-        j = it - warm
-        out[j], lps[j], noise[j], accepted[j] = theta, here.log_p, here.residual_variance, moved
-        rates[j], step_sizes[j], n_steps[j] = a, step, steps
-        psi[j] = shape_draw(marg, theta, rng)
-    log.debug("%s: step size %.3g after the warm-up, accepted %.0f%%", label, eps, 100 * accepted.mean())
-    Kg = p.n_global
-    return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted,
-                 rates, step_sizes, n_steps)  # fmt: skip
-
-
-def _mass_window(warm: int) -> tuple[int, int]:
-    """Warm-up iterations whose draws set the metric: after the first fifth, up to the last fifth."""
-    return warm // 5, warm - warm // 5
-
-
-def warmup_covariance(draws: np.ndarray, precision: np.ndarray) -> np.ndarray:
-    """The metric's covariance from warm-up draws, regularised toward the Gauss-Newton one.
-
-    In the coordinates whitened by the Gauss-Newton ``precision`` the
-    posterior's covariance is the identity where the posterior is the
-    Gaussian at its mode. There the draws' covariance is estimated with its
-    correlations shrunk toward zero (:func:`shrunk_covariance`) and the
-    variances toward one, with the weight ``5 / (N + 5)`` of the N draws
-    (as Stan regularises its metric).
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> draws = rng.standard_normal((400, 2)) * [1.0, 3.0]   # the second direction 3x wider than assumed
-    >>> np.round(np.sqrt(np.diag(warmup_covariance(draws, np.eye(2)))), 1)
-    array([1., 3.])
-    """
-    L = np.linalg.cholesky(precision)
-    w = draws @ L  # whitened: w = Lᵀ θ per draw
-    N = len(w)
-    var = np.var(w, axis=0, ddof=1)
-    var = (N * var + 5.0) / (N + 5.0)
-    cov_w = shrunk_covariance(w, var)
-    Linv = sla.solve_triangular(L, np.eye(len(L)), lower=True)  # θ = L⁻ᵀ w
-    return Linv.T @ cov_w @ Linv
-
-
-def run_chains(
-    marg: Marginal,
-    draws: int,
-    chains: int,
-    *,
-    burn_in: int = 0,
-    prior: Any = None,
-    seed: int | None = None,
-    progress: bool = False,
-    tasks: Any = None,
-) -> list:
-    """Independent HMC chains (seeds spawned from ``seed``), each from its own draw about the posterior mode.
-
-    ``prior`` is a :class:`twin.update.gibbs.Prior` (its Gaussian parameter
-    priors are used; the marginal model has no ``Δ``). ``tasks`` says where
-    the chains run (:func:`twin.tasks.mapper`); the chains do not depend on it.
-    """
-    mean = precision = None
-    if prior is not None:
-        mean, precision = prior.parameter_mean, prior.parameter_precision
-    seeds = np.random.SeedSequence(seed).spawn(chains)
-    jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
-    return mapper(tasks, progress=progress, desc="chains")(
-        _chain_task, jobs, marg=marg, draws=draws, burn_in=burn_in, mean=mean, precision=precision,
-        progress=progress and tasks is None,
-    )  # fmt: skip
-
-
-def _chain_task(job: tuple[np.random.SeedSequence, str], marg: Marginal, draws: int, burn_in: int,
-                mean: np.ndarray | None, precision: np.ndarray | None, progress: bool):  # fmt: skip
-    seed, label = job
-    return run_chain(marg, draws, burn_in=burn_in, prior_mean=mean, prior_precision=precision,
-                     rng=np.random.default_rng(seed), progress=progress, label=label)  # fmt: skip
 
 
 def marginal_precision(marg: Marginal) -> np.ndarray:

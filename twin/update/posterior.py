@@ -283,3 +283,18 @@ def diagnostics_json(table: xr.Dataset) -> str:
     keys = [k for k in ("r_hat", "ess_bulk", "ess_tail") if k in table]
     return json.dumps({str(p): {k: float(table[k].sel(parameter=p)) for k in keys}
                        for p in table["parameter"].values})  # fmt: skip
+
+
+def stretch(draws: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """Draws (..., K) stretched about their mean by ``factors`` (K,): the calibration's widening of a posterior.
+
+    Examples
+    --------
+    >>> d = np.array([[0.0, 1.0], [2.0, 3.0]])
+    >>> stretch(d, np.array([2.0, 1.0]))
+    array([[-1.,  1.],
+           [ 3.,  3.]])
+    """
+    axes = tuple(range(draws.ndim - 1))
+    mean = draws.mean(axis=axes)
+    return mean + factors * (draws - mean)

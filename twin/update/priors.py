@@ -37,6 +37,7 @@ def plausible_priors(model: RotorModel, names: Sequence[str], fsi: bool = False)
     Examples
     --------
     >>> from twin import load_model, shipped_model
+    >>> from twin.update import plausible_priors
     >>> from twin.fem.effects import MagneticPull
     >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull())
     >>> {k: (v[0], round(v[1] / 1e6, 1)) for k, v in plausible_priors(m, ["MAG.stiffness", "LGB.kxx"]).items()}
