@@ -61,11 +61,12 @@ def main() -> None:
     ap.add_argument("--pole-model", choices=GIBBS_POLE_MODELS, default=None, help="--method gibbs")
     args = ap.parse_args()
     given = {k: getattr(args, k) for k in ("noise_model", "collapsed", "pole_model") if getattr(args, k) is not None}
-    options = sampler(args.method).options(given)  # the sampler's defaults where not given
-    if args.method == "paper":
-        options = options.gibbs()
-    vars(args).update(pole_model=getattr(options, "pole_model", "marginal"),
-                      noise_model=getattr(options, "noise_model", None), collapsed=getattr(options, "collapsed", None))
+    chosen = sampler(args.method)
+    options = chosen.options(given)  # the sampler's defaults where not given
+    args.pole_model = chosen.pole_model(options)
+    if args.pole_model != "marginal":  # a Gibbs sampler: its options as the Gibbs sampler's
+        gibbs = chosen.gibbs_options(options)
+        args.noise_model, args.collapsed = gibbs.noise_model, gibbs.collapsed
     az = _arviz()
     model = twin.load_model(twin.shipped_model("hydro_unit"))
     data = synthesize_modes(model, samples=100, seed=args.seed)

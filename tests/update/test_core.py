@@ -92,7 +92,7 @@ def test_full_noise_and_linear_pole_models_give_calibrated_case_a_intervals(hydr
     assert np.all(np.abs(table["z_score"]) < 4), table["z_score"].to_series().abs().nlargest(3)
     inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
     assert float(inside.mean()) >= 0.8
-    with pytest.raises(UpdateError, match="noise_model must be one of diagonal, full, got 'banded'"):
+    with pytest.raises(UpdateError, match="unknown noise model 'banded'; choose one of diagonal, full"):
         update(hydro_unit, paper_modes, None, fsi=True, method="gibbs", options={"noise_model": "banded"})
 
 
@@ -173,7 +173,7 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
     renamed = sub.assign_coords(channel=["SEAL_x", "SEAL_y", "UGB_x", "UGB_y", "LGB_x", "LGB_y", "GEN_x", "EXC_y"])
     with pytest.raises(UpdateError, match=r"channel\(s\) \['EXC_y'\] are not sensors"):
         update(hydro_unit, renamed, None, fsi=True, options={'progress': False})
-    with pytest.raises(UpdateError, match="pole_model must be one of samples, linear, got 'mean'"):
+    with pytest.raises(UpdateError, match="unknown pole model 'mean'; choose one of samples, linear"):
         update(hydro_unit, sub, None, fsi=True, method="gibbs", options={"pole_model": "mean"})
     with pytest.raises(UpdateError, match="pole_error must be one of samples\\+orders, samples, got 'orders'"):
         update(hydro_unit, sub, None, fsi=True, options={"pole_error": "orders"})

@@ -17,7 +17,7 @@ log = logging.getLogger("twin")
 
 
 #: What ``--method`` takes: the update's samplers (twin.update.SAMPLERS, the default first) and the Laplace fit.
-#: Literal (importing twin.update here would slow every command's start-up); tests/cli/test_update.py checks it.
+#: Literal (importing twin.update here would slow every command's start-up); tests/cli/test_cli.py checks it.
 METHODS = ("hmc", "gibbs", "paper", "laplace")
 #: The ``twin update`` options that go to the sampler's options (twin.update.samplers), by their field names.
 SAMPLER_OPTIONS = ("draws", "chains", "warmup", "seed", "noise_model", "collapsed", "pole_model")

@@ -292,11 +292,3 @@ def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator
     a, rate = conditional_noise(problem, state, Hc, prior)
     state.w = wishart_draw(a, rate, rng) if prior.full else rng.gamma(a, 1.0 / rate)
     return log_density(problem, state, rate, prior)
-
-
-def _mean_variance(w: np.ndarray) -> np.ndarray:
-    """Mean over rows of the diagonal of ``Δ_i = W_i⁻¹``: (I,)."""
-    if w.ndim == 2:
-        return np.mean(1.0 / w, axis=1)
-    return np.mean(np.diagonal(np.linalg.inv(w), axis1=1, axis2=2), axis=1)
-

@@ -49,11 +49,11 @@ import xarray as xr
 
 from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
-from twin.update.chain import NOISE_MODELS, NOISE_PRIOR_SHAPE, Chain, Prior, State
-from twin.update.poles import POLE_MODELS
+from twin.update.chain import NOISE_PRIOR_SHAPE, Chain, Prior, State, check_noise_model
+from twin.update.poles import POLE_MODELS, check_pole_model
 from twin.update.problem import Problem, UpdateError
 from twin.update.samplers.base import Sampler, SamplerOptions
-from twin.update.samplers.conditionals import _mean_variance, full_precision, initial_state, not_identifiable, sweep
+from twin.update.samplers.conditionals import full_precision, initial_state, not_identifiable, sweep
 
 log = logging.getLogger(__name__)
 
@@ -89,8 +89,8 @@ class GibbsOptions(SamplerOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.noise_model not in NOISE_MODELS:
-            raise UpdateError(f"noise_model must be one of {', '.join(NOISE_MODELS)}, got {self.noise_model!r}")
+        check_noise_model(self.noise_model)
+        check_pole_model(self.pole_model)
         if self.pole_model not in GIBBS_POLE_MODELS:
             raise UpdateError(f"the Gibbs sampler's pole_model must be one of {', '.join(GIBBS_POLE_MODELS)}, got "
                               f"{self.pole_model!r} (the marginal model is the HMC sampler's: method='hmc')")  # fmt: skip
@@ -104,14 +104,18 @@ class Gibbs(Sampler):
     name = "gibbs"
     options_type = GibbsOptions
 
-    def pole_model(self, options: GibbsOptions) -> str:
-        return options.pole_model
+    def gibbs_options(self, options: SamplerOptions) -> GibbsOptions:
+        """The options as the Gibbs sampler's (a configuration of it, such as the paper's, maps its own here)."""
+        return options
 
-    def noise_prior_shape(self, options: GibbsOptions) -> float:
-        return options.noise_prior_shape
+    def pole_model(self, options: SamplerOptions) -> str:
+        return self.gibbs_options(options).pole_model
 
-    def noise_model(self, options: GibbsOptions) -> str:
-        return options.noise_model
+    def noise_prior_shape(self, options: SamplerOptions) -> float:
+        return self.gibbs_options(options).noise_prior_shape
+
+    def noise_model(self, options: SamplerOptions) -> str:
+        return self.gibbs_options(options).noise_model
 
     def prepare(self, problem: Problem, modes: xr.Dataset, options: GibbsOptions) -> Problem:
         return problem
@@ -119,15 +123,24 @@ class Gibbs(Sampler):
     def undetermined(self, target: Problem) -> list[str]:
         return not_identifiable(target, initial_state(target))
 
-    def run(self, target: Problem, prior: Prior, options: GibbsOptions, tasks: Any = None) -> list[Chain]:
+    def run(self, target: Problem, prior: Prior, options: SamplerOptions, tasks: Any = None) -> list[Chain]:
+        options = self.gibbs_options(options)
         return run_chains(target, options.draws, options.chains, burn_in=options.warmup, prior=prior,
                           seed=options.seed, progress=options.progress, tasks=tasks,
                           collapsed=options.collapsed)  # fmt: skip
 
-    def describe(self, options: GibbsOptions) -> str:
+    def describe(self, options: SamplerOptions) -> str:
+        options = self.gibbs_options(options)
         collapsed = "Metropolis (t, eta) | Delta with (psi, eps) integrated out, " if options.collapsed else ""
         return (f"Gibbs ({options.noise_model} Delta, {options.pole_model} pole model): t | rest, eta_i | rest, "
                 f"{collapsed}(psi_i, eps_i) | rest, Delta_i | rest (closed form)")
+
+
+def _mean_variance(w: np.ndarray) -> np.ndarray:
+    """Mean over rows of the diagonal of ``Δ_i = W_i⁻¹``: (I,)."""
+    if w.ndim == 2:
+        return np.mean(1.0 / w, axis=1)
+    return np.mean(np.diagonal(np.linalg.inv(w), axis1=1, axis2=2), axis=1)
 
 
 @one_blas_thread

@@ -54,9 +54,10 @@ from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import weak_parameters
 from twin.update.chain import Chain, Prior, build_prior
-from twin.update.intersection import COMBINATIONS, intersected
-from twin.update.marginal import (SHAPE_COVARIANCES, STUDENT_DOF, Density, Marginal, log_density, marginal_precision,
-                                  marginal_problem, mode_density, posterior_mode, shape_draw)  # fmt: skip
+from twin.update.intersection import COMBINATIONS, check_combination, intersected
+from twin.update.marginal import (SHAPE_COVARIANCES, STUDENT_DOF, Density, Marginal, check_shape_covariance,
+                                  log_density, marginal_precision, marginal_problem, mode_density, posterior_mode,
+                                  shape_draw)  # fmt: skip
 from twin.update.poles import POLE_ERRORS, order_covariance
 from twin.update.problem import Problem, UpdateError, build_problem
 from twin.update.samplers.base import Sampler, SamplerOptions
@@ -116,10 +117,10 @@ class HMCOptions(SamplerOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name, allowed in (("shape_covariance", SHAPE_COVARIANCES), ("combine", COMBINATIONS),
-                              ("pole_error", POLE_ERRORS)):  # fmt: skip
-            if getattr(self, name) not in allowed:
-                raise UpdateError(f"{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}")
+        check_shape_covariance(self.shape_covariance)
+        check_combination(self.combine)
+        if self.pole_error not in POLE_ERRORS:
+            raise UpdateError(f"pole_error must be one of {', '.join(POLE_ERRORS)}, got {self.pole_error!r}")
         if not self.student_dof > 0:
             raise UpdateError(f"student_dof must be positive, got {self.student_dof!r}")
 

@@ -53,17 +53,8 @@ class PaperGibbs(Gibbs):
     name = "paper"
     options_type = PaperOptions  # type: ignore[assignment]
 
-    def pole_model(self, options: PaperOptions) -> str:  # type: ignore[override]
-        return options.gibbs().pole_model
-
-    def noise_prior_shape(self, options: PaperOptions) -> float:  # type: ignore[override]
-        return options.gibbs().noise_prior_shape
-
-    def noise_model(self, options: PaperOptions) -> str:  # type: ignore[override]
-        return options.gibbs().noise_model
-
-    def run(self, target, prior, options: PaperOptions, tasks=None):  # type: ignore[override]
-        return super().run(target, prior, options.gibbs(), tasks)
+    def gibbs_options(self, options: PaperOptions) -> GibbsOptions:  # type: ignore[override]
+        return options.gibbs()
 
     def describe(self, options: PaperOptions) -> str:  # type: ignore[override]
-        return super().describe(options.gibbs()) + "; the reference paper's Table 1"
+        return super().describe(options) + "; the reference paper's Table 1"
