@@ -1,4 +1,4 @@
-"""Benchmark of the automated modal extraction on the hydro unit (issue 4).
+"""Benchmark of the automated modal extraction on the hydro unit.
 
 In one run, on the same 1 h record (Table 2 truth, 256 Hz, turbulence + 1X
 unbalance, 5% sensor noise, simulated through the FMU):
@@ -51,7 +51,7 @@ from twin.modes.shapes import mac
 from extraction_options import add_extraction_options, extraction_options
 
 MODEL = "models/hydro_unit.toml"
-#: The spread ratio is calibrated when within this fraction of one (issue 19).
+#: The spread ratio is calibrated when within this fraction of one (the spread over 12 records knows a std to about 21%).
 SPREAD_TOLERANCE = 0.3
 
 

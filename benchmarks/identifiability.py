@@ -1,4 +1,4 @@
-"""The Fisher std before any data against the default sampler's posterior std, paper Case B (issue 19).
+"""The Fisher std before any data against the default sampler's posterior std, paper Case B.
 
 For each data seed: ``twin.design.identifiability`` (16 bearings + per-mode
 FSI, J = 100 synthetic samples, linearised at the paper's truth) and the

@@ -1,4 +1,4 @@
-"""The held-out suite of the twin loop on FMU signals (issue 17): pass counts and the chi2 calibration.
+"""The held-out suite of the twin loop on FMU signals: pass counts and the chi2 calibration.
 
 Runs ``twin sweep --scenarios benchmarks/loop_suite.txt`` (every library
 effect at three sizes, every pair of two, local changes outside the library,
@@ -94,7 +94,7 @@ def main() -> None:
         path = Path(args.from_table)
     table = xr.load_dataset(path)
     method = json.loads(table.attrs.get("settings", "{}")).get("method", "laplace")  # tables before it: Laplace
-    lines = ["# The twin loop on scenarios it was not tuned to (issue 17)", "",
+    lines = ["# The twin loop on scenarios it was not tuned to", "",
              f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}{flag}`, i.e. "
              f"`twin sweep --scenarios benchmarks/loop_suite.txt --workers {args.workers} --method {method}{flag}` "
              f"({table.attrs.get('producer', 'twin')}); sweep {table.attrs.get('elapsed_s', float('nan')):.0f} s.", ""]  # fmt: skip

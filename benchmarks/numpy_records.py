@@ -5,7 +5,7 @@ to 1e-9 of the response, ``tests/test_simulate.py``) driven by the runtime's spl
 (:mod:`twin.fmu.excitation`). :func:`numpy_signals` builds the same record (the same system, 1X unbalance,
 turbulence level, warm-up and sensor noise level, forces linear between samples as the FMU takes them) from
 numpy's generator instead: with ``--streams numpy`` the FMU dataset benchmarks check that what they find on FMU
-records is no property of the runtime's streams (README, "The slow modes' share of the covariances").
+records is no property of the runtime's streams (docs/decisions/extraction-differenced.md).
 """
 
 from __future__ import annotations

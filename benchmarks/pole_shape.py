@@ -165,7 +165,7 @@ def report(rows: list[dict]) -> list[str]:
 
 def main() -> None:
     dataset_benchmark(__doc__.splitlines()[0], "pole_shape.py", one_dataset, report, RESULTS,
-                      "A mode's pole and shape errors on FMU data (issue 18)", "",
+                      "A mode's pole and shape errors on FMU data", "",
                       scenarios="seal_cross_coupling,magnetic_pull", seeds=24, first_seed=601)
 
 

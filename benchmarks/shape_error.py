@@ -133,7 +133,7 @@ def report(rows: list[dict]) -> list[str]:
 
 def main() -> None:
     dataset_benchmark(__doc__.splitlines()[0], "shape_error.py", one_dataset, report, RESULTS,
-                      "Where the updated parameters' error comes from on FMU data (issue 18)",
+                      "Where the updated parameters' error comes from on FMU data",
                       "Over the values the default update determines; z = (MAP - truth) / std, the std from the 90% "
                       "interval's width.", scenarios="seal_cross_coupling,bearings", seeds=16, first_seed=601)
 

@@ -132,7 +132,7 @@ def test_prominence_is_the_peak_against_the_other_mode_and_the_noise():
 
 def test_the_high_modes_are_masked_by_the_lower_modes_even_with_a_quiet_pair_at_the_top(unit):
     """With a 30 nm pair at the shaft's top (1 h, the paper's truth) the 94.6 and 97.5 Hz modes stand 15-22 dB above
-    the noise but 4-7 dB below the other modes' response: where SSI did not find them (README)."""
+    the noise but 4-7 dB below the other modes' response: where SSI did not find them (python benchmarks/extraction.py)."""
     from twin.fem.model import Sensor
     from twin.fem.truthfile import paper_truth
 

@@ -146,7 +146,7 @@ def test_extraction_on_a_layout_with_an_added_pair_finds_what_the_table_promises
 def test_the_exciter_stub_modes_are_masked_at_every_node_and_the_turbine_shaft_pair_goes_to_its_node():
     """Paper's truth, 1 h, 100 nm sensors, candidates the shaft's top and the turbine shaft: the pair goes to node
     21, where 97.06 and 97.22 Hz stand out from the other modes; 94.6 and 97.5 Hz stay masked (below -4 dB
-    without any noise), and the command's table says so. SSI found what this promises (README)."""
+    without any noise), and the command's table says so. SSI finds what this promises (test_extraction_on_a_layout_with_an_added_pair_finds_what_the_table_promises)."""
     from twin.cli.design import sensors_text
     from twin.design.observe import PROMINENCE_LIMIT_DB
     from twin.fem.truthfile import paper_truth

@@ -16,7 +16,7 @@ from twin.loop.history import read_history
 def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     out = tmp_path / "demo"
     # 10 min instead of 20 and the posterior calibrated on 4 simulated records instead of 12: the same loop at a
-    # fraction of the cost (the README's command runs the default), on twice the reference pull so that it
+    # fraction of the cost (twin demo runs the default), on twice the reference pull so that it
     # stands five times above the noise floor of the shorter record. The records run on the default local cluster
     assert main(["demo", "--out", str(out), "--duration", "600", "--samples", "10", "--hidden", "magnetic_pull@2",
                  "--bootstrap", "4", "--workers", "2"]) == 0

@@ -21,7 +21,7 @@ taken by finite differences of the model's modes (a relative step of
   variances and shape coefficient of variation, ``J`` samples averaged).
 
 With per-mode FSI (``fsi=True``) every target mode has its own added mass and
-damping, which move that mode only (the modal synthesis of DESIGN section 3).
+damping, which move that mode only (the modal synthesis of :mod:`twin.fmu.truth`).
 """
 
 from __future__ import annotations
@@ -411,7 +411,7 @@ def identifiability(
     Returns
     -------
     xarray.Dataset
-        Over ``parameter``: ``scale`` [SI] (|nominal|, or the effect's plausible size),
+        Over ``parameter``: ``scale`` [SI] (``|nominal|``, or the effect's plausible size),
         ``std`` [SI], ``relative_std`` (std / scale), ``determined`` and ``correlation``;
         attrs: the modes used and the method.
 

@@ -60,7 +60,7 @@ OUTLIER_MADS = 3.0
 ORDER_SPREADS = ("shapes", "all", "none")
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
-#: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread, see the README).
+#: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread; docs/decisions/extraction-jackknife.md).
 DELETE_BLOCKS: int | None = 1
 #: A mode's pole must be known within this fraction of its half-power bandwidth (:func:`pole_determined`).
 MAX_POLE_SE = 1.0
@@ -139,15 +139,15 @@ def extract(
         lags are read at lags over 1.5 periods of the slowest of them
         (:func:`twin.extract.passes.shape_lag_rows`; 345-350 block rows for
         the hydro unit's 1.1 and 2.9 Hz modes at 256 Hz). Neither beat the
-        one pass on the hydro unit's FMU records (README, "How long the lags
-        must be"). A mode without a counterpart in the second pass keeps
+        one pass on the hydro unit's FMU records
+        (``docs/decisions/extraction-lags.md``). A mode without a counterpart in the second pass keeps
         the first pass's shapes (variable ``shape_block_rows``).
     first_lag : int, optional
         The lag the covariance Hankel matrix starts at, in samples of the
         (decimated) record, at least 1. Default: the first at or beyond one
         period of ``fmax`` (:func:`twin.extract.passes.first_lag_for`; 5 at
         256 Hz and 60 Hz): the first lags carry the dynamics above the band,
-        which bent the band's shapes (README, "Where the lags start").
+        which bent the band's shapes (``docs/decisions/extraction-lags.md``).
         1 is the textbook Hankel matrix.
     max_order : int
         Largest model order of the stabilisation diagram (orders 2, 4, ...).
@@ -163,7 +163,7 @@ def extract(
         Blocks each sample leaves out: 1 (the default, delete-one jackknife)
         or None for half of them, drawn at random (delete-half: a spread
         that matches independent records, but the loop's comparison is not
-        yet calibrated to it; see the README).
+        yet calibrated to it; ``docs/decisions/extraction-jackknife.md``).
     order_spread : {"shapes", "all", "none"}
         Add to the samples the spread of each mode over the model orders it
         is averaged over (:func:`twin.extract.samples.order_deviations`), so
@@ -176,7 +176,7 @@ def extract(
         spread. SSI's shapes sit off the truth's by more than their
         jackknife error, and the update's intervals were too narrow with
         jackknife shapes alone; the poles' jackknife error is what the loop's
-        comparison is calibrated to (see the README).
+        comparison is calibrated to (``docs/decisions/extraction-jackknife.md``).
     blocks : int, optional
         J, contiguous blocks the record is cut into (default ``samples``).
         The delete-one jackknife gives one sample per block; with more
@@ -185,7 +185,7 @@ def extract(
     orders_per_mode : int or None
         A mode is the average over this many of its lowest settled model
         orders (default 8; None: all of them, less of SSI's bias and a wider
-        jackknife, see the README).
+        jackknife; ``benchmarks/update_coverage_fmu.py --orders-per-mode 0`` measures it).
     differenced_above_hz : float, optional
         Read the modes above this natural frequency [Hz] from a second SSI
         pass over the record differenced twice
@@ -197,8 +197,7 @@ def extract(
         modes and the rest (e.g. 6 Hz for the hydro unit, whose modes below
         4 Hz are the strongest). Not the default: on the hydro unit's FMU
         records it narrows the bearings' intervals by a quarter, and the
-        seal's stay too narrow (README, "The slow modes' share of the
-        covariances").
+        seal's stay too narrow (``docs/decisions/extraction-differenced.md``).
     shape_samples : int, optional
         Draw the shape samples from their own delete-half jackknife: this
         many random halves of the same ``blocks`` (a multiple of
@@ -210,8 +209,8 @@ def extract(
         samples; 15 delete-one samples leave it singular and its shrinkage
         lifts the directions the bearings are read from, while the
         delete-one spread of the poles is what the seal's and the loop's
-        comparison are calibrated to (README, "Shape samples of their
-        own"). ``twin demo`` and ``twin sweep`` ask for ``4 x samples``.
+        comparison are calibrated to
+        (``docs/decisions/extraction-shape-samples.md``). ``twin demo`` and ``twin sweep`` ask for ``4 x samples``.
         Not with ``differenced_above_hz`` or ``shape_block_rows``. None or 0
         (the default): the shapes come with the poles.
     remove_harmonics : bool

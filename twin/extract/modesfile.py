@@ -1,4 +1,4 @@
-"""The ``modes.nc`` file: identified modes with J samples each (DESIGN section 6).
+"""The ``modes.nc`` file: identified modes with J samples each (its variables: ``docs/guide/extract.md``).
 
 In memory the poles and shapes are complex (``pole`` over mode x sample,
 ``shape`` over mode x sample x channel, the full-record ``sensor_shape`` over

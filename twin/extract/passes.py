@@ -27,11 +27,11 @@ the price of bearing intervals about twice too wide. (That bias came from the
 first lags, not from the lags' length: the Hankel matrix now starts after
 them, :func:`first_lag_for`.) Longer lags for every
 quantity traded that bias for others (the pull's error 1.2% -> 2.8%). Reading
-only the shapes at longer lags (stop 47, twenty unseen seeds) biased the
+only the shapes at longer lags (twenty unseen seeds) biased the
 upper guide bearing's stiffnesses when every mode's shapes were read there
 (UGB.kxx 4% high, 65% covered), and with ``"auto"`` left the bearings as wide
-as in one pass while the pull fell from 95% to 85% covered (README, "How long
-the lags must be").
+as in one pass while the pull fell from 95% to 85% covered
+(``docs/decisions/extraction-lags.md``).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ log = logging.getLogger(__name__)
 #: (``extract(differenced_above_hz=...)``, :func:`differenced`).
 DIFFERENCES = 2
 #: By default the shapes are read at lags (block rows over the sampling rate) spanning this many periods
-#: of the slowest mode the first pass finds (README, "How long the lags must be").
+#: of the slowest mode the first pass finds (docs/decisions/extraction-lags.md).
 SHAPE_LAG_PERIODS = 1.5
 
 
@@ -90,7 +90,7 @@ def first_lag_for(fs_hz: float, fmax_hz: float) -> int:
     On the hydro unit's 20-min FMU records at 256 Hz (fmax 60 Hz, lags from 5) this took away a bias
     of the shapes that no jackknife shows: the lower guide bearing's direct damping had come out about
     one posterior std low on average (mean z of LGB.cxx and LGB.cyy -0.9 to -1.1 on forty unseen
-    records, median error 0.7-1.1%), now +0.1 to +0.5 (0.3-0.4%) (README, "Where the lags start").
+    records, median error 0.7-1.1%), now +0.1 to +0.5 (0.3-0.4%) (docs/decisions/extraction-lags.md).
 
     Examples
     --------
@@ -274,10 +274,10 @@ def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above
     modes below 5 Hz in the record by +0.29 (RMS 0.78). Read from the record
     differenced twice (:func:`differenced`), the same mode erred +0.24 (RMS
     1.11) with 1.3 times the information, and the 41-53 Hz modes' shapes held
-    2.5-8 times more (README, "The slow modes' share of the covariances").
+    2.5-8 times more (``docs/decisions/extraction-differenced.md``).
     The differenced record loses the slow modes themselves, so they stay
     with the first pass. Pooled over 126 simulated records (numpy's random
-    streams and the FMU's, stop 53) the differenced 11.6 Hz mode holds
+    streams and the FMU's) the differenced 11.6 Hz mode holds
     1.4-2.1 times the shape information without the slow modes' bias, but
     errs beyond that information (RMS z 1.52 along the seal; 2.15 on the
     FMU's records 2201-2220), so this is not the default.

@@ -20,8 +20,7 @@ from ``J`` blocks, ``c = sqrt((M - 1)(J - d) / d)``, the samples' std over
 scatter of their own. The blocks must stay longer than a few time constants
 of the slowest mode (15 blocks for the hydro unit's 20-min records), while
 the update estimates a shape covariance over 16 real entries from the
-samples, which 15 samples leave singular (``extract(samples=45, blocks=15)``;
-the README has what it changes).
+samples, which 15 samples leave singular (``extract(samples=45, blocks=15)``).
 
 Why not delete one block: a pole of SSI at a model order above the number of
 modes changes steeply with small changes of the covariances (the noise part
@@ -35,7 +34,7 @@ by 0.96-4.8 for the frequencies and 1.24-4.6 for the damping ratios of ten
 modes. Deleting half the record steps as far as independent records differ:
 1.3 on the one-mode record, and on the hydro unit 0.93-1.25 for the
 frequencies except the slowest mode's 1.52, and 0.78-1.46 for the damping
-ratios except one at 2.43 (on the safe side; the README has the table). The
+ratios except one at 2.43 (on the safe side; ``docs/decisions/extraction-jackknife.md``). The
 subsets come from a fixed seed, so an extraction is repeatable.
 
 :func:`order_deviations` adds the spread of each mode over the model orders
@@ -53,7 +52,7 @@ delete-half samples and the order spread, the held-out suite
 (``benchmarks/loop_suite.py``) passes 57 of its 69 scenarios against 61 with
 delete-one: the true model's chi2 / n is 1.01 (calibrated), but the update's
 intervals miss more per-mode FSI parameters. On the FMU coverage benchmark
-(``benchmarks/update_coverage_fmu.py``, stop 35) delete-half samples leave the
+(``benchmarks/update_coverage_fmu.py --delete-half``) delete-half samples leave the
 magnetic pull, the seal and the FSI damping below 85%: the delete-one
 overstatement covers SSI's bias of the poles that carry them.
 
@@ -204,8 +203,8 @@ def order_deviations(
     of the mode's mean shape over them, their std over ``sqrt(n)``. The
     update reads the bearings and most of a magnetic pull from the shapes;
     with each order's full spread the 90% intervals covered the truth for
-    98-100% of the bearing values on every set of FMU records (README,
-    Bayesian updating). The poles keep their full spread:
+    98-100% of the bearing values on every set of FMU records
+    (``benchmarks/update_coverage_fmu.py --order-spread all``). The poles keep their full spread:
     the update's ``pole_order_cov`` and the loop's comparison were
     calibrated with it.
 

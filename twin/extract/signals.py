@@ -63,7 +63,7 @@ def check_record(
     Parameters
     ----------
     ds : xarray.Dataset
-        ``displacement`` over ``time`` and ``channel`` (DESIGN section 6).
+        ``displacement`` over ``time`` and ``channel`` (``docs/guide/own-measurements.md``).
     source : str
         Name used in messages (usually the file name).
     channels : sequence of str, optional

@@ -3,7 +3,7 @@
 A pole of order ``n`` is *stable* when the previous order has a pole within
 ``df`` in frequency, ``dzeta`` in damping ratio (both relative) and with a
 complex MAC above ``1 - dmac``. Stable poles are grouped by average-linkage
-hierarchical clustering on the distance
+hierarchical clustering on the distance::
 
     d_ij = |lambda_i - lambda_j| / max(|lambda_i|, |lambda_j|) + 1 - MAC_ij
 

@@ -16,8 +16,7 @@ key                       region      parameters
 ========================  ==========  ==================================================
 
 Added mass and damping are shared equally over the region's translational
-DOFs (``m/n`` and ``c/n`` on each of the ``n`` immersed DOFs), as DESIGN
-section 2 prescribes. The last two act on a named element of the model
+DOFs (``m/n`` and ``c/n`` on each of the ``n`` immersed DOFs). The last two act on a named element of the model
 (``bearing = "LGB"``, ``thrust = "thrust"``) instead of a region; their
 parameters are *changes* added to the element's own coefficients.
 

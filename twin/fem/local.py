@@ -6,14 +6,14 @@ effect (:mod:`twin.fem.effects`) describes such a change, but each is one
 linear parameter, the *relative* change ``δ`` of an element's own
 coefficients:
 
-==========================  ===========================  ==============================================
-key                         parameter                    footprint (``δ`` times)
-==========================  ===========================  ==============================================
+==========================  =============================  ==============================================
+key                         parameter                      footprint (``δ`` times)
+==========================  =============================  ==============================================
 ``shaft_stiffness:<e>``     ``shaft<e>.stiffness_change``  the element's stiffness matrix, and its share
-                                                         ``b K_e`` of the Rayleigh damping
-``disk_mass:<d>``           ``<d>.mass_change``          the disk's mass on x, y
-``disk_inertia:<d>``        ``<d>.inertia_change``       the disk's diametral (M) and polar (G) inertia
-==========================  ===========================  ==============================================
+                                                           ``b K_e`` of the Rayleigh damping
+``disk_mass:<d>``           ``<d>.mass_change``            the disk's mass on x, y
+``disk_inertia:<d>``        ``<d>.inertia_change``         the disk's diametral (M) and polar (G) inertia
+==========================  =============================  ==============================================
 
 With ``δ = -0.5`` a shaft element keeps half its bending stiffness (Young's
 and shear moduli halved alike: a Timoshenko element's stiffness is then

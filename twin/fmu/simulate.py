@@ -1,6 +1,6 @@
 """Simulate proximeter signals: export the (truth) model as an FMU and run it through FMPy.
 
-The output is the ``signals.nc`` Dataset of DESIGN section 6: ``displacement``
+The output is the ``signals.nc`` Dataset (``docs/guide/fmu.md``): ``displacement``
 [m] over ``time`` and ``channel`` with per-channel ``node``, ``direction`` and
 ``location``, the ``sampling_rate`` [Hz] and the provenance (settings, seed,
 and for synthetic data the truth that made it) in the attrs.

@@ -4,8 +4,8 @@ A 20-min record errs in a way no resampling of its own blocks shows: on the
 twin's FMU records a hidden seal cross-coupling, read mostly from the 11.6 Hz
 mode, came out 1.3 times further from its truth than its posterior std
 claimed (82.7% of 220 records covered by the 90% interval; with 60-min
-records 90%), while the bearings' intervals were a little wide (README, stops
-49-61). The error is SSI's on a short record, and the twin has what a
+records 90%), while the bearings' intervals were a little wide
+(``docs/decisions/loop-calibration.md``). The error is SSI's on a short record, and the twin has what a
 statistic of one record lacks: the simulator that made it.
 
 So, after an update, the model at the posterior's estimate is simulated
@@ -29,7 +29,7 @@ Parameters the data do not determine keep their (prior-bound) draws.
 
 With many parameters, twelve records give each its own ``c`` to about 20%,
 more than the parameters differ: on twenty records of the 16 bearings
-(stop 63, ``c`` from ``rms_z`` below) the per-parameter factors left 84.6% of 240 determined values
+(``c`` from ``rms_z`` below) the per-parameter factors left 84.6% of 240 determined values
 covered, and which parameter's factor came out high did not predict which
 parameter's error was large. So each ``c`` is first shrunk towards the
 determined parameters' pooled value, as far as their spread is the
@@ -37,19 +37,19 @@ records' noise (:func:`pooled_rms`, empirical Bayes on ``log c²``): the same
 records then covered 90.0%. Parameters that really differ (the per-mode
 added masses, whose ``c`` span a factor of ten) keep their own.
 
-On the FMU records of stop 62 (README), 12 records each: per bearing
+On FMU records, 12 records each: per bearing
 coefficient the RMS of ``rms_z`` over ten records matched the RMS of the
 posterior's real z (0.54-1.23) within about 0.15, and over all 120 values
 0.83 against 0.87; for a hidden seal 1.31 against 1.27. Dividing by the
 noisy ``c`` alone left an RMS z of 1.11-1.15, about ``sqrt(R / (R - 2))``:
 the t widening is what that noise asks.
 
-Up to stop 66 ``c`` was the RMS of each record's error in its own Laplace
-std, ``z_r = (θ_r - θ̂) / s_r`` (kept as ``rms_z``). That asks how far a
+``c`` is not the RMS of each record's error in its own Laplace std,
+``z_r = (θ_r - θ̂) / s_r`` (kept as the diagnostic ``rms_z``). That asks how far a
 record's std understates that record's error, and it answers for the
 measured record only where the records' ``s_r`` are its ``σ``. They are not
 where a mode is seen less well in records simulated at the estimate than in
-the measured one: on the per-mode FSI records of stop 64 the 17.1 Hz mode's
+the measured one: on per-mode FSI records the 17.1 Hz mode's
 added mass had a median ``rms_z`` of 1.46, the records' RMS error over the
 measured std 2.14, and the measured posteriors' RMS z was 1.63. Offline on
 those twenty records (the benchmark's rows), the determined per-mode added
@@ -115,7 +115,7 @@ PAIR_LIMIT = 0.05
 #: further batches of ``records`` are simulated, up to this many batches in all (see :func:`bootstrap_factors`).
 MAX_BATCHES = 3
 #: Records the loop calibrates the sampler's posterior on when not told otherwise (``bootstrap=None``):
-#: the number every calibrated coverage figure was measured with (README, stops 63-64). About 2 min on
+#: the number every calibrated coverage figure was measured with (docs/decisions/loop-calibration.md). About 2 min on
 #: 2 cores for 20-min records at 256 Hz.
 DEFAULT_RECORDS = 12
 
@@ -201,7 +201,7 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     The records simulated at the estimate scatter about the simulated system's frequencies, not about the
     measured ones: matched against the measured frequencies (which carry the measured record's own
     extraction error), a record's mode is dropped whenever the two errors add up beyond the tolerance, and
-    the records that keep it are the ones extracted best. On the seal records of stop 68 the 3.81 Hz mode
+    the records that keep it are the ones extracted best. On seal records the 3.81 Hz mode
     (damped 13.6%) scatters by 0.55%: against a measured 3.759 Hz (record 10406, 1.3% off) nearly every
     record lost it, the bootstrap's errors came from records unlike the measured one, and its factor was too
     small. Each measured mode takes the frequency of the system's pole (``Im > 0``) nearest it, one to one
@@ -258,7 +258,7 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
     On per-mode FSI record 10305 (17.14 Hz measured between two such modes, 16.2 and 19.1 Hz), eight
     records simulated with them dry put that mode's added mass -0.53 of its std from the value simulated
     on average; with the truth's values +1.73, with the median +1.76; the measured records' estimates
-    lay +1.88 of their std above the truth on average (sixteen records, stop 64). A model without
+    lay +1.88 of their std above the truth on average (sixteen records). A model without
     per-mode FSI is returned as it is.
 
     Examples
@@ -418,7 +418,7 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         ``error_ratio`` ``rms_error / σ``; ``pooled_error_ratio``, that ratio shrunk towards the
         ``pooled`` parameters' common value (:func:`pooled_rms`; attr ``between_parameter_variance``);
         ``factor``, ``pooled_error_ratio`` times :func:`predictive_widening` of the records used; and
-        ``rms_z`` ``sqrt(mean z²)``, a diagnostic (the ratio the factor came from up to stop 66).
+        ``rms_z`` ``sqrt(mean z²)``, a diagnostic (each record's error in its own std).
     """
     from twin.fmu.statespace import model_state_space
 
@@ -468,8 +468,8 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
                                                     "simulated", "units": "SI (the parameter's)"}),
          "laplace_std": (("record", "parameter"), std, {"long_name": "the record's Laplace std",
                                                         "units": "SI (the parameter's)"}),
-         "rms_z": ("parameter", rms, {"long_name": "RMS z over the records (a diagnostic: the factor up to "
-                                      "stop 66)"}),
+         "rms_z": ("parameter", rms, {"long_name": "RMS z over the records, each record's error in its own std "
+                                      "(a diagnostic)"}),
          "rms_error": ("parameter", rms_error, {"long_name": "RMS error over the records",
                                                 "units": "SI (the parameter's)"}),
          "posterior_std": ("parameter", sampler_std, {"long_name": "the std of the posterior's draws",

@@ -11,7 +11,7 @@ residuals count in ``E`` and χ² like any other.
 
 **The error** of a model is one number, the RMS over the measured modes of the
 relative pole distance ``|λ_i − λ̂_i| / |λ̂_i|``, each mode's real and imaginary
-part weighed by the inverse variance of its measurement,
+part weighed by the inverse variance of its measurement::
 
     E² = 2 Σ_i (w_i,re Δre_i² + w_i,im Δim_i²) / Σ_i (w_i,re + w_i,im),
     with Δ = (λ − λ̂)/|λ̂| and w = (|λ̂| / σ)²,

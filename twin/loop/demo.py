@@ -44,7 +44,7 @@ log = logging.getLogger(__name__)
 DEMO_SAMPLES = 15
 #: Shape samples per pole sample (``extract(shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples)``): the shapes
 #: from 60 random halves of the 15 blocks, enough for their covariance over the 16 real entries of a shape on
-#: 8 sensors without lifting the directions the bearings are read from (README, "Shape samples of their own").
+#: 8 sensors without lifting the directions the bearings are read from (docs/decisions/extraction-shape-samples.md).
 SHAPE_SAMPLES_PER_SAMPLE = 4
 
 

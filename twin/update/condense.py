@@ -1,4 +1,4 @@
-"""The perturbed condensed eigen-model (PerCEM): DESIGN section 5, stages 1 and 2.
+"""The perturbed condensed eigen-model (PerCEM): stages 1 and 2 (``docs/explanations/percem.md``).
 
 For one mode with pole ``λ`` and full shape ``a``, the eigen-equation
 ``Z(λ) a = ε`` with ``Z(λ) = λ² M + λ (C + Ω G) + K`` is linear in the

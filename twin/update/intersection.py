@@ -11,7 +11,7 @@ as good as they claimed (RMS z 0.86 and 1.09) but erred together,
 correlation 0.62 over the records, so that taken as independent they made
 the posterior too narrow (1.26). The samples show that correlation too, but
 15 samples of a mode's 18 real numbers leave its direction too uncertain to
-use (the README has what was tried).
+use (``docs/decisions/update-intersection.md``).
 
 Whatever the correlation, for any ``0 < ω < 1``
 

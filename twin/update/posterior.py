@@ -1,6 +1,6 @@
 """The ``posterior.nc`` file (ArviZ layout), its diagnostics and point estimates.
 
-Groups (DESIGN section 6), readable by ``arviz.from_netcdf`` and
+Groups, readable by ``arviz.from_netcdf`` and
 ``xarray.open_datatree``:
 
 * ``posterior``: ``theta`` (chain, draw, parameter) in SI units with the

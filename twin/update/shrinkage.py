@@ -12,7 +12,8 @@ with the covariance's inverse, whose smallest directions the Frobenius loss
 hardly sees and the likelihood does. On the hydro unit's FMU records the
 held-out intensity brings the bearings' 90% intervals into calibration but
 makes a hidden magnetic pull's too narrow (its shapes err beyond their
-samples), so the update's default stays Schäfer and Strimmer's (README).
+samples), so the update's default stays Schäfer and Strimmer's
+(``docs/decisions/update-shrinkage.md``).
 """
 
 from __future__ import annotations

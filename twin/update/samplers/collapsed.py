@@ -3,7 +3,7 @@
 Given the noise ``Δ``, ``z = (ψ, ε)`` is Gaussian given the parameters
 ``θ = (t, η)``: precision ``P_i(θ) = Σ_j H_ij(θ)ᵀ W_i H_ij(θ) + Λ_i`` and
 linear term ``b_i`` (the shape data). The marginal of the parameters is
-therefore exact and cheap:
+therefore exact and cheap::
 
     log p(θ | Δ, data) = Σ_i ½ b_iᵀ P_i(θ)⁻¹ b_i − ½ log |P_i(θ)| + log prior(θ) + const.
 

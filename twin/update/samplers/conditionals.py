@@ -68,7 +68,7 @@ from twin.update.samplers.collapsed import marginal_move
 
 
 #: Adler's overrelaxation of the parameter draws (0: plain Gibbs). Closer to -1 crosses the ridge faster
-#: but leaves a sharply determined parameter oscillating about its mean, the swing shrinking by |alpha| per
+#: but leaves a sharply determined parameter oscillating about its mean, the swing shrinking by ``|alpha|`` per
 #: sweep: -0.7 brings it within 3% in 10 sweeps (and 1e-3 in 20, the default burn-in).
 OVERRELAXATION = -0.7
 

@@ -1,0 +1,40 @@
+"""Sphinx configuration of twin's documentation (``python -m sphinx -W -b html docs docs/_build/html``)."""
+
+from __future__ import annotations
+
+import twin
+
+project = "twin"
+author = "the twin developers"
+release = version = twin.__version__
+copyright = "the twin developers"
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.viewcode",
+    "sphinxarg.ext",
+]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+exclude_patterns = ["_build"]
+myst_enable_extensions = ["dollarmath", "deflist"]
+myst_heading_anchors = 3
+
+# The docstrings are NumPy style; their types are prose ("(I, 2, 2)", "path"), not cross-references.
+napoleon_google_docstring = False
+napoleon_numpy_docstring = True
+napoleon_use_rtype = False
+autodoc_default_options = {"members": True, "member-order": "bysource"}
+autodoc_typehints = "description"
+autodoc_typehints_format = "short"
+autodoc_preserve_defaults = True
+nitpicky = False
+# A docstring's type is prose such as "(n_modes, m) complex"; Sphinx tries each word as a Python name and
+# finds several attributes called ``n_modes`` or ``channels``. Those guesses are not links anyone wrote.
+suppress_warnings = ["ref.python"]
+
+html_theme = "pydata_sphinx_theme"
+html_title = "twin"
+html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
