@@ -56,7 +56,7 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
 )  # fmt: skip
 def test_bad_paths_and_names_fail_early_on_one_line(tmp_path, capsys, argv, message):
     from twin import load_model
-    from twin.extract import write_modes
+    from twin.modes import write_modes
     from twin.update import synthesize_modes
 
     (tmp_path / "text.nc").write_text("step,error\n")
@@ -128,7 +128,7 @@ def test_export_fmu_command(tmp_path, capsys):
 
 def _hidden_pull_modes(tmp_path):
     from twin import load_model
-    from twin.extract import write_modes
+    from twin.modes import write_modes
     from twin.fem.effects import MagneticPull
     from twin.fem.truthfile import Truth
     from twin.update import synthesize_modes
@@ -206,7 +206,7 @@ def test_laplace_update_then_the_next_round_from_the_command_line(tmp_path, caps
 def test_per_mode_fsi_from_the_command_line(tmp_path, capsys):
     """compare --effect fsi_per_mode, update --fsi --method laplace, compare --posterior: the three used to fail."""
     from twin import load_model
-    from twin.extract import write_modes
+    from twin.modes import write_modes
     from twin.fem.truthfile import paper_truth
     from twin.update import synthesize_modes
 

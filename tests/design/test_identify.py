@@ -10,7 +10,7 @@ from twin.design.identify import _data_vector, data_precision, fisher_covariance
 from twin.errors import ModelError
 from twin.loop.sensitivity import pole_jacobian, solve_modes
 from twin.modes.shapes import normalise_shapes
-from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
+from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV
 
 
 @pytest.fixture(scope="module")
@@ -70,11 +70,11 @@ def test_sample_covariance_is_the_covariance_of_renormalised_synthetic_samples()
     rng = np.random.default_rng(5)
     shape = normalise_shapes(np.array([[0.7, 0.5 + 0.2j, -0.3 + 0.1j, 0.2 - 0.05j]]))[0]
     ref = int(np.argmax(np.abs(shape)))
-    e = SHAPE_COV * rng.standard_normal((2, 200_000, 4))
+    e = PAPER_SHAPE_COV * rng.standard_normal((2, 200_000, 4))
     noisy = shape.real * (1 + e[0]) + 1j * shape.imag * (1 + e[1])
     data = np.array([_data_vector(0j, s, ref)[2:] for s in noisy])
     expected = sample_covariance(shape, 1)
-    assert np.allclose(np.diag(expected)[:2], POLE_VARIANCE)
+    assert np.allclose(np.diag(expected)[:2], PAPER_POLE_VARIANCE)
     size = np.sqrt(np.outer(np.diag(expected)[2:], np.diag(expected)[2:])).max()
     assert np.allclose(np.cov(data.T), expected[2:, 2:], atol=0.02 * size)  # 200000 draws, second order in 5%
     assert np.allclose(sample_covariance(shape, 100), expected / 100)

@@ -8,20 +8,13 @@ import scipy.signal as ss_signal
 
 from twin import load_model, shipped_model
 from twin.design import Excitation, observability
-from twin.design.observe import (
-    Spectrum,
-    mode_clusters,
-    mode_prominence,
-    mode_snr,
-    spectrum,
-    target_modes,
-    target_summary,
-    unobservable_text,
-)
+from twin.design.observe import mode_clusters, mode_prominence, mode_snr, target_modes, target_summary, unobservable_text
+from twin.design.spectrum import Spectrum, spectrum
 from twin.errors import ModelError
 from twin.fmu.excitation import sensor_noise, turbulence_force
 from twin.fmu.export import default_turbulence_node
-from twin.fmu.statespace import discretize, model_state_space, simulate_reference
+from twin.fmu.statespace import discretize, simulate_reference
+from twin.fmu.truth import model_state_space
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,8 @@ import xarray as xr
 from twin import load_model, modal
 from twin.cli import main
 from twin.errors import SignalError
-from twin.extract import extract, read_modes
+from twin.extract import extract
+from twin.modes import read_modes
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.modes.shapes import mac
 
@@ -92,17 +93,6 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
         assert min(abs(u["frequency_hz"] / f - 1) for f in (3.1, 7.0)) > 5e-3
         assert u["frequency_se_hz"] > u["damping_ratio"] * u["frequency_hz"] / 2 or u["damping_ratio_se"] > 0.5 * u["damping_ratio"]
 
-
-def test_a_mode_without_counterparts_in_many_samples_is_judged_on_its_full_spread():
-    """Orders without a counterpart keep the full-record pole, shrinking the spread by the fraction kept."""
-    from twin.extract.core import pole_determined
-
-    pole = np.array([-0.5 + 100j])
-    d = np.random.default_rng(2).standard_normal((1, 16)) + 1j * np.random.default_rng(3).standard_normal((1, 16))
-    d *= 0.6 * 0.5 * np.sqrt(16) / np.sqrt(np.var(d.real) * 16 / 15 + np.var(d.imag) * 16 / 15)  # se 0.6 of |Re|
-    assert pole_determined(pole, pole[:, None] + d)
-    # with half the (sample, order) pairs missing the spread stands for half of the real one: 1.2 bandwidths
-    assert not pole_determined(pole, pole[:, None] + d, missing=np.array([0.5]))
 
 
 def test_shear_frame_reference(shear_frame):

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from twin.errors import SignalError
-from twin.extract import extract, read_modes
+from twin.extract import extract
+from twin.modes import read_modes
 from twin.extract.passes import DIFFERENCES, SHAPE_LAG_PERIODS, differenced, matching_modes, shape_lag_rows
 from twin.modes.shapes import mac
 

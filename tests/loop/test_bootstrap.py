@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError, TwinWarning
-from twin.loop.bootstrap import (MAX_BATCHES, MIN_RECORDS, bootstrap_factors, calibrated, pooled_rms, record_seeds,
-                                 record_settings, target_numbered)
+from twin.loop.bootstrap import (MAX_BATCHES, bootstrap_factors, calibrated, record_seeds, record_settings,
+                                 target_numbered)
+from twin.loop.pooling import MIN_RECORDS
 
 from tests.conftest import DATA
 
@@ -16,7 +17,7 @@ from tests.conftest import DATA
 def _seal_update(hydro_unit, draws: int = 500):
     """The sampler's update of the seal on the modes of FMU record 10130 (a 20-min record), not calibrated:
     twin, posterior."""
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
 
     tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
@@ -105,31 +106,6 @@ def test_a_parameter_seen_on_too_few_records_is_seen_on_more(hydro_unit):
     assert len(asked) == 1
 
 
-def test_pooled_rms_shrinks_the_records_noise_and_keeps_real_differences():
-    from scipy.special import polygamma
-
-    rng = np.random.default_rng(5)
-    # the noise the shrinkage assumes: log of a mean of 12 squared normals has variance psi'(6) = 0.1813
-    y = np.log(np.mean(rng.standard_normal((200_000, 12)) ** 2, axis=1))
-    assert np.var(y) == pytest.approx(polygamma(1, 6), rel=0.02)
-    records, members = np.full(16, 12), np.ones(16, bool)
-    # sixteen parameters with one true RMS error 1.3, each seen on 12 records: their spread (20% here) is
-    # the records' noise, and every one is pulled to the pooled value sqrt(mean c²)
-    rng = np.random.default_rng(1)
-    c = np.sqrt(np.mean((1.3 * rng.standard_normal((12, 16))) ** 2, axis=0))
-    shrunk, tau2 = pooled_rms(c, records, members)
-    assert c.std() / c.mean() > 0.15 and tau2 == 0.0
-    np.testing.assert_allclose(shrunk, np.sqrt(np.mean(c**2)), rtol=1e-12)
-    # true RMS errors 0.4 and 4 (ten times apart): a difference 12 records cannot blur, each value stays
-    true = np.repeat([0.4, 4.0], 8)
-    c = np.sqrt(np.mean((true * rng.standard_normal((12, 16))) ** 2, axis=0))
-    shrunk, tau2 = pooled_rms(c, records, members)
-    assert tau2 > 2.0
-    assert np.max(np.abs(np.log(shrunk / c))) < 0.1
-    # non-members are left alone and do not move the pool
-    alone, _ = pooled_rms(np.append(c, 50.0), np.append(records, 12), np.append(members, False))
-    np.testing.assert_array_equal(alone, np.append(shrunk, 50.0))
-
 
 def test_calibrated_stretches_determined_draws_only_and_keeps_the_mean(hydro_unit):
     import xarray as xr
@@ -161,7 +137,7 @@ def test_record_settings_say_what_is_missing():
 def test_bootstrap_update_of_a_short_record_end_to_end(hydro_unit):
     # the whole path on 4-min records (the fixture's settings with the length shortened): simulate through the
     # FMU, extract with the modes' settings, fit, stretch. Each record's fit finds the seal
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
@@ -181,7 +157,7 @@ def test_bootstrap_update_of_a_short_record_end_to_end(hydro_unit):
 
 
 def test_calibrate_needs_the_sampler_s_update(hydro_unit):
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
 
     tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
@@ -197,7 +173,7 @@ def test_calibrate_needs_the_sampler_s_update(hydro_unit):
 def test_the_sampler_s_update_of_a_record_is_calibrated_by_default(hydro_unit, monkeypatch):
     # the loop's default: DEFAULT_RECORDS records for the sampler on modes extracted from a record, none for the
     # Laplace fit or when told 0, and none for modes that came from no record (synthesize_modes)
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.bootstrap import DEFAULT_RECORDS
     from twin.loop.twin import Twin
     from twin.update import synthesize_modes
@@ -223,7 +199,7 @@ def test_the_sampler_s_update_of_a_record_is_calibrated_by_default(hydro_unit, m
 def test_a_simulated_record_s_modes_take_the_measured_numbers():
     # a record that lacks a mode (here the 3.84 Hz one of the seal record, dropped) keeps the numbers of the
     # others, so its per-mode FSI parameters are the measured modes'
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.bootstrap import matched_modes
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
@@ -240,9 +216,9 @@ def test_a_measured_mode_s_reference_is_the_simulated_system_s_frequency(hydro_u
     # the records scatter about the system simulated, so a measured mode extracted 1.3% off (as the 3.81 Hz
     # mode of seal record 10406) is matched at the system's frequency: a record's mode found where the system
     # has it keeps the measured number, one found where the measured one was too
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.fem.effects import SealCrossCoupling
-    from twin.fmu.statespace import model_state_space
+    from twin.fmu.truth import model_state_space
     from twin.loop.bootstrap import MATCH_TOLERANCE, matched_modes, simulated_reference
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
@@ -268,7 +244,7 @@ def test_an_updated_per_mode_model_is_simulated_with_each_value_on_its_measured_
     # the update numbers per-mode FSI by measured mode; target mode 3 (9.2 Hz) unmeasured, the third measured
     # mode is target mode 4: simulated, each measured mode must come out as the comparison reads it
     from twin.fem.effects import FluidAddedMassPerMode
-    from twin.fmu.statespace import model_state_space
+    from twin.fmu.truth import model_state_space
     from twin.loop.compare import measured_modes, model_modes
     from twin.update import synthesize_modes
 
@@ -281,18 +257,3 @@ def test_an_updated_per_mode_model_is_simulated_with_each_value_on_its_measured_
     as_numbered = model_state_space(updated).poles  # values by target number: measured mode 3 comes out wrong
     assert np.min(np.abs(as_numbered - expected[2])) > 1e-3 * abs(expected[2])
     assert target_numbered(hydro_unit, modes) is hydro_unit
-
-
-def test_the_widened_interval_covers_a_new_error_90_percent_of_the_time():
-    # the exact property the t widening stands on: z ~ N(0, c^2), c^2 estimated by the mean square of R draws,
-    # a new z falls inside +-1.645 c_hat widening for 90% of repetitions (40000: 0.90 to +-0.004 at 2.7 sigma)
-    from twin.loop.bootstrap import predictive_widening
-
-    rng = np.random.default_rng(62)
-    for records in (4, 12):
-        z = 1.3 * rng.standard_normal((40000, records + 1))
-        c_hat = np.sqrt(np.mean(z[:, :records] ** 2, axis=1))
-        inside = np.abs(z[:, -1]) <= 1.6448536 * c_hat * predictive_widening(records)
-        assert inside.mean() == pytest.approx(0.90, abs=0.004)
-        bare = np.abs(z[:, -1]) <= 1.6448536 * c_hat
-        assert bare.mean() < 0.885  # without it: 83.5% (R = 4), 87.4% (R = 12)

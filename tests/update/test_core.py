@@ -9,7 +9,7 @@ import xarray as xr
 
 from twin.cli import main
 from twin.errors import ModelError, TwinWarning
-from twin.extract.modesfile import write_modes
+from twin.modes.modesfile import write_modes
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.truthfile import PAPER_TABLE2
 from twin.update import UpdateError, apply_posterior, read_posterior, summary, synthesize_modes, update
@@ -228,7 +228,7 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     modes = tmp_path / "modes.nc"
     assert main(["synthesize-modes", "models/hydro_unit.toml", "-o", str(modes), "--samples", "20", "--seed", "4"]) == 0
     sub = tmp_path / "sub.nc"
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
 
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"

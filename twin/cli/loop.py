@@ -29,7 +29,7 @@ def sampler_options(args: argparse.Namespace) -> dict:
 
 
 def _update(args: argparse.Namespace) -> int:
-    from twin.extract import read_modes
+    from twin.modes import read_modes
     from twin.netcdf import check_writable
     from twin.update import sampler, summary, update
     from twin.update.posterior import write_posterior
@@ -122,7 +122,7 @@ def _model_with_effects(path: str, labels: list[str] | None, modes=None, posteri
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from twin.extract import read_modes
+    from twin.modes import read_modes
     from twin.loop.compare import compare
     from twin.loop.report import comparison_text
 
@@ -172,7 +172,7 @@ def _posterior_model(args: argparse.Namespace, modes):
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from twin.extract import read_modes
+    from twin.modes import read_modes
     from twin.loop.compare import measured_modes
     from twin.loop.candidates import select
     from twin.loop.diagnose import diagnose
@@ -229,7 +229,7 @@ def _print_history(tw) -> None:
 
 
 def _loop(args: argparse.Namespace) -> int:
-    from twin.extract import read_modes
+    from twin.modes import read_modes
     from twin.loop.bootstrap import check_records
     from twin.loop.history import write_history
     from twin.loop.twin import Twin

@@ -131,7 +131,7 @@ def _extract(args: argparse.Namespace) -> int:
 
 
 def _synthesize_modes(args: argparse.Namespace) -> int:
-    from twin.extract.modesfile import write_modes
+    from twin.modes.modesfile import write_modes
     from twin.fem import load_model
     from twin.fem.truthfile import load_truth
     from twin.update import synthesize_modes

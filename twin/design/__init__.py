@@ -11,7 +11,8 @@
 """
 
 from twin.design.identify import identifiability
-from twin.design.observe import Excitation, observability
+from twin.design.observe import observability
 from twin.design.sensors import design_sensors, write_layout
+from twin.design.spectrum import Excitation
 
 __all__ = ["Excitation", "design_sensors", "identifiability", "observability", "write_layout"]

@@ -14,7 +14,7 @@ singular where the normalised shape cannot move and is taken there by
 taken by finite differences of the model's modes (a relative step of
 :data:`STEP`); ``Σ_k`` comes from either
 
-* the record (:func:`twin.design.observe.mode_covariance`, the Cramér-Rao
+* the record (:func:`twin.design.spectrum.mode_covariance`, the Cramér-Rao
   bound of the output spectrum for the sensor layout, excitation and record
   length: what SSI can give at best), or
 * sample noise as :func:`twin.update.synthesize_modes` makes it (pole
@@ -34,22 +34,14 @@ import numpy as np
 import xarray as xr
 
 from twin import __version__
-from twin.design.observe import (
-    BLIND_VARIANCE,
-    Excitation,
-    band_top,
-    mode_covariance,
-    single_mode_covariance,
-    spectrum,
-    target_modes,
-)
+from twin.design.observe import band_top, target_modes
+from twin.design.spectrum import BLIND_VARIANCE, Excitation, mode_covariance, single_mode_covariance, spectrum
 from twin.errors import ModelError
 from twin.fem.effects import plausible_scales, with_shared_fsi
 from twin.fem.model import RotorModel
-from twin.fem.truthfile import Truth
+from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV, Truth
 from twin.fmu.statespace import full_state_space, state_modes
 from twin.modes.shapes import mac, normalisation_jacobian, normalise_shapes
-from twin.update.synthetic import POLE_VARIANCE, SHAPE_COV
 
 #: Finite-difference step, as a fraction of each parameter's scale.
 STEP = 1e-6
@@ -240,7 +232,7 @@ def record_ratio(sp, k: int, duration_s: float) -> float | None:
 def record_covariance(sp, k: int, duration_s: float, ratio: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Covariance of mode ``k``'s pole and shape from a record, at the level SSI reaches.
 
-    The Cramér-Rao covariance of the pole and shape (:func:`~twin.design.observe.mode_covariance`)
+    The Cramér-Rao covariance of the pole and shape (:func:`~twin.design.spectrum.mode_covariance`)
     scaled up by ``ratio``, by default :func:`record_ratio` on this layout: SSI does not use the
     multichannel structure for the shape either. A sensor design passes the ratio of the layout it
     starts from, so that an added pair can only add information (the ratio on the larger layout
@@ -278,8 +270,8 @@ def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -
     return keep
 
 
-def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = POLE_VARIANCE,
-                      shape_cov: float = SHAPE_COV) -> np.ndarray:
+def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = PAPER_POLE_VARIANCE,
+                      shape_cov: float = PAPER_SHAPE_COV) -> np.ndarray:
     """Error covariance of a mode's mean pole and normalised shape over ``samples`` synthetic samples.
 
     :func:`twin.update.synthesize_modes` perturbs each real entry of the
@@ -319,7 +311,7 @@ def data_precision(cov: np.ndarray, shape: np.ndarray) -> np.ndarray:
     >>> psi = np.array([0.8, 0.6j])
     >>> cov = sample_covariance(psi, 1)
     >>> P = data_precision(cov, psi)
-    >>> np.allclose(np.diag(P)[:2], 1 / np.array(POLE_VARIANCE)), int(np.linalg.matrix_rank(P))
+    >>> np.allclose(np.diag(P)[:2], 1 / np.array(PAPER_POLE_VARIANCE)), int(np.linalg.matrix_rank(P))
     (True, 3)
     """
     m = len(shape)
@@ -439,8 +431,8 @@ def identifiability(
             raise ModelError(f"samples must be at least 1, got {samples}")
         used = list(range(len(targets)))
         precisions = [data_precision(sample_covariance(shapes[i], samples), shapes[i]) for i in used]
-        method = (f"{samples} synthetic samples per mode (pole variances {POLE_VARIANCE[0]:g}, {POLE_VARIANCE[1]:g} "
-                  f"rad^2/s^2; shape CoV {SHAPE_COV:.0%})")  # fmt: skip
+        method = (f"{samples} synthetic samples per mode (pole variances {PAPER_POLE_VARIANCE[0]:g}, {PAPER_POLE_VARIANCE[1]:g} "
+                  f"rad^2/s^2; shape CoV {PAPER_SHAPE_COV:.0%})")  # fmt: skip
     else:
         obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
         sp = spectrum(system_for(model, truth, "full", None), model, excitation)

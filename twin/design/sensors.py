@@ -53,16 +53,15 @@ from twin.design.identify import (
 from twin.design.observe import (
     DAMPING_STD_LIMIT,
     FREQUENCY_STD_LIMIT,
-    Excitation,
     band_top,
     SNR_LIMIT_DB,
     mode_bounds,
     mode_prominence,
     mode_snr,
-    spectrum,
     target_modes,
     verdicts,
 )
+from twin.design.spectrum import Excitation, spectrum
 from twin.errors import ModelError
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.truthfile import Truth

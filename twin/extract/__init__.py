@@ -1,7 +1,10 @@
-"""Stage 3: automated modal extraction (covariance-driven SSI) from signals to pole and shape samples."""
+"""Stage 3: automated modal extraction (covariance-driven SSI) from signals to pole and shape samples.
+
+The ``modes.nc`` file it writes is read and written by :func:`twin.modes.read_modes` and
+:func:`twin.modes.write_modes`.
+"""
 
 from twin.extract.core import extract
-from twin.extract.modesfile import read_modes, write_modes
 from twin.extract.stabilisation import Criteria
 
-__all__ = ["Criteria", "extract", "read_modes", "write_modes"]
+__all__ = ["Criteria", "extract"]

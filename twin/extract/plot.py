@@ -17,7 +17,7 @@ def plot_stabilisation(modes: xr.Dataset, ax=None):
     Parameters
     ----------
     modes : xarray.Dataset
-        Output of :func:`twin.extract.extract` or :func:`twin.extract.read_modes`.
+        Output of :func:`twin.extract.extract` or :func:`twin.modes.read_modes`.
     ax : matplotlib Axes, optional
 
     Returns

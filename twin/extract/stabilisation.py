@@ -47,7 +47,7 @@ class Criteria:
     hydro unit's 19.1 Hz mode, 8.6% damped: 0.083 to 0.094), and its
     stable orders then fell short of ``min_fraction`` on some records.
     Noise poles that the looser test lets in are dropped after the jackknife
-    when their samples scatter beyond their own bandwidth (:func:`twin.extract.core.pole_determined`).
+    when their samples scatter beyond their own bandwidth (:func:`twin.extract.result.pole_determined`).
 
     ``merge_distance`` joins fragments of one mode (disjoint orders) that the
     cut at ``cluster_distance`` separated: the hydro unit's 16.2 Hz mode

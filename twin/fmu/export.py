@@ -35,7 +35,8 @@ from twin import __version__
 from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
-from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
+from twin.fmu.statespace import StateSpace, check_stable, discretize
+from twin.fmu.truth import model_state_space
 from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)

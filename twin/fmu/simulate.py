@@ -23,8 +23,8 @@ from twin.errors import ModelError, TwinError
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
-from twin.fmu.statespace import StateSpace, check_stable, discretize, model_state_space
-from twin.fmu.truth import MAX_TARGET_DAMPING, truth_state_space
+from twin.fmu.statespace import StateSpace, check_stable, discretize
+from twin.fmu.truth import MAX_TARGET_DAMPING, model_state_space, truth_state_space
 from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, write_netcdf
 from twin.progress import bar

@@ -212,36 +212,6 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
                              full.speed_rpm, attrs)  # fmt: skip
 
 
-def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | None = None) -> StateSpace:
-    """The model's state space in the chosen basis: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
-
-    A model with a per-mode FSI effect (an update's per-mode estimate, :func:`twin.update.apply_posterior`)
-    is not one FEM: its state space is the modal synthesis of its target modes, mode ``i`` from the FEM
-    altered by its own values (:func:`twin.fmu.truth.synthesize_per_mode_fsi`), whatever ``basis`` says.
-
-    Examples
-    --------
-    >>> from twin import load_model, shipped_model
-    >>> model_state_space(load_model(shipped_model("hydro_unit")), "modal", 50.0).n_states  # modes 1-11
-    22
-    >>> from twin.fem.effects import FluidAddedMassPerMode
-    >>> wet = load_model(shipped_model("hydro_unit")).with_effects(FluidAddedMassPerMode((1e5, 1e5), (1e6, 1e6)))
-    >>> model_state_space(wet).n_states  # its two target modes
-    4
-    """
-    if basis not in ("full", "modal"):
-        raise ModelError(f"basis must be 'full' or 'modal', got {basis!r}")
-    if basis == "modal" and fmax_hz is None:
-        raise ModelError("a modal basis needs fmax_hz, the highest frequency to keep")
-    per_mode = model.per_mode_effect
-    if per_mode is not None:
-        from twin.fmu.truth import synthesize_per_mode_fsi
-
-        return synthesize_per_mode_fsi(model.without_per_mode_effect(), per_mode.added_mass, per_mode.added_damping)
-    ss = full_state_space(model)
-    return ss if basis == "full" else truncated_state_space(ss, fmax_hz)
-
-
 def check_stable(ss: StateSpace, name: str) -> None:
     """Raise a ModelError naming the growing modes if any pole has a positive real part."""
     growing = ss.poles[ss.poles.real > 0]

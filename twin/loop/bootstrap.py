@@ -22,7 +22,7 @@ mode, is the ratio of the error the posterior should claim to the one it
 claims. Since ``c²`` comes from ``R`` records (to about ``sqrt(2 / R)``),
 the error of the measured record is predicted by Student's t with ``R``
 degrees of freedom, and the factor is ``c · t_R / z`` at the 90% interval
-(1.084 for 12 records, :func:`predictive_widening`). The draws of every
+(1.084 for 12 records, :func:`~twin.loop.pooling.predictive_widening`). The draws of every
 parameter the data determine are stretched about their mean by it
 (:func:`twin.update.posterior.stretch`), narrowed as well as widened.
 Parameters the data do not determine keep their (prior-bound) draws.
@@ -33,7 +33,7 @@ more than the parameters differ: on twenty records of the 16 bearings
 covered, and which parameter's factor came out high did not predict which
 parameter's error was large. So each ``c`` is first shrunk towards the
 determined parameters' pooled value, as far as their spread is the
-records' noise (:func:`pooled_rms`, empirical Bayes on ``log c²``): the same
+records' noise (:func:`~twin.loop.pooling.pooled_rms`, empirical Bayes on ``log c²``): the same
 records then covered 90.0%. Parameters that really differ (the per-mode
 added masses, whose ``c`` span a factor of ten) keep their own.
 
@@ -64,7 +64,7 @@ itself), and a record's mode within :data:`MATCH_TOLERANCE` of that mode's
 frequency takes its number.
 
 A mode the sensors hardly see may come out of few simulated records, and a
-parameter seen on fewer than :data:`MIN_RECORDS` has no factor: its draws
+parameter seen on fewer than :data:`~twin.loop.pooling.MIN_RECORDS` has no factor: its draws
 would stay as the sampler left them. On per-mode FSI record 10307 the
 17.1 Hz mode, its added mass estimated at twice the truth's, came out of 1
 of 6 records simulated at the estimate, of 4 of 6 with the true added mass
@@ -93,6 +93,7 @@ import xarray as xr
 
 from twin.errors import TwinError, UpdateError
 from twin.fem.model import RotorModel
+from twin.loop.pooling import MIN_RECORDS, pooled_rms, predictive_widening
 from twin.tasks import mapper, one_blas_thread
 
 log = logging.getLogger(__name__)
@@ -101,17 +102,13 @@ log = logging.getLogger(__name__)
 EXTRACT_KEYS = ("samples", "shape_samples", "blocks", "fmin_hz", "fmax_hz", "block_rows", "shape_block_rows",
                 "first_lag", "max_order", "delete_blocks", "order_spread", "orders_per_mode", "remove_harmonics",
                 "differenced_above_hz")  # fmt: skip
-#: Fewer records than this whose fit found a mode: no calibration (a :class:`TwinError`).
-MIN_RECORDS = 3
-#: The interval the factor is matched at (the twin reports 90% intervals).
-LEVEL = 0.90
 #: A simulated record's mode is the measured mode whose simulated frequency (:func:`simulated_reference`) is
 #: within this fraction of its own. The records' modes scatter about the system's: the 3.81 Hz mode of the
 #: seal records (damped 13.6%) by 0.55% (std over twelve records), the others by 0.2% or less.
 MATCH_TOLERANCE = 0.02
 #: A measured mode is the simulated system's mode nearest in frequency only within this fraction of its own.
 PAIR_LIMIT = 0.05
-#: A determined parameter seen on at least one but fewer than :data:`MIN_RECORDS` records is seen on more:
+#: A determined parameter seen on at least one but fewer than :data:`~twin.loop.pooling.MIN_RECORDS` records is seen on more:
 #: further batches of ``records`` are simulated, up to this many batches in all (see :func:`bootstrap_factors`).
 MAX_BATCHES = 3
 #: Records the loop calibrates the sampler's posterior on when not told otherwise (``bootstrap=None``):
@@ -211,7 +208,7 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     Parameters
     ----------
     poles : (n,) complex
-        The simulated system's poles [1/s] (:func:`twin.fmu.statespace.model_state_space`).
+        The simulated system's poles [1/s] (:func:`twin.fmu.truth.model_state_space`).
     modes : xarray.Dataset
         The measured modes (``frequency`` [Hz] over ``mode``).
     limit : float
@@ -394,14 +391,14 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         ``{label: value}`` [SI] of the estimate ``simulated`` holds, for every parameter of the posterior.
     records : int
         Records to simulate (each about 12 s on one core for 20 min at 256 Hz, with its extraction). When a
-        ``pooled`` parameter's mode came out of at least one of them but of fewer than :data:`MIN_RECORDS`,
+        ``pooled`` parameter's mode came out of at least one of them but of fewer than :data:`~twin.loop.pooling.MIN_RECORDS`,
         ``records`` more are simulated, up to :data:`MAX_BATCHES` batches in all: a mode the sensors
         hardly see may be found in one simulated record of six (per-mode FSI, the 17.1 Hz mode with its
         added mass estimated high), and without a factor its draws would stay uncalibrated.
     seed : int, optional
         Seed of the records' seeds (:func:`record_seeds`).
     pooled : sequence of str, optional
-        The parameters whose RMS errors are shrunk towards their pooled value (:func:`pooled_rms`): the
+        The parameters whose RMS errors are shrunk towards their pooled value (:func:`~twin.loop.pooling.pooled_rms`): the
         ones the data determine (default: every parameter).
     simulate_options : mapping, optional
         More keywords of :func:`twin.fmu.simulate` (excitation, sensor noise); its defaults otherwise.
@@ -416,11 +413,11 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         Over dimension parameter: ``records_used`` (the records whose fit has it); ``rms_error``
         ``sqrt(mean error²)``; ``posterior_std`` ``σ``, the std of ``posterior``'s draws;
         ``error_ratio`` ``rms_error / σ``; ``pooled_error_ratio``, that ratio shrunk towards the
-        ``pooled`` parameters' common value (:func:`pooled_rms`; attr ``between_parameter_variance``);
-        ``factor``, ``pooled_error_ratio`` times :func:`predictive_widening` of the records used; and
+        ``pooled`` parameters' common value (:func:`~twin.loop.pooling.pooled_rms`; attr ``between_parameter_variance``);
+        ``factor``, ``pooled_error_ratio`` times :func:`~twin.loop.pooling.predictive_widening` of the records used; and
         ``rms_z`` ``sqrt(mean z²)``, a diagnostic (each record's error in its own std).
     """
-    from twin.fmu.statespace import model_state_space
+    from twin.fmu.truth import model_state_space
 
     if int(records) != records or records < MIN_RECORDS:
         raise TwinError(f"bootstrap records must be an integer >= {MIN_RECORDS}, got {records}")
@@ -509,61 +506,6 @@ def record_errors(fits: Sequence[Mapping[str, tuple[float, float]] | str], label
             if label in fit and fit[label][1] > 0:
                 error[r, k], std[r, k] = fit[label][0] - estimate[label], fit[label][1]
     return error, std
-
-
-def pooled_rms(rms: np.ndarray, records: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, float]:
-    """Each member's RMS error shrunk towards the members' pooled RMS error (empirical Bayes).
-
-    ``c_p²`` is a mean of ``n_p`` squared errors: if they were normal, ``log c_p²`` would scatter about
-    the parameter's true value with variance ``ψ'(n_p / 2)`` (0.181 for 12 records). The variance of the
-    true values across the members is what the spread of ``log c_p²`` has beyond that,
-    ``τ² = max(0, var_p log c_p² - mean ψ')``; each member's ``log c_p²`` is then pulled towards the log of
-    the pooled mean square by ``v_p / (τ² + v_p)`` (fully when the spread is noise alone, hardly when the
-    parameters differ far more than 12 records can blur). Non-members and members without a finite
-    positive value are returned as given.
-
-    Returns the shrunk RMS errors and ``τ²`` (0 with fewer than two members).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> c, tau2 = pooled_rms(np.array([0.8, 1.0, 1.2, 5.0]), np.array([12, 12, 12, 12]),
-    ...                      np.array([True, True, True, False]))
-    >>> c.round(3).tolist(), tau2  # three values as close as 12 records make them: pooled, sqrt(mean c²)
-    ([1.013, 1.013, 1.013, 5.0], 0.0)
-    """
-    from scipy.special import polygamma
-
-    c = np.asarray(rms, dtype=float).copy()
-    n = np.asarray(records, dtype=float)
-    k = np.asarray(members, dtype=bool) & np.isfinite(c) & (c > 0) & (n >= MIN_RECORDS)
-    if k.sum() < 2:
-        return c, 0.0
-    y, noise = np.log(c[k] ** 2), polygamma(1, n[k] / 2)
-    centre = np.log(np.sum(n[k] * c[k] ** 2) / np.sum(n[k]))
-    tau2 = float(max(0.0, np.var(y, ddof=1) - np.mean(noise)))
-    c[k] = np.exp((centre + tau2 / (tau2 + noise) * (y - centre)) / 2)
-    return c, tau2
-
-
-def predictive_widening(records: np.ndarray | int, level: float = LEVEL) -> np.ndarray:
-    """``t_R / z`` at the ``level`` interval: the widening of an interval whose scale comes from ``R`` records.
-
-    The error of the measured record is predicted from ``R`` errors of the same kind: with their mean square
-    as its variance, its ``level`` interval is Student's t with ``R`` degrees of freedom, not the normal's.
-    NaN below :data:`MIN_RECORDS`.
-
-    Examples
-    --------
-    >>> predictive_widening(np.array([12, 20, 2])).round(3)
-    array([1.084, 1.049,   nan])
-    """
-    from scipy.stats import norm, t
-
-    r = np.asarray(records, dtype=float)
-    q = (1 + level) / 2
-    with np.errstate(invalid="ignore"):
-        return np.where(r >= MIN_RECORDS, t.ppf(q, np.maximum(r, 1)) / norm.ppf(q), np.nan)
 
 
 def posterior_std(posterior: xr.DataTree) -> np.ndarray:

@@ -15,7 +15,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.errors import TwinWarning
-from twin.extract.modesfile import read_modes, split_complex
+from twin.modes.modesfile import read_modes, split_complex
 from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model

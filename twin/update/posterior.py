@@ -31,7 +31,7 @@ import xarray as xr
 from scipy.stats import gaussian_kde
 
 from twin.errors import TwinError, TwinWarning
-from twin.extract.modesfile import split_complex
+from twin.modes.modesfile import split_complex
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.model import RotorModel
 from twin.netcdf import write_netcdf

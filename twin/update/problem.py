@@ -302,7 +302,7 @@ def build_problem(
         The model to update; parameters not updated keep their values.
     modes : xarray.Dataset
         Complex ``pole`` (mode, sample) and ``shape`` (mode, sample, channel),
-        channels named after the model's sensors (see :func:`twin.extract.read_modes`).
+        channels named after the model's sensors (see :func:`twin.modes.read_modes`).
     params : sequence of str
         Names of the shared parameters to update.
     fsi : bool

@@ -9,7 +9,7 @@ mass and damping ``(m_i, c_i)``; mode ``i`` is taken from its altered FEM
   error of ``shape_cov`` (5%) times its own magnitude (coefficient of variation);
 * poles: ``λ̂ = λ + N(0, 1.58) + i N(0, 1.1)`` [rad²/s² variances].
 
-The result has the layout of ``modes.nc`` (:mod:`twin.extract.modesfile`),
+The result has the layout of ``modes.nc`` (:mod:`twin.modes.modesfile`),
 with the truth in the attrs.
 """
 
@@ -21,16 +21,12 @@ import xarray as xr
 
 from twin import __version__
 from twin.fem.model import RotorModel
-from twin.fem.truthfile import Truth, paper_truth
+from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV, Truth, paper_truth
 from twin.fmu.truth import truth_modes
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import normalise_shapes
 from twin.update.problem import UpdateError
 
-#: The paper's noise: coefficient of variation of the shape entries.
-SHAPE_COV = 0.05
-#: The paper's pole-sample variances [rad²/s²]: real part, imaginary part.
-POLE_VARIANCE = (1.58, 1.1)
 
 
 def synthesize_modes(
@@ -40,8 +36,8 @@ def synthesize_modes(
     samples: int = 100,
     seed: int = 0,
     n_modes: int | None = None,
-    shape_cov: float = SHAPE_COV,
-    pole_variance: tuple[float, float] = POLE_VARIANCE,
+    shape_cov: float = PAPER_SHAPE_COV,
+    pole_variance: tuple[float, float] = PAPER_POLE_VARIANCE,
     command: str = "",
 ) -> xr.Dataset:
     """Noisy pole and shape samples of a truth's modes on the model's sensors.

@@ -115,7 +115,7 @@ def _update_record(hydro_unit, name: str, effect: str, seed: int):
     """The sampler's default update of ``effect`` on the extracted modes ``tests/data/<name>``, without the loop's
     calibration on simulated records (it stretches the draws; R-hat and ESS are the sampler's): the posterior and
     its table."""
-    from twin.extract.modesfile import read_modes
+    from twin.modes.modesfile import read_modes
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
 

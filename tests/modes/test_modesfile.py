@@ -5,7 +5,7 @@ import pytest
 import xarray as xr
 
 from twin.errors import SignalError
-from twin.extract.modesfile import join_complex, read_modes, split_complex, write_modes
+from twin.modes.modesfile import join_complex, read_modes, split_complex, write_modes
 
 
 def test_round_trip_keeps_complex_values(tmp_path):
