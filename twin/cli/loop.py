@@ -71,28 +71,18 @@ def _update(args: argparse.Namespace) -> int:
 
 def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
-    from twin.fem.effects import effect_label
-    from twin.loop.candidates import free_names
-    from twin.loop.compare import measured_modes
-    from twin.loop.fit import laplace_update
+    from twin.loop.fit import laplace_posterior
     from twin.netcdf import write_netcdf
-    from twin.update.posterior import laplace_tree
     from twin.update.problem import select_parameters
 
     given = [f for f in SAMPLER_OPTIONS if getattr(args, f, None) is not None and f != "seed"]
     if given:
         raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in given)})")
-    meas = measured_modes(modes)
-    names = select_parameters(model, args.params)
-    if args.fsi:
-        if model.per_mode_effect is None:
-            model = _model_with_effects(args.model, [*(args.effect or []), "fsi_per_mode"], modes)
-        names += free_names(model, model.per_mode_effect, meas.mode)
-    updated, post = laplace_update(model, meas, names)
-    attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
-             "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
-             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
-    write_netcdf(laplace_tree(post, modes, attrs, seed=args.seed if args.seed is not None else 0), args.output)
+    _, post, tree = laplace_posterior(model, modes, select_parameters(model, args.params), fsi=args.fsi,
+                                      seed=args.seed if args.seed is not None else 0)  # fmt: skip
+    tree.attrs["command"] = " ".join(sys.argv)
+    write_netcdf(tree, args.output)
+    names = [str(n) for n in post["parameter"].values]
     print(f"Laplace update of {len(names)} parameters: chi2 {post.attrs['chi2_before']:.1f} -> {post.attrs['chi2_after']:.1f}")
     print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
     for k, n in enumerate(names):
@@ -102,23 +92,12 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     return 0
 
 
-def _model_with_effects(path: str, labels: list[str] | None, modes=None, posterior=None):
-    """The model file's model with library effects added: ``--effect`` labels and those a posterior was made
-    with (its ``effects`` attr); a per-mode effect takes one value per measured mode."""
+def _model_with_effects(path: str, labels: list[str] | None, modes=None):
+    """The model file's model with the ``--effect`` labels added (:func:`twin.loop.candidates.with_effects`)."""
     from twin.fem import load_model
-    from twin.fem.effects import effect_label
-    from twin.loop.candidates import add_effects
+    from twin.loop.candidates import with_effects
 
-    model = load_model(path)
-    wanted = list(labels or [])
-    if posterior is not None:
-        wanted += json.loads(posterior.attrs.get("effects", "[]"))
-    present = {effect_label(e) for e in model.effects}
-    wanted = [w for i, w in enumerate(wanted) if w not in present and w not in wanted[:i]]
-    if not wanted:
-        return model
-    mode_labels = None if modes is None else [int(m) for m in modes["mode"].values]
-    return add_effects(model, wanted, mode_labels)
+    return with_effects(load_model(path), labels or (), modes)
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -157,18 +136,16 @@ def _compare(args: argparse.Namespace) -> int:
 
 
 def _posterior_model(args: argparse.Namespace, modes):
-    """The model of ``--effect`` and ``--posterior`` (the effects the posterior needs are added)."""
-    tree = None
-    if args.posterior:
-        from twin.update import read_posterior
+    """The model of ``--effect`` and ``--posterior`` (:func:`twin.loop.candidates.posterior_model`)."""
+    from twin.fem import load_model
 
-        tree = read_posterior(args.posterior)
-    model = _model_with_effects(args.model, args.effect, modes, tree)
-    if tree is not None:
-        from twin.update import apply_posterior
+    if not args.posterior:
+        return _model_with_effects(args.model, args.effect, modes)
+    from twin.loop.candidates import posterior_model
+    from twin.update import read_posterior
 
-        model = apply_posterior(model, tree, args.estimate)
-    return model
+    return posterior_model(load_model(args.model), read_posterior(args.posterior), args.estimate, args.effect or (),
+                           modes)  # fmt: skip
 
 
 def _diagnose(args: argparse.Namespace) -> int:
@@ -234,7 +211,6 @@ def _loop(args: argparse.Namespace) -> int:
     from twin.loop.history import write_history
     from twin.loop.twin import Twin
     from twin.netcdf import atomic_output, write_netcdf
-    from twin.update.posterior import laplace_tree
 
     out = Path(args.out)
     modes = read_modes(args.modes)
@@ -256,15 +232,9 @@ def _loop(args: argparse.Namespace) -> int:
     write_history(tw.history_table(), out / "history.csv")
     tw.plot_history(out / "history.png")
     if tw.posterior is not None:
-        if args.method == "laplace":
-            from twin.fem.effects import effect_label
-
-            attrs = {"title": f"Laplace posterior of {model.name}", "command": " ".join(sys.argv), "model": model.name,
-                     "method": tw.posterior.attrs["method"],
-                     "effects": json.dumps([effect_label(e) for e in tw.model.effects])}  # fmt: skip
-            write_netcdf(laplace_tree(tw.posterior, modes, attrs), out / "posterior.nc")
-        else:
-            write_netcdf(tw.posterior, out / "posterior.nc")
+        tree = tw.posterior_tree()
+        tree.attrs["command"] = " ".join(sys.argv)
+        write_netcdf(tree, out / "posterior.nc")
     for k, d in enumerate(tw.diagnoses, start=1):
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else ""))
         print(f"  {d.summary}")

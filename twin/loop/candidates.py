@@ -17,6 +17,7 @@ Effects the model already has are not candidates.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -155,3 +156,37 @@ def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[
             raise ModelError(f"'{c.label}' has one value per mode: say which modes (mode_labels)")
         model = with_effect(model, (sized(c, mode_labels) if c.per_mode else c).effect)
     return model
+
+
+def with_effects(model: RotorModel, labels: Sequence[str] = (), modes=None, posterior=None) -> RotorModel:
+    """The model with the library effects ``labels`` and those ``posterior`` was made with (its ``effects`` attr).
+
+    Effects the model has already are not added again. A per-mode effect takes one value per mode of
+    ``modes`` (the measured modes). Used to read a posterior back onto the model file it came from.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.loop.candidates import with_effects
+    >>> m = with_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull", "magnetic_pull"])
+    >>> [n for n in m.parameter_names if n.startswith("MAG.")]
+    ['MAG.stiffness']
+    """
+    wanted = list(labels)
+    if posterior is not None:
+        wanted += json.loads(posterior.attrs.get("effects", "[]"))
+    present = {effect_label(e) for e in model.effects}
+    wanted = [w for i, w in enumerate(wanted) if w not in present and w not in wanted[:i]]
+    if not wanted:
+        return model
+    mode_labels = None if modes is None else [int(m) for m in modes["mode"].values]
+    return add_effects(model, wanted, mode_labels)
+
+
+def posterior_model(model: RotorModel, posterior, estimate: str = "map", labels: Sequence[str] = (),
+                    modes=None) -> RotorModel:  # fmt: skip
+    """The model ``posterior`` stands for: the effects it needs added (:func:`with_effects`), its ``estimate``
+    (``"map"`` or ``"mean"``) applied (:func:`twin.update.apply_posterior`)."""
+    from twin.update import apply_posterior
+
+    return apply_posterior(with_effects(model, labels, modes, posterior), posterior, estimate)

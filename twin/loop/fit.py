@@ -37,6 +37,7 @@ eigen-solution per measured mode, and the mode's own parameters move only it.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -52,6 +53,7 @@ from twin.loop.compare import (
     PER_MODE_NAME,
     Measured,
     channel_dofs,
+    measured_modes,
     overall_error,
     pair_with_measured,
     pairing_cost,
@@ -484,3 +486,49 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
     if not f.converged:
         log.warning("Laplace update of %s did not converge in %d iterations", names, MAX_ITERATIONS)
     return model.with_values(values), post
+
+
+def laplace_file(post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: int | None = 0,
+                 command: str = "") -> xr.DataTree:  # fmt: skip
+    """A Laplace posterior of :func:`laplace_update` of ``model`` in the ``posterior.nc`` layout
+    (:func:`twin.update.posterior.laplace_tree`), with the model, its effects and the fit's chi2 in the attrs."""
+    from twin.fem.effects import effect_label
+    from twin.update.posterior import laplace_tree
+
+    attrs = {"title": f"Laplace posterior of {model.name}", "command": command, "model": model.name,
+             "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
+             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
+    return laplace_tree(post, modes, attrs, seed=seed)
+
+
+def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool = False,
+                      seed: int | None = 0) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
+    """The Laplace update of ``names`` (and with ``fsi`` each measured mode's added mass and damping) from the
+    measured poles of ``modes``: the model at the MAP, the fit's Dataset (:func:`laplace_update`) and the
+    posterior in the ``posterior.nc`` layout (:func:`laplace_file`).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fem.effects import MagneticPull
+    >>> from twin.fem.truthfile import Truth
+    >>> from twin.loop.candidates import add_effects
+    >>> from twin.loop.fit import laplace_posterior
+    >>> from twin.update import synthesize_modes
+    >>> base = load_model(shipped_model("hydro_unit"))
+    >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
+    ...                         pole_variance=(0.01, 0.01))
+    >>> updated, fitted, tree = laplace_posterior(add_effects(base, ["magnetic_pull"]), data, ["MAG.stiffness"])
+    >>> sorted(tree.children), round(updated.parameter("MAG.stiffness").nominal / -1e8, 2)
+    (['constant_data', 'observed_data', 'posterior', 'sample_stats'], 1.0)
+    """
+    from twin.loop.candidates import free_names, with_effects
+
+    meas = measured_modes(modes)
+    names = list(names)
+    if fsi:
+        if model.per_mode_effect is None:
+            model = with_effects(model, ["fsi_per_mode"], modes)
+        names += free_names(model, model.per_mode_effect, meas.mode)
+    updated, post = laplace_update(model, meas, names)
+    return updated, post, laplace_file(post, model, modes, seed)

@@ -296,6 +296,17 @@ class Twin:
         self.posterior = tree
         return tree
 
+    def posterior_tree(self) -> xr.DataTree:
+        """The last update's posterior in the ``posterior.nc`` layout: a sampler's as it is, a Laplace fit's
+        drawn from its Gaussian (:func:`twin.loop.fit.laplace_file`)."""
+        if self.posterior is None:
+            raise ValueError("the twin has no posterior yet: update it first")
+        if isinstance(self.posterior, xr.DataTree):
+            return self.posterior
+        from twin.loop.fit import laplace_file
+
+        return laplace_file(self.posterior, self.model, self.modes)
+
     def history_table(self) -> xr.Dataset:
         """The error after each step: ``action``, ``error`` and ``chi2`` over dimension ``step``."""
         table = history_dataset([s.action for s in self.history], [s.error for s in self.history],
