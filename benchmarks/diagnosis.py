@@ -21,9 +21,9 @@ import numpy as np
 from twin import load_model
 from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
-from twin.loop.compare import measured_modes
 from twin.loop.diagnose import diagnose
 from twin.loop.scenarios import REFERENCE_EFFECTS, parse_scenario
+from twin.modes.measured import measured_modes
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT = [k for k in REFERENCE_EFFECTS if k != "fsi_per_mode"] + [

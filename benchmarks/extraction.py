@@ -38,17 +38,16 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from extraction_options import add_extraction_options, extraction_options
 
 from twin import load_model
 from twin.design import Excitation, observability
 from twin.extract import extract
 from twin.fem.truthfile import paper_truth
 from twin.fmu.simulate import simulate
-from twin.fmu.statespace import state_modes
 from twin.fmu.truth import truth_state_space
+from twin.modes.sensitivity import state_modes
 from twin.modes.shapes import mac
-
-from extraction_options import add_extraction_options, extraction_options
 
 MODEL = "models/hydro_unit.toml"
 #: The spread ratio is calibrated when within this fraction of one (the spread over 12 records knows a std to about 21%).
@@ -213,8 +212,9 @@ def single_record(cache: Path, lam_t, phi_t) -> None:
     _, rows, dt, extra = run_twin(path, lam_t, phi_t)
     table("twin.extract (SSI-cov, 100 jackknife samples)", rows, dt, extra)
     try:
-        import pyoma2  # noqa: F401 (only: is it installed?)
         from importlib.metadata import version
+
+        import pyoma2  # noqa: F401 (only: is it installed?)
     except ImportError:
         print("\npyOMA2 not installed (pip install pyOMA-2): comparison skipped")
     else:

@@ -31,7 +31,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-
 from update_coverage_fmu import dataset_benchmark, scenario_order, scenario_record
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -53,7 +52,8 @@ def truth_modes(tw, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
     """The model's partners of the measured modes at ``values``: stacked normalised shapes on the sensors
     ``(mode, 2 channels)`` and poles as ``(mode, [Re, Im])``."""
     from twin.extract.samples import normalise_at
-    from twin.loop.compare import channel_dofs, model_modes
+    from twin.loop.compare import model_modes
+    from twin.modes.measured import channel_dofs
 
     partners = model_modes(tw.model, tw.measured, values)
     reference = [tw.measured.channels.index(str(c)) for c in tw.modes["reference_channel"].values]

@@ -9,7 +9,7 @@ from the 90% interval's width, ``z = (MAP - truth) / std``):
   mean is the truth's shape on the sensors (all of it, its real parts only, its imaginary parts only), the
   samples keeping their scatter and the poles untouched: what is left is the poles' error and the shapes'
   scatter, so the z falls to about one where the shapes' error beyond their samples is the cause;
-* ``poles only``: the Laplace fit of the poles (:func:`twin.loop.fit.laplace_update`), shapes unused.
+* ``poles only``: the Laplace fit of the poles (:func:`twin.update.laplace.laplace_update`), shapes unused.
 
 And the sandwich, the data's own view of the estimate's error: the RMS move of the posterior mode over
 perturbations of the data by its samples, every mode by the same sample
@@ -29,8 +29,12 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-
-from update_coverage_fmu import dataset_benchmark, group, scenario_order, scenario_record
+from update_coverage_fmu import (
+    dataset_benchmark,
+    group,
+    scenario_order,
+    scenario_record,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "shape_error.md"
@@ -44,7 +48,8 @@ def truth_shapes(tw, truth: dict[str, float]) -> np.ndarray:
     """The truth's shape of every measured mode on the sensors, ``(mode, channel)``, normalised as its samples
     are (unit norm, the extraction's ``reference_channel`` real and positive)."""
     from twin.extract.samples import normalise_at
-    from twin.loop.compare import channel_dofs, model_modes
+    from twin.loop.compare import model_modes
+    from twin.modes.measured import channel_dofs
 
     partners = model_modes(tw.model, tw.measured, truth)
     shapes = partners.shapes[:, channel_dofs(tw.model, tw.measured.channels)]
@@ -67,10 +72,11 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
                 streams: str = "fmu") -> list[dict]:
     """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s), extract (``extraction``:
     options of :func:`twin.extract.extract`) and update one dataset the five ways; one row per parameter."""
+    from jackknife import mode_spread
+
     from twin.loop.compare import PER_MODE_NAME
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
-    from jackknife import mode_spread
     from twin.update.marginal import marginal_problem
     from twin.update.problem import build_problem
 

@@ -43,6 +43,10 @@ class SignalError(TwinError, ValueError):
     """
 
 
+class CompareError(TwinError, ValueError):
+    """Measured modes that cannot be compared with a model (missing variables, too few samples, unknown channels)."""
+
+
 class UpdateError(TwinError, ValueError):
     """The updating problem cannot be set up or solved as asked."""
 

@@ -6,11 +6,17 @@ import pytest
 from twin import load_model, shipped_model
 from twin.cli import main
 from twin.design import identifiability
-from twin.design.identify import _data_vector, data_precision, fisher_covariance, modal_jacobian, sample_covariance
+from twin.design.identify import (
+    _data_vector,
+    data_precision,
+    fisher_covariance,
+    modal_jacobian,
+    sample_covariance,
+)
 from twin.errors import ModelError
-from twin.loop.sensitivity import pole_jacobian, solve_modes
-from twin.modes.shapes import normalise_shapes
 from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV
+from twin.modes.sensitivity import pole_jacobian, solve_modes
+from twin.modes.shapes import normalise_shapes
 
 
 @pytest.fixture(scope="module")

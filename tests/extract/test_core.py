@@ -11,8 +11,9 @@ from twin import load_model, modal
 from twin.cli import main
 from twin.errors import SignalError
 from twin.extract import extract
+from twin.fmu.statespace import full_state_space
 from twin.modes import read_modes
-from twin.fmu.statespace import full_state_space, state_modes
+from twin.modes.sensitivity import state_modes
 from twin.modes.shapes import mac
 
 # the toy records here have 2-3 channels and low rates on purpose: extract's warnings about that are expected

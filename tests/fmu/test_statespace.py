@@ -7,11 +7,9 @@ from scipy.integrate import solve_ivp
 from twin import ModelError, modal
 from twin.fem.effects import FluidAddedMassPerMode
 from twin.fem.truthfile import Truth
-from twin.fmu.statespace import (
-    StateSpace, discretize, full_state_space, simulate_reference, state_modes,
-    truncated_state_space,
-)  # fmt: skip
+from twin.fmu.statespace import StateSpace, discretize, full_state_space, simulate_reference, truncated_state_space
 from twin.fmu.truth import model_state_space, target_mode_indices, truth_state_space
+from twin.modes.sensitivity import state_modes
 
 
 def _oscillator(wn=2 * np.pi * 3.0, zeta=0.05):

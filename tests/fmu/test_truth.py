@@ -9,8 +9,13 @@ import pytest
 from twin import ModelError, modal
 from twin.fem.effects import FluidAddedMass, MagneticPull
 from twin.fem.truthfile import PAPER_TABLE2, Truth, paper_truth
-from twin.fmu.statespace import full_state_space, modal_state_space, state_modes
-from twin.fmu.truth import synthesize_per_mode_fsi, target_mode_indices, truth_state_space
+from twin.fmu.statespace import full_state_space, modal_state_space
+from twin.fmu.truth import (
+    synthesize_per_mode_fsi,
+    target_mode_indices,
+    truth_state_space,
+)
+from twin.modes.sensitivity import state_modes
 
 
 @pytest.fixture(scope="module")

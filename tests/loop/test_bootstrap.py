@@ -6,19 +6,24 @@ import warnings
 import numpy as np
 import pytest
 
-from twin.errors import TwinError, TwinWarning
-from twin.loop.bootstrap import (MAX_BATCHES, bootstrap_factors, calibrated, record_seeds, record_settings,
-                                 target_numbered)
-from twin.loop.pooling import MIN_RECORDS
-
 from tests.conftest import DATA
+from twin.errors import TwinError, TwinWarning
+from twin.loop.bootstrap import (
+    MAX_BATCHES,
+    bootstrap_factors,
+    calibrated,
+    record_seeds,
+    record_settings,
+    target_numbered,
+)
+from twin.loop.pooling import MIN_RECORDS
 
 
 def _seal_update(hydro_unit, draws: int = 500):
     """The sampler's update of the seal on the modes of FMU record 10130 (a 20-min record), not calibrated:
     twin, posterior."""
-    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
+    from twin.modes.modesfile import read_modes
 
     tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
     tw.add_effect("seal_cross_coupling")
@@ -32,8 +37,8 @@ def test_the_fitted_density_is_the_update_s(hydro_unit):
     # each bootstrap record is fitted with the update's own density (marginal_setup from the posterior's
     # settings): on the measured modes themselves its mode and Laplace std must be the HMC posterior's, within
     # the draws' Monte Carlo error (bulk ESS about 1500: the mean to 0.03 std) and the Laplace's curvature
-    from twin.update.samplers.hmc import marginal_setup
     from twin.update.marginal import posterior_mode
+    from twin.update.samplers.hmc import marginal_setup
 
     tw, post = _seal_update(hydro_unit)
     settings = json.loads(post.attrs["settings"])
@@ -137,8 +142,8 @@ def test_record_settings_say_what_is_missing():
 def test_bootstrap_update_of_a_short_record_end_to_end(hydro_unit):
     # the whole path on 4-min records (the fixture's settings with the length shortened): simulate through the
     # FMU, extract with the modes' settings, fit, stretch. Each record's fit finds the seal
-    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
+    from twin.modes.modesfile import read_modes
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
     settings = json.loads(modes.attrs["settings"])
@@ -157,8 +162,8 @@ def test_bootstrap_update_of_a_short_record_end_to_end(hydro_unit):
 
 
 def test_calibrate_needs_the_sampler_s_update(hydro_unit):
-    from twin.modes.modesfile import read_modes
     from twin.loop.twin import Twin
+    from twin.modes.modesfile import read_modes
 
     tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
     with pytest.raises(ValueError, match="needs the HMC sampler's update"):
@@ -173,9 +178,9 @@ def test_calibrate_needs_the_sampler_s_update(hydro_unit):
 def test_the_sampler_s_update_of_a_record_is_calibrated_by_default(hydro_unit, monkeypatch):
     # the loop's default: DEFAULT_RECORDS records for the sampler on modes extracted from a record, none for the
     # Laplace fit or when told 0, and none for modes that came from no record (synthesize_modes)
-    from twin.modes.modesfile import read_modes
     from twin.loop.bootstrap import DEFAULT_RECORDS
     from twin.loop.twin import Twin
+    from twin.modes.modesfile import read_modes
     from twin.update import synthesize_modes
 
     asked = []
@@ -199,8 +204,8 @@ def test_the_sampler_s_update_of_a_record_is_calibrated_by_default(hydro_unit, m
 def test_a_simulated_record_s_modes_take_the_measured_numbers():
     # a record that lacks a mode (here the 3.84 Hz one of the seal record, dropped) keeps the numbers of the
     # others, so its per-mode FSI parameters are the measured modes'
-    from twin.modes.modesfile import read_modes
     from twin.loop.bootstrap import matched_modes
+    from twin.modes.modesfile import read_modes
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
     reference = {int(m): float(f) for m, f in zip(modes["mode"].values, modes["frequency"].values)}
@@ -216,10 +221,10 @@ def test_a_measured_mode_s_reference_is_the_simulated_system_s_frequency(hydro_u
     # the records scatter about the system simulated, so a measured mode extracted 1.3% off (as the 3.81 Hz
     # mode of seal record 10406) is matched at the system's frequency: a record's mode found where the system
     # has it keeps the measured number, one found where the measured one was too
-    from twin.modes.modesfile import read_modes
     from twin.fem.effects import SealCrossCoupling
     from twin.fmu.truth import model_state_space
     from twin.loop.bootstrap import MATCH_TOLERANCE, matched_modes, simulated_reference
+    from twin.modes.modesfile import read_modes
 
     modes = read_modes(DATA / "modes_seal_10130.nc")
     poles = model_state_space(hydro_unit.with_effects(SealCrossCoupling(5e7))).poles
@@ -245,7 +250,8 @@ def test_an_updated_per_mode_model_is_simulated_with_each_value_on_its_measured_
     # mode is target mode 4: simulated, each measured mode must come out as the comparison reads it
     from twin.fem.effects import FluidAddedMassPerMode
     from twin.fmu.truth import model_state_space
-    from twin.loop.compare import measured_modes, model_modes
+    from twin.loop.compare import model_modes
+    from twin.modes.measured import measured_modes
     from twin.update import synthesize_modes
 
     modes = synthesize_modes(hydro_unit, samples=20, seed=1).sel(mode=[1, 2, 4, 5]).assign_coords(mode=[1, 2, 3, 4])

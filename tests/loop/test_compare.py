@@ -5,9 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from twin.errors import CompareError
 from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
-from twin.loop.compare import CompareError, compare, measured_modes, overall_error
+from twin.loop.compare import compare, overall_error
+from twin.modes.measured import measured_modes
 from twin.update import synthesize_modes
 
 
@@ -111,8 +113,8 @@ def test_no_measured_mode_is_ever_dropped(hydro_unit):
 
 
 def test_pairing_is_one_to_one_and_follows_the_pole(hydro_unit):
-    from twin.loop.compare import channel_dofs, pair_with_measured
-    from twin.loop.sensitivity import solve_modes
+    from twin.modes.measured import channel_dofs, pair_with_measured
+    from twin.modes.sensitivity import solve_modes
 
     meas = measured_modes(_data(hydro_unit, Truth((MagneticPull(-1e8),))))
     sol = solve_modes(hydro_unit)

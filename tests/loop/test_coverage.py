@@ -4,8 +4,8 @@ import dataclasses
 
 import numpy as np
 
-from twin.loop.compare import measured_modes
 from twin.loop.coverage import MIN_CYCLES, coverage
+from twin.modes.measured import measured_modes
 from twin.update import synthesize_modes
 
 

@@ -7,11 +7,17 @@ pole noise of 0.1 rad/s (std per sample, 100 samples) and 5% shape noise.
 import numpy as np
 import pytest
 
-from twin.fem.effects import BearingChange, FluidAddedMass, MagneticPull, SealCrossCoupling, ThrustTilt
+from twin.fem.effects import (
+    BearingChange,
+    FluidAddedMass,
+    MagneticPull,
+    SealCrossCoupling,
+    ThrustTilt,
+)
 from twin.fem.local import DiskMassChange, ShaftStiffnessChange
 from twin.fem.truthfile import Truth
-from twin.loop.compare import measured_modes
 from twin.loop.diagnose import consistent, diagnose
+from twin.modes.measured import measured_modes
 from twin.update import synthesize_modes
 
 HIDDEN = {
@@ -102,7 +108,7 @@ def test_per_mode_fsi_does_not_stand_in_for_simpler_effects(hydro_unit):
 
 def test_fits_stay_inside_the_physical_bounds(hydro_unit):
     """A magnetic pull fitted to data that want a positive stiffness stops at zero, said so."""
-    from twin.loop.fit import fit
+    from twin.update.laplace import fit
 
     meas = measured_modes(_modes(hydro_unit, [ThrustTilt("thrust", 8e8)]))
     f = fit(hydro_unit.with_effects(MagneticPull()), meas, ["MAG.stiffness"], "magnetic_pull")

@@ -5,7 +5,13 @@ import pytest
 import xarray as xr
 
 from twin.errors import TwinError
-from twin.loop.history import append_step, history_dataset, plot_history, read_history, write_history
+from twin.loop.history import (
+    append_step,
+    history_dataset,
+    plot_history,
+    read_history,
+    write_history,
+)
 
 
 def test_round_trip_keeps_actions_errors_and_the_modes(tmp_path):
@@ -44,8 +50,9 @@ def test_the_error_interval_is_the_quantiles_of_e_over_the_draws(hydro_unit):
     # 95% quantiles of those errors, computed here directly with compare at each draw
     from twin.fem.effects import MagneticPull
     from twin.fem.truthfile import Truth
-    from twin.loop.compare import compare, measured_modes
+    from twin.loop.compare import compare
     from twin.loop.history import error_interval
+    from twin.modes.measured import measured_modes
     from twin.update import synthesize_modes
 
     meas = measured_modes(synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3))

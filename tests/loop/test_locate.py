@@ -5,10 +5,10 @@ import pytest
 
 from twin.fem.local import ShaftStiffnessChange
 from twin.fem.truthfile import Truth
-from twin.loop.compare import measured_modes
-from twin.loop.fit import log_evidence_as_is
 from twin.loop.locate import locate, screen
+from twin.modes.measured import measured_modes
 from twin.update import synthesize_modes
+from twin.update.laplace import log_evidence_as_is
 
 
 @pytest.fixture(scope="module")

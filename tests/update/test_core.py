@@ -181,7 +181,7 @@ def test_bad_requests_are_named(hydro_unit, paper_modes):
         update(hydro_unit, sub, None, fsi=True, method="gibbs", options={"pole_error": "samples"})
     with pytest.raises(UpdateError, match="the 'hmc' sampler takes HMCOptions, got GibbsOptions"):
         update(hydro_unit, sub, None, fsi=True, options=GibbsOptions())
-    with pytest.raises(UpdateError, match="unknown sampler 'nuts'; choose one of hmc, gibbs, paper"):
+    with pytest.raises(UpdateError, match="unknown method 'nuts'; choose one of hmc, gibbs, paper, laplace"):
         update(hydro_unit, sub, None, fsi=True, method="nuts")
     with pytest.raises(UpdateError, match="priors must be 'plausible', 'flat' or a mapping"):
         update(hydro_unit, sub, None, fsi=True, priors="wide")

@@ -16,7 +16,7 @@ from twin.errors import TwinError
 log = logging.getLogger("twin")
 
 
-#: What ``--method`` takes: the update's samplers (twin.update.SAMPLERS, the default first) and the Laplace fit.
+#: What ``--method`` takes: twin.update.METHODS, the update's samplers (the default first) and the Laplace fit.
 #: Literal (importing twin.update here would slow every command's start-up); tests/cli/test_cli.py checks it.
 METHODS = ("hmc", "gibbs", "paper", "laplace")
 #: The ``twin update`` options that go to the sampler's options (twin.update.samplers), by their field names.
@@ -71,7 +71,7 @@ def _update(args: argparse.Namespace) -> int:
 
 def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
-    from twin.loop.fit import laplace_posterior
+    from twin.update.laplace import laplace_posterior
     from twin.netcdf import write_netcdf
     from twin.update.problem import select_parameters
 
@@ -150,7 +150,7 @@ def _posterior_model(args: argparse.Namespace, modes):
 
 def _diagnose(args: argparse.Namespace) -> int:
     from twin.modes import read_modes
-    from twin.loop.compare import measured_modes
+    from twin.modes.measured import measured_modes
     from twin.loop.candidates import select
     from twin.loop.diagnose import diagnose
     from twin.loop.report import diagnosis_text

@@ -40,7 +40,8 @@ from twin.errors import ModelError
 from twin.fem.effects import plausible_scales, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV, Truth
-from twin.fmu.statespace import full_state_space, state_modes
+from twin.fmu.statespace import full_state_space
+from twin.modes.sensitivity import state_modes
 from twin.modes.shapes import mac, normalisation_jacobian, normalise_shapes
 
 #: Finite-difference step, as a fraction of each parameter's scale.

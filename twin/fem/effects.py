@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -353,6 +354,38 @@ def with_shared_fsi(model):
     if any(isinstance(e, FluidAddedMass) for e in model.effects):
         return model
     return dataclasses.replace(model, effects=(*model.effects, FluidAddedMass()))
+
+
+def per_mode_values(model, base, label: int, values: Mapping[str, float]) -> dict[str, float]:
+    """Values of ``base`` (with shared FSI) that give mode ``label`` of a per-mode FSI model.
+
+    A label beyond the values of the model's per-mode effect adds nothing.
+    """
+    shared_m = values.get("FSI.added_mass", base.parameter("FSI.added_mass").nominal)
+    shared_c = values.get("FSI.added_damping", base.parameter("FSI.added_damping").nominal)
+    names = set(model.parameter_names)
+
+    def own(name: str) -> float:
+        return values.get(name, model.parameter(name).nominal if name in names else 0.0)
+
+    return {"FSI.added_mass": shared_m + own(f"FSI.added_mass_{label}"),
+            "FSI.added_damping": shared_c + own(f"FSI.added_damping_{label}")}  # fmt: skip
+
+
+def free_names(model, effect, labels: Sequence[int]) -> list[str]:
+    """The parameters of ``effect`` that measured modes ``labels`` can determine (a per-mode effect's for those modes).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> free_names(load_model(shipped_model("hydro_unit")), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
+    ['FSI.added_mass_1', 'FSI.added_damping_1', 'FSI.added_mass_3', 'FSI.added_damping_3']
+    """
+    names = [p.name for p in effect.parameters(model)]
+    if effect.per_mode:
+        wanted = {int(m) for m in labels}
+        names = [n for n in names if int(n.rsplit("_", 1)[1]) in wanted]
+    return names
 
 
 def effect_label(effect) -> str:

@@ -33,6 +33,7 @@ from twin.errors import ModelError
 from twin.fem.elements import DOF_NAMES, node_dofs
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.modes.analysis import state_matrix
+from twin.modes.sensitivity import state_modes
 
 
 @dataclass(frozen=True)
@@ -174,20 +175,6 @@ def modal_state_space(
     Cm = np.empty((cv.shape[0], 2 * r))
     Cm[:, 0::2], Cm[:, 1::2] = 2 * cv.real, -2 * cv.imag
     return StateSpace(A, Bm, Cm, list(ports), list(outputs), speed_rpm, "modal", dict(attrs or {}))
-
-
-def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poles (Im > 0, by frequency), right and left state eigenvectors with ``w_i v_i = 1``.
-
-    Returns ``(poles, right, left)`` with ``right`` and ``left`` of shape ``(r, n)``.
-    """
-    lam, vl, vr = sla.eig(A, left=True, right=True)
-    keep = lam.imag > 0
-    order = np.argsort(lam.imag[keep], kind="stable")
-    lam, vl, vr = lam[keep][order], vl[:, keep][:, order], vr[:, keep][:, order]
-    left = vl.conj().T
-    left /= np.sum(left * vr.T, axis=1, keepdims=True)
-    return lam, vr.T, left
 
 
 def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:

@@ -26,7 +26,8 @@ from twin.errors import ModelError
 from twin.fem.effects import effect_label, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
-from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, state_modes, truncated_state_space
+from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, truncated_state_space
+from twin.modes.sensitivity import state_modes
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mac
 

@@ -270,9 +270,9 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
     (100000.0, 200000.0, 200000.0, 400000.0)
     """
     from twin.fmu.truth import MAX_TARGET_DAMPING
-    from twin.loop.compare import channel_dofs, measured_modes, pair_with_measured
-    from twin.loop.sensitivity import solve_modes
     from twin.modes.analysis import damping_ratio
+    from twin.modes.measured import channel_dofs, measured_modes, pair_with_measured
+    from twin.modes.sensitivity import solve_modes
 
     per_mode = model.per_mode_effect
     if per_mode is None:
@@ -349,9 +349,9 @@ def _record_fit(seed: int, *, simulated: RotorModel, model: RotorModel, settings
     """
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.update.samplers.hmc import marginal_setup
     from twin.update.marginal import posterior_mode
     from twin.update.problem import UpdateError
+    from twin.update.samplers.hmc import marginal_setup
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

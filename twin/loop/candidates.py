@@ -22,7 +22,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from twin.errors import ModelError
-from twin.fem.effects import EFFECTS, FluidAddedMass, FluidAddedMassPerMode, effect_label, library_effects
+from twin.fem.effects import (
+    EFFECTS,
+    FluidAddedMass,
+    FluidAddedMassPerMode,
+    effect_label,
+    library_effects,
+)
 from twin.fem.model import RotorModel
 
 
@@ -119,23 +125,6 @@ def sized(candidate: Candidate, labels: Sequence[int]) -> Candidate:
         return candidate
     n = int(max(labels))
     return Candidate(candidate.label, FluidAddedMassPerMode((0.0,) * n, (0.0,) * n))
-
-
-def free_names(model: RotorModel, effect, labels: Sequence[int]) -> list[str]:
-    """The parameters of ``effect`` that measured modes ``labels`` can determine (a per-mode effect's for those modes).
-
-    Examples
-    --------
-    >>> from twin import load_model, shipped_model
-    >>> from twin.fem.effects import FluidAddedMassPerMode
-    >>> free_names(load_model(shipped_model("hydro_unit")), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
-    ['FSI.added_mass_1', 'FSI.added_damping_1', 'FSI.added_mass_3', 'FSI.added_damping_3']
-    """
-    names = [p.name for p in effect.parameters(model)]
-    if effect.per_mode:
-        wanted = {int(m) for m in labels}
-        names = [n for n in names if int(n.rsplit("_", 1)[1]) in wanted]
-    return names
 
 
 def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[int] | None = None) -> RotorModel:

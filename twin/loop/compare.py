@@ -32,149 +32,39 @@ every sensor.
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
-from scipy.optimize import linear_sum_assignment
 
 from twin import __version__
-from twin.errors import ModelError, TwinError
-from twin.fem.effects import PER_MODE_NAME, with_shared_fsi
+from twin.errors import CompareError, ModelError
+from twin.fem.effects import PER_MODE_NAME, per_mode_values, with_shared_fsi
 from twin.fem.model import RotorModel
-from twin.loop.sensitivity import ModalSolution, solve_modes
 from twin.modes.analysis import damping_ratio
-from twin.modes.shapes import mac, normalise_shapes
+from twin.modes.measured import (
+    TOLERANCE,
+    Measured,
+    channel_dofs,
+    measured_modes,
+    overall_error,
+    pair_with_measured,
+    relative_pole_error,
+)  # fmt: skip
+from twin.modes.pairing import pairing_cost
+from twin.modes.sensitivity import solve_modes
+from twin.modes.shapes import normalise_shapes
 from twin.tasks import one_blas_thread
 
 log = logging.getLogger(__name__)
 
-#: Relative pole uncertainty accepted as model-form error (added to the standard error in quadrature). Zero
-#: by default: with the right model, the pole errors of 20-min FMU records of the hydro unit against the
-#: extraction's jackknife standard errors alone have chi2 / n of about 1 (``benchmarks/loop_suite.py``);
-#: a tolerance of 1e-3 made it 0.2 and dulled the diagnosis.
-TOLERANCE = 0.0
-#: Floor of the measured-pole uncertainty relative to ``|λ|``, for samples that do not scatter (exact synthetic data).
-SIGMA_FLOOR = 1e-9
 #: What the ``error`` attr of a comparison is (see the module docstring).
 ERROR_DEFINITION = ("RMS over the measured modes of |model pole - measured pole| / |measured pole|, real and "
                     "imaginary parts weighed by the inverse variance of the measured pole")
 #: A measured mode whose partner has a MAC below this is reported as one the model cannot reproduce.
 MIN_MAC = 0.5
-
-
-class CompareError(TwinError, ValueError):
-    """Measured modes that cannot be compared with the model."""
-
-
-@dataclass(frozen=True)
-class Measured:
-    """Measured modes reduced to what the comparison needs.
-
-    Attributes
-    ----------
-    mode : (n,) int
-        Mode labels of ``modes.nc``.
-    pole : (n,) complex
-        Mean pole [1/s].
-    sigma : (n, 2) float
-        Uncertainty of the real and imaginary part of ``pole`` [1/s]:
-        standard error and ``tolerance * |pole|`` added in quadrature.
-    shape : (n, c) complex
-        Mean shape on the channels (unit norm, largest entry real positive).
-    channels : list of str
-    source : str
-    band_hz : (float, float), optional
-        Frequency band the modes were extracted from (``modes.nc`` settings;
-        None for modes that did not come from a record).
-    duration_s : float, optional
-        Length of the record [s].
-    zeta_max : float, optional
-        Largest damping ratio the extraction accepts.
-    targets : str
-        The record's target modes, observable or not and found or not (``modes.nc``'s
-        ``target_observability`` attr, JSON; empty when the extraction could not judge them).
-    """
-
-    mode: np.ndarray
-    pole: np.ndarray
-    sigma: np.ndarray
-    shape: np.ndarray
-    channels: list[str]
-    source: str = ""
-    band_hz: tuple[float, float] | None = None
-    duration_s: float | None = None
-    zeta_max: float | None = None
-    targets: str = ""
-
-    @property
-    def frequency(self) -> np.ndarray:
-        """Damped frequency [Hz]."""
-        return self.pole.imag / (2 * np.pi)
-
-    def subset(self, keep: np.ndarray) -> Measured:
-        """The measured modes at indices ``keep``."""
-        return dataclasses.replace(self, mode=self.mode[keep], pole=self.pole[keep], sigma=self.sigma[keep],
-                                   shape=self.shape[keep])  # fmt: skip
-
-
-def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
-    """Sample means and uncertainties of a modes Dataset (``modes.nc`` layout).
-
-    Examples
-    --------
-    >>> from twin.loop import measured_modes
-    >>> from twin import load_model, shipped_model
-    >>> from twin.update import synthesize_modes
-    >>> meas = measured_modes(synthesize_modes(load_model(shipped_model("hydro_unit")), samples=20))
-    >>> meas.pole.shape, meas.shape.shape
-    ((15,), (15, 8))
-    """
-    source = str(modes.attrs.get("source", modes.attrs.get("title", "modes")))
-    for name in ("pole", "shape"):
-        if name not in modes:
-            raise CompareError(f"{source}: no variable '{name}' (a modes.nc file has pole and shape samples)")
-    pole, shape = modes["pole"].transpose("mode", "sample").values, modes["shape"].transpose("mode", "sample", "channel").values
-    bad = ~np.isfinite(pole).all(axis=1) | ~np.isfinite(shape).all(axis=(1, 2))
-    if bad.any():
-        raise CompareError(f"{source}: mode(s) {modes['mode'].values[bad].tolist()} have non-finite pole or shape samples")
-    J = pole.shape[1]
-    if J < 2:
-        raise CompareError(f"{source}: the uncertainty needs at least 2 samples per mode, got {J}")
-    if not 0 <= tolerance < 1:
-        raise CompareError(f"tolerance must be in [0, 1), got {tolerance}")
-    mean = pole.mean(axis=1)
-    se = np.stack([pole.real.std(axis=1, ddof=1), pole.imag.std(axis=1, ddof=1)], axis=1) / np.sqrt(J)
-    floor = SIGMA_FLOOR * np.abs(mean)[:, None]
-    sigma = np.maximum(np.sqrt(se**2 + (tolerance * np.abs(mean))[:, None] ** 2), floor)
-    band, duration, zeta_max = _record(modes)
-    return Measured(modes["mode"].values, mean, sigma, normalise_shapes(shape.mean(axis=1)),
-                    [str(c) for c in modes["channel"].values], source, band, duration, zeta_max,
-                    str(modes.attrs.get("target_observability", "")))  # fmt: skip
-
-
-def _record(modes: xr.Dataset) -> tuple[tuple[float, float] | None, float | None, float | None]:
-    """Band [Hz], record length [s] and largest damping ratio of an extraction, from its ``settings`` attr."""
-    try:
-        settings = json.loads(modes.attrs["settings"])
-        band = (float(settings["fmin_hz"]), float(settings["fmax_hz"]))
-        return band, float(settings["duration_s"]), float(settings["criteria"]["zeta_max"])
-    except (KeyError, TypeError, ValueError):  # synthetic modes, or settings of another producer
-        return None, None, None
-
-
-def channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
-    """The model DOF of each measured channel (error naming the channels the model lacks)."""
-    dofs = dict(zip(model.channels, model.sensor_dofs))
-    missing = [c for c in channels if c not in dofs]
-    if missing:
-        raise CompareError(f"measured channel(s) {missing} are not sensors of model '{model.name}' "
-                           f"(its sensors: {', '.join(model.channels)})")  # fmt: skip
-    return np.array([dofs[c] for c in channels])
 
 
 @dataclass(frozen=True)
@@ -188,34 +78,6 @@ class ModelModes:
     mac_matrix: np.ndarray  # measured x model, for plots (single-FEM modes)
     model_frequency: np.ndarray  # Hz, the single-FEM modes of the matrix
     partner: np.ndarray  # column of mac_matrix paired with each measured mode (the nearest for a per-mode model)
-
-
-def pairing_cost(meas: Measured, poles: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(cost, mac)``, both measured x model: ``|λ − λ̂| / |λ̂| + (1 − MAC)`` and the complex MAC.
-
-    ``shapes`` are the model shapes on the measured channels. The pole
-    distance carries the pairing where 8 sensors cannot tell shapes apart (a
-    10 Hz mode and a 368 Hz mode can have MAC 0.96 there); the MAC carries it
-    between modes of nearly equal poles (forward and backward whirl).
-    """
-    m = mac(meas.shape, shapes)
-    dist = np.abs(np.asarray(poles)[None, :] - meas.pole[:, None]) / np.abs(meas.pole)[:, None]
-    return dist + (1.0 - m), m
-
-
-def pair_with_measured(sol: ModalSolution, meas: Measured, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(mac_matrix, cols)``: model mode ``cols[r]`` is measured mode ``r``'s partner, for every ``r``.
-
-    One-to-one, least total :func:`pairing_cost` (Hungarian algorithm). Every
-    measured mode gets a partner: a mode the model cannot reproduce gets a
-    poor one (low MAC, large pole distance), which the comparison reports and
-    counts in its error, never drops.
-    """
-    cost, m = pairing_cost(meas, sol.poles, sol.right[:, dofs])
-    rows, cols = linear_sum_assignment(cost)
-    out = np.argmin(cost, axis=1)  # a model with fewer modes than measured: the rest take their nearest
-    out[rows] = cols
-    return m, out
 
 
 @one_blas_thread
@@ -244,7 +106,7 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
             s = solve_modes(base, {**_shared_values(values), **altered})
         except ModelError as exc:
             raise CompareError(f"mode {label} of the per-mode model cannot be solved at {altered}: {exc}") from None
-        cost, mm = pairing_cost(meas.subset(np.array([r])), s.poles, s.right[:, dofs])
+        cost, mm = pairing_cost(meas.pole[[r]], meas.shape[[r]], s.poles, s.right[:, dofs])
         k = int(np.argmin(cost[0]))
         poles.append(s.poles[k]), shapes.append(s.right[k]), macs.append(mm[0, k])
     return ModelModes(rows, np.array(poles, dtype=complex), np.array(shapes), np.array(macs), m,
@@ -256,59 +118,11 @@ def _shared_values(values: Mapping[str, float] | None) -> dict[str, float]:
     return {k: v for k, v in dict(values or {}).items() if not PER_MODE_NAME.match(k)}
 
 
-def per_mode_values(model: RotorModel, base: RotorModel, label: int, values: Mapping[str, float]) -> dict[str, float]:
-    """Values of ``base`` (with shared FSI) that give mode ``label`` of a per-mode FSI model.
-
-    A label beyond the values of the model's per-mode effect adds nothing.
-    """
-    shared_m = values.get("FSI.added_mass", base.parameter("FSI.added_mass").nominal)
-    shared_c = values.get("FSI.added_damping", base.parameter("FSI.added_damping").nominal)
-    names = set(model.parameter_names)
-
-    def own(name: str) -> float:
-        return values.get(name, model.parameter(name).nominal if name in names else 0.0)
-
-    return {"FSI.added_mass": shared_m + own(f"FSI.added_mass_{label}"),
-            "FSI.added_damping": shared_c + own(f"FSI.added_damping_{label}")}  # fmt: skip
-
-
 def _shape_error(model_shape: np.ndarray, measured_shape: np.ndarray) -> np.ndarray:
     """|ψ_model a − ψ̂| per channel, ``a`` the complex factor that fits best (unit-norm shapes)."""
     mod = normalise_shapes(model_shape)
     a = np.sum(mod.conj() * measured_shape, axis=-1, keepdims=True) / np.sum(np.abs(mod) ** 2, axis=-1, keepdims=True)
     return np.abs(a * mod - measured_shape)
-
-
-def relative_pole_error(model_pole: np.ndarray, measured_pole: np.ndarray) -> np.ndarray:
-    """``|λ − λ̂| / |λ̂|`` (see the module docstring)."""
-    return np.abs(model_pole - measured_pole) / np.abs(measured_pole)
-
-
-def overall_error(model_pole: np.ndarray, measured_pole: np.ndarray, sigma: np.ndarray | None = None) -> float:
-    """The error ``E`` (a fraction, not %): weighted RMS over modes of the relative pole distance.
-
-    Parameters
-    ----------
-    model_pole, measured_pole : (n,) complex
-        Paired poles [1/s].
-    sigma : (n, 2) float, optional
-        Uncertainty of the real and imaginary part of each measured pole [1/s]
-        (:attr:`Measured.sigma`); without it, all modes weigh alike (plain RMS).
-
-    Examples
-    --------
-    >>> measured = np.array([100j, -60 + 80j])  # |λ| = 100 1/s
-    >>> model = np.array([101j, -57 + 80j])  # 1% and 3% off
-    >>> round(overall_error(model, measured), 4)  # plain RMS
-    0.0224
-    >>> round(overall_error(model, measured, np.array([[0.1, 0.1], [1.0, 1.0]])), 4)  # 2nd mode 10x less sure
-    0.0104
-    """
-    if sigma is None:
-        return float(np.sqrt(np.mean(relative_pole_error(model_pole, measured_pole) ** 2)))
-    delta = (np.asarray(model_pole) - measured_pole) / np.abs(measured_pole)
-    w = (np.abs(measured_pole)[:, None] / np.asarray(sigma)) ** 2
-    return float(np.sqrt(2 * np.sum(w[:, 0] * delta.real**2 + w[:, 1] * delta.imag**2) / np.sum(w)))
 
 
 @one_blas_thread

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from twin.fem.model import RotorModel
-from twin.loop.compare import Measured
-from twin.loop.sensitivity import solve_modes
 from twin.modes.analysis import damping_ratio
+from twin.modes.measured import Measured
+from twin.modes.sensitivity import solve_modes
 
 #: At least this fraction of the model's modes in the band must be measured.
 MIN_COVERAGE = 0.5
@@ -76,7 +76,7 @@ def coverage(model: RotorModel, meas: Measured) -> Coverage | None:
     --------
     >>> import dataclasses
     >>> from twin import load_model, shipped_model
-    >>> from twin.loop.compare import measured_modes
+    >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
     >>> model = load_model(shipped_model("hydro_unit"))
     >>> meas = measured_modes(synthesize_modes(model, samples=5, seed=1).isel(mode=[0, 3]))  # 2 modes

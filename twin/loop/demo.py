@@ -24,17 +24,18 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.design.observe import target_lines
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
 from twin.fem.model import RotorModel
 from twin.loop.bootstrap import check_records
-from twin.loop.compare import PER_MODE_NAME, Measured, error_text
+from twin.loop.compare import PER_MODE_NAME, error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.history import INTERVAL_DRAWS, interval_text, write_history
 from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
-from twin.design.observe import target_lines
 from twin.loop.twin import Twin
+from twin.modes.measured import Measured
 from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
@@ -78,7 +79,7 @@ def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: lis
     Examples
     --------
     >>> import numpy as np
-    >>> from twin.loop.compare import Measured
+    >>> from twin.modes.measured import Measured
     >>> meas = Measured(np.array([1, 2]), np.array([-0.1 + 6.3j, -0.2 + 63j]), np.ones((2, 2)), np.ones((2, 1)), ["a"])
     >>> modes = [{"frequency_hz": 1.0, "damping_ratio": 0.01}, {"frequency_hz": 5.0, "damping_ratio": 0.01},
     ...          {"frequency_hz": 10.0, "damping_ratio": 0.01}]
@@ -108,7 +109,7 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
 
     From a sampler's posterior (:func:`twin.update.update`'s DataTree: its
     :func:`twin.update.summary`) or a Laplace one
-    (:func:`twin.loop.fit.laplace_update`'s Dataset: Gaussian quantiles, no
+    (:func:`twin.update.laplace.laplace_update`'s Dataset: Gaussian quantiles, no
     R-hat or ESS, which are NaN). The attr ``method`` says which.
     """
     from twin.update import summary
@@ -230,7 +231,7 @@ def run_demo(
         How each round updates the effects the loop added: one of the APerCEM
         samplers of :func:`twin.update.update` (the default: HMC on the marginal,
         4 chains x 500 draws) or the Laplace approximation of the pole fit
-        (:func:`twin.loop.fit.laplace_update`).
+        (:func:`twin.update.laplace.laplace_update`).
     bootstrap : int, optional
         HMC only: records simulated at the last update's estimate to
         calibrate its spread (:mod:`twin.loop.bootstrap`; about 11 s a 20-min

@@ -7,7 +7,7 @@
    pole residuals are not consistent with the measurement uncertainty: their
    χ² exceeds the 99.9% quantile of the χ² law with as many degrees of
    freedom as data.
-2. **Which effects**, by evidence (:mod:`twin.loop.fit`: Laplace
+2. **Which effects**, by evidence (:mod:`twin.update.laplace`: Laplace
    approximation, priors at the effects' plausible scales inside their
    physical bounds). Stepwise, until nothing is missing: while the residuals
    are not consistent with the uncertainty, each round fits every remaining
@@ -51,14 +51,15 @@ import numpy as np
 import scipy.stats
 import xarray as xr
 
-from twin.fem.effects import describe
+from twin.fem.effects import describe, free_names
 from twin.fem.model import RotorModel
-from twin.loop.candidates import Candidate, free_names, replaces, select, sized
-from twin.loop.compare import TOLERANCE, Measured, compare, measured_modes
+from twin.loop.candidates import Candidate, replaces, select, sized
+from twin.loop.compare import compare
 from twin.loop.coverage import Coverage, coverage
-from twin.loop.fit import Fit, fit, log_evidence_as_is
 from twin.loop.locate import Location, locate
+from twin.modes.measured import TOLERANCE, Measured, measured_modes
 from twin.tasks import mapper, one_blas_thread
+from twin.update.laplace import Fit, fit, log_evidence_as_is
 
 log = logging.getLogger(__name__)
 

@@ -30,7 +30,7 @@ from twin.netcdf import atomic_output
 
 if TYPE_CHECKING:
     from twin.fem.model import RotorModel
-    from twin.loop.compare import Measured
+    from twin.modes.measured import Measured
 
 COLUMNS = ("step", "action", "error_percent", "chi2", "modes", "error_low_percent", "error_high_percent")
 #: The header of the histories written before the error's interval (read as well).
@@ -207,7 +207,7 @@ def error_interval(model: RotorModel, posterior: xr.DataTree | xr.Dataset, measu
     >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
-    >>> from twin.loop.compare import measured_modes
+    >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
     >>> dry = load_model(shipped_model("hydro_unit"))
     >>> meas = measured_modes(synthesize_modes(dry, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3))

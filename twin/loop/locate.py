@@ -10,7 +10,7 @@ inertia, one relative change ``δ`` each with the prior ``N(0, s²)``,
    the change removes ``(Jᵀr)² / JᵀJ`` of the χ² and its log Bayes factor is
    ``½ (Jᵀr)² / (1 + JᵀJ) − ½ ln(1 + JᵀJ)``;
 2. **Refit** of the best :data:`REFIT` of them with the fitted hypothesis's
-   parameters (nonlinear, :func:`twin.loop.fit.fit`), whose log Bayes factor
+   parameters (nonlinear, :func:`twin.update.laplace.fit`), whose log Bayes factor
    against that hypothesis is what the diagnosis compares with the library's.
 
 A softened shaft element and a heavier disk move the modes differently (a
@@ -26,13 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from twin.fem.local import LOCAL_CHANGE_SCALE, local_changes
 from twin.fem.effects import effect_label
+from twin.fem.local import LOCAL_CHANGE_SCALE, local_changes
 from twin.fem.model import RotorModel
-from twin.loop.compare import Measured, channel_dofs, pair_with_measured
-from twin.loop.fit import Fit, fit, residual, scaled_rows
-from twin.loop.sensitivity import footprint_jacobian, solve_modes
+from twin.modes.measured import Measured, channel_dofs, pair_with_measured
+from twin.modes.sensitivity import footprint_jacobian, solve_modes
 from twin.tasks import mapper, one_blas_thread
+from twin.update.laplace import Fit, fit, residual, scaled_rows
 
 #: How many of the best-screened local changes are refitted.
 REFIT = 3
@@ -121,8 +121,8 @@ def locate(
     >>> from twin import load_model, shipped_model
     >>> from twin.fem.local import DiskMassChange
     >>> from twin.fem.truthfile import Truth
-    >>> from twin.loop.compare import measured_modes
-    >>> from twin.loop.fit import log_evidence_as_is
+    >>> from twin.modes.measured import measured_modes
+    >>> from twin.update.laplace import log_evidence_as_is
     >>> from twin.update import synthesize_modes
     >>> model = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(model, Truth((DiskMassChange("generator", 0.1),)), n_modes=13, samples=50,

@@ -6,9 +6,10 @@ import numpy as np
 import xarray as xr
 
 from twin.design.observe import target_lines
-from twin.loop.compare import Measured, error_text
+from twin.loop.compare import error_text
 from twin.loop.diagnose import Diagnosis
 from twin.loop.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
+from twin.modes.measured import Measured
 
 
 def comparison_text(table: xr.Dataset) -> str:

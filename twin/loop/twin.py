@@ -18,13 +18,14 @@ from typing import Any
 
 import xarray as xr
 
-from twin.fem.effects import effect_label
+from twin.fem.effects import effect_label, free_names
 from twin.fem.model import RotorModel
-from twin.loop.candidates import add_effects, free_names, replaces
-from twin.loop.compare import PER_MODE_NAME, TOLERANCE, Measured, compare, measured_modes
+from twin.loop.candidates import add_effects, replaces
+from twin.loop.compare import PER_MODE_NAME, compare
 from twin.loop.diagnose import Diagnosis, diagnose
-from twin.loop.fit import laplace_update
 from twin.loop.history import error_interval, history_dataset, plot_history
+from twin.modes.measured import TOLERANCE, Measured, measured_modes
+from twin.update.laplace import laplace_update
 
 log = logging.getLogger(__name__)
 
@@ -178,10 +179,9 @@ class Twin:
         >>> abs(tw.model.parameter("MAG.stiffness").nominal / -1.5e8 - 1) < 0.10
         True
         """
+        from twin.loop.bootstrap import records_for
         from twin.progress import log as progress_log
         from twin.progress import stage
-
-        from twin.loop.bootstrap import records_for
 
         bootstrap = records_for(kwargs.pop("bootstrap", None), self.modes, method)
         d = None
@@ -219,7 +219,7 @@ class Twin:
             One of the samplers of :func:`twin.update.update` on pole and shape samples (``"hmc"``, the
             default; ``options``, ``priors`` and ``tasks`` go to it, and ``fields`` are fields of its
             options), which returns its posterior DataTree; or ``"laplace"``: the Gaussian posterior of
-            the pole fit (:func:`twin.loop.fit.laplace_update`), which returns a Dataset of MAP and std.
+            the pole fit (:func:`twin.update.laplace.laplace_update`), which returns a Dataset of MAP and std.
         estimate : {"map", "mean"}
             Which estimate of a sampler's posterior the model takes.
         bootstrap : int, optional
@@ -298,12 +298,12 @@ class Twin:
 
     def posterior_tree(self) -> xr.DataTree:
         """The last update's posterior in the ``posterior.nc`` layout: a sampler's as it is, a Laplace fit's
-        drawn from its Gaussian (:func:`twin.loop.fit.laplace_file`)."""
+        drawn from its Gaussian (:func:`twin.update.laplace.laplace_file`)."""
         if self.posterior is None:
             raise ValueError("the twin has no posterior yet: update it first")
         if isinstance(self.posterior, xr.DataTree):
             return self.posterior
-        from twin.loop.fit import laplace_file
+        from twin.update.laplace import laplace_file
 
         return laplace_file(self.posterior, self.model, self.modes)
 

@@ -1,4 +1,4 @@
-"""Pair two modal sets by MAC; frequency ratio and added damping between them.
+"""Pair two modal sets by pole distance and MAC; frequency ratio and added damping between them.
 
 Typical use: a model's modes against measured ones, or the same machine in
 air and in water, where ``FRR = f_water / f_air`` and the added damping ratio
@@ -14,37 +14,58 @@ from scipy.optimize import linear_sum_assignment
 from twin.errors import TwinError
 from twin.modes.shapes import mac
 
-#: Weight of the relative frequency distance in the pairing cost; it only
-#: breaks ties between shapes of (nearly) equal MAC.
-FREQUENCY_TIE_BREAK = 1e-3
 
+def pairing_cost(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray,
+                 shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """``(cost, mac)``, both reference x other: ``|λ − λ_ref| / |λ_ref| + (1 − MAC)`` and the complex MAC.
 
-def assign_modes(
-    mac_matrix: np.ndarray,
-    f_reference: np.ndarray,
-    f_other: np.ndarray,
-    min_mac: float = 0.0,
-    max_ratio: float | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """One-to-one assignment maximising the total MAC; returns ``(rows, cols)`` of the kept pairs.
-
-    A tiny relative-frequency term breaks ties; pairs below ``min_mac``, or
-    whose frequencies differ by more than a factor ``max_ratio``, are dropped.
+    The shapes are on the same channels (or DOFs) in both sets. The pole
+    distance carries the pairing where a few sensors cannot tell shapes apart
+    (a 10 Hz mode and a 368 Hz mode can have MAC 0.96 on 8 proximeters); the
+    MAC carries it between modes of nearly equal poles (forward and backward
+    whirl).
 
     Examples
     --------
-    >>> assign_modes(np.array([[0.2, 0.9], [0.95, 0.1]]), np.array([1.0, 2.0]), np.array([2.1, 0.9]))
-    (array([0, 1]), array([1, 0]))
+    >>> cost, m = pairing_cost(np.array([-1 + 10j]), np.array([[1, 0]]), np.array([-1 + 11j, -1 + 10j]),
+    ...                        np.array([[1, 0], [0, 1]]))
+    >>> np.round(cost, 3), m
+    (array([[0.1, 1. ]]), array([[1., 0.]]))
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        distance = np.abs(np.log(np.abs(np.asarray(f_other)[None, :] / np.asarray(f_reference)[:, None])))
-    distance = np.nan_to_num(distance, nan=1e3, posinf=1e3)
-    cost = -mac_matrix + FREQUENCY_TIE_BREAK * distance
-    allowed = np.ones_like(cost, dtype=bool) if max_ratio is None else distance <= np.log(max_ratio)
-    cost = np.where(allowed, cost, 1e6)
+    m = mac(np.asarray(reference_shapes), np.asarray(shapes))
+    reference_poles = np.asarray(reference_poles)
+    dist = np.abs(np.asarray(poles)[None, :] - reference_poles[:, None]) / np.abs(reference_poles)[:, None]
+    return dist + (1.0 - m), m
+
+
+def partners(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray,
+             shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """``(mac, cols)``: mode ``cols[r]`` of the other set is reference mode ``r``'s partner, for every ``r``.
+
+    One-to-one where it can be, by the least total :func:`pairing_cost` (Hungarian algorithm); when the other
+    set has fewer modes, the reference modes left over take their nearest. ``mac`` is the whole
+    reference x other MAC matrix.
+
+    Examples
+    --------
+    >>> _, cols = partners(np.array([-1 + 10j, -1 + 20j]), np.eye(2), np.array([-1 + 21j, -1 + 9j]), np.eye(2)[::-1])
+    >>> cols.tolist()
+    [1, 0]
+    """
+    cost, m = pairing_cost(reference_poles, reference_shapes, poles, shapes)
     rows, cols = linear_sum_assignment(cost)
-    keep = (mac_matrix[rows, cols] >= min_mac) & allowed[rows, cols]
-    return rows[keep], cols[keep]
+    out = np.argmin(cost, axis=1)
+    out[rows] = cols
+    return m, out
+
+
+def dataset_poles(ds: xr.Dataset) -> np.ndarray:
+    """The complex poles [1/s] of a modal set: its ``pole``, or from ``frequency`` [Hz] and ``damping_ratio``."""
+    if "pole" in ds:
+        return np.asarray(ds["pole"].values, dtype=complex)
+    omega_d = 2 * np.pi * np.asarray(ds["frequency"].values, dtype=float)
+    zeta = np.asarray(ds["damping_ratio"].values, dtype=float)
+    return omega_d * (-zeta / np.sqrt(1 - np.minimum(zeta**2, 1 - 1e-12)) + 1j)
 
 
 def _shapes(ds: xr.Dataset, shape_var: str) -> xr.DataArray:
@@ -58,8 +79,8 @@ def pair_modes(
 ) -> xr.Dataset:
     """Pair the modes of two modal sets one-to-one by complex MAC.
 
-    The assignment maximises the total MAC (Hungarian algorithm); a tiny
-    frequency term breaks ties between equally similar shapes. Pairs whose
+    The assignment has the least total :func:`pairing_cost` (Hungarian
+    algorithm), the pairing a comparison with measured modes uses; pairs whose
     MAC is below ``min_mac`` are dropped.
 
     Parameters
@@ -100,9 +121,11 @@ def pair_modes(
         if missing:
             raise TwinError(f"the other modal set lacks {dim}(s) {missing} of the reference")
         b = b.sel({dim: a[dim].values})
-    m = mac(a.values, b.values)
     fa, fb = reference["frequency"].values, other["frequency"].values
-    rows, cols = assign_modes(m, fa, fb, min_mac)
+    cost, m = pairing_cost(dataset_poles(reference), a.values, dataset_poles(other), b.values)
+    rows, cols = linear_sum_assignment(cost)
+    keep = m[rows, cols] >= min_mac
+    rows, cols = rows[keep], cols[keep]
     za, zb = reference["damping_ratio"].values[rows], other["damping_ratio"].values[cols]
     return xr.Dataset(
         {

@@ -1,4 +1,5 @@
-"""``update``: modes.nc + model -> posterior.nc, by one of the samplers of :mod:`twin.update.samplers`."""
+"""``update``: modes.nc + model -> posterior.nc, by one of the samplers of :mod:`twin.update.samplers` or
+the Laplace approximation of the pole fit (:mod:`twin.update.laplace`)."""
 
 from __future__ import annotations
 
@@ -15,16 +16,24 @@ import xarray as xr
 
 from twin import __version__
 from twin.errors import TwinWarning
-from twin.modes.modesfile import read_modes, split_complex
 from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
 from twin.fem.modelfile import load_model
+from twin.modes.modesfile import read_modes, split_complex
 from twin.netcdf import check_writable
 from twin.update.chain import Chain, build_prior, stack
-from twin.update.posterior import RHAT_LIMIT, diagnostics_json, observed_data, summary, write_posterior
+from twin.update.laplace import LaplaceOptions, laplace_posterior
+from twin.update.posterior import (
+    RHAT_LIMIT,
+    diagnostics_json,
+    observed_data,
+    summary,
+    write_posterior,
+)
 from twin.update.priors import plausible_priors
 from twin.update.problem import Problem, UpdateError, build_problem, select_parameters
 from twin.update.samplers import SAMPLERS, SamplerOptions, sampler
+from twin.update.samplers.base import make_options
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +44,10 @@ MIN_MARGIN = 5.0
 POORLY_DETERMINED = 0.5
 #: The default sampler (:mod:`twin.update.samplers.hmc`).
 DEFAULT_METHOD = next(iter(SAMPLERS))
+#: The Laplace approximation of the pole fit (:mod:`twin.update.laplace`), the method beside the samplers.
+LAPLACE = "laplace"
+#: Every method of :func:`update`: the samplers, then the Laplace approximation.
+METHODS = (*SAMPLERS, LAPLACE)
 
 
 def update(
@@ -44,7 +57,7 @@ def update(
     *,
     fsi: bool = False,
     method: str = DEFAULT_METHOD,
-    options: SamplerOptions | Mapping[str, Any] | None = None,
+    options: SamplerOptions | LaplaceOptions | Mapping[str, Any] | None = None,
     priors: str | Mapping[str, tuple[float, float]] = "plausible",
     output: str | Path | None = None,
     tasks: Any = None,
@@ -61,14 +74,17 @@ def update(
         Shared parameters: names, globs or groups (``bearings``, ``thrust``, ``disks``).
     fsi : bool
         Also update the per-mode FSI added mass and damping on the immersed region.
-    method : {"hmc", "gibbs", "paper"}
+    method : {"hmc", "gibbs", "paper", "laplace"}
         The sampler (:mod:`twin.update.samplers`): HMC on the marginal posterior (the default,
         :mod:`~twin.update.samplers.hmc`), the Gibbs sampler of the full model
         (:mod:`~twin.update.samplers.gibbs`), or the reference paper's Gibbs sampler
-        (:mod:`~twin.update.samplers.paper`).
-    options : SamplerOptions or mapping, optional
-        The sampler's options (:class:`HMCOptions`, :class:`GibbsOptions`, :class:`PaperOptions`), or a
-        mapping of their fields; the defaults where not given.
+        (:mod:`~twin.update.samplers.paper`); or ``"laplace"``, the Gaussian approximation of the fit of
+        the model's poles to the mean measured poles (:mod:`twin.update.laplace`): seconds instead of
+        minutes, shapes unused, its own truncated priors (:func:`twin.update.laplace.prior_for`).
+    options : SamplerOptions, LaplaceOptions or mapping, optional
+        The method's options (:class:`HMCOptions`, :class:`GibbsOptions`, :class:`PaperOptions`,
+        :class:`~twin.update.laplace.LaplaceOptions`), or a mapping of their fields; the defaults where
+        not given.
     priors : {"plausible", "flat"} or mapping
         ``"plausible"``: each updated parameter of the model's effects (and the per-mode FSI of ``fsi``)
         gets a Gaussian prior centred on the model's value, as wide as the effect's plausible scale
@@ -100,10 +116,15 @@ def update(
     array([1., 1., 1.])
     """
     started = time.perf_counter()
-    chosen = sampler(method)
-    opts = chosen.options(options)
+    if method not in METHODS:
+        raise UpdateError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    chosen = None if method == LAPLACE else sampler(method)
+    opts = make_options(LAPLACE, LaplaceOptions, options, {}, "method") if chosen is None else chosen.options(options)
     if isinstance(priors, str) and priors not in ("plausible", "flat"):
         raise UpdateError(f"priors must be 'plausible', 'flat' or a mapping {{name: (mean, std)}}, got {priors!r}")
+    if chosen is None and not (isinstance(priors, str) and priors == "plausible"):
+        raise UpdateError("the Laplace update has its own priors (twin.update.laplace.prior_for): leave priors "
+                          "'plausible'")  # fmt: skip
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -111,6 +132,9 @@ def update(
     source = str(modes) if not isinstance(modes, xr.Dataset) else modes.encoding.get("source", "modes")
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
+    if chosen is None:
+        return _laplace(model, modes, names, fsi, opts, output, started,
+                        {"model_source": source_model, "modes_source": source})  # fmt: skip
     pole_model = chosen.pole_model(opts)
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=opts.eps_std, pole_model=pole_model, source=source)
     given = {} if isinstance(priors, str) else dict(priors)
@@ -152,6 +176,24 @@ def update(
         write_posterior(tree, output)
     log.info("updated %d parameters in %.1f s (%s, %d chains x %d draws)", table.sizes["parameter"], elapsed,
              chosen.name, opts.chains, opts.draws)  # fmt: skip
+    return tree
+
+
+def _laplace(model: RotorModel, modes: xr.Dataset, names: list[str], fsi: bool, opts: LaplaceOptions,
+             output: str | Path | None, started: float, sources: dict) -> xr.DataTree:  # fmt: skip
+    """:func:`update` by the Laplace approximation (:func:`twin.update.laplace.laplace_posterior`)."""
+    if not names and not fsi:
+        raise UpdateError("nothing to update: name parameters (params) or update the per-mode FSI (fsi=True)")
+    _, fitted, tree = laplace_posterior(model, modes, names, fsi=fsi, seed=opts.seed, draws=opts.draws)
+    settings = {"method": LAPLACE, "params": names, "fsi": fsi, **opts.settings(), "priors": "plausible"}
+    tree.attrs.update({"producer": f"twin {__version__}", **sources, "settings": json.dumps(settings),
+                       "elapsed_s": time.perf_counter() - started})  # fmt: skip
+    if "truth" in modes.attrs:
+        tree.attrs["truth"] = modes.attrs["truth"]
+    if output is not None:
+        write_posterior(tree, output)
+    log.info("Laplace update of %d parameters in %.1f s: chi2 %.1f -> %.1f", fitted.sizes["parameter"],
+             time.perf_counter() - started, fitted.attrs["chi2_before"], fitted.attrs["chi2_after"])  # fmt: skip
     return tree
 
 

@@ -236,7 +236,7 @@ def observed_data(modes: xr.Dataset) -> xr.Dataset:
 
 
 def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0) -> xr.DataTree:
-    """A Laplace posterior (:func:`twin.loop.fit.laplace_update`) in the ``posterior.nc`` layout.
+    """A Laplace posterior (:func:`twin.update.laplace.laplace_update`) in the ``posterior.nc`` layout.
 
     ``posterior`` holds ``draws`` draws of the Gaussian (MAP, covariance)
     kept inside the parameters' physical bounds (rejection), in one chain;

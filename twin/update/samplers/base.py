@@ -128,17 +128,32 @@ class Sampler(ABC):
         >>> sampler("gibbs").options({"warmup": 5}).warmup
         5
         """
-        if options is None:
-            options = {}
-        if isinstance(options, SamplerOptions):
-            if not isinstance(options, self.options_type):
-                raise UpdateError(f"the {self.name!r} sampler takes {self.options_type.__name__}, "
-                                  f"got {type(options).__name__}")  # fmt: skip
-            return dataclasses.replace(options, **fields) if fields else options
-        given = {**dict(options), **fields}
-        known = {f.name for f in dataclasses.fields(self.options_type)}
-        unknown = sorted(set(given) - known)
-        if unknown:
-            raise UpdateError(f"the {self.name!r} sampler has no option {', '.join(unknown)} "
-                              f"(its options: {', '.join(sorted(known))})")  # fmt: skip
-        return self.options_type(**given)
+        return make_options(self.name, self.options_type, options, fields)
+
+
+def make_options(name: str, options_type: type, options: Any, fields: Mapping[str, Any], what: str = "sampler") -> Any:
+    """The options of the ``what`` called ``name``: ``options_type`` from an instance of it, a mapping of its fields or none, with ``fields`` over them.
+
+    A field the type does not have is refused by name, with the fields it has.
+
+    Examples
+    --------
+    >>> make_options("any", SamplerOptions, {"draws": 10}, {}).draws
+    10
+    >>> make_options("any", SamplerOptions, {"colour": 1}, {})
+    Traceback (most recent call last):
+    twin.errors.UpdateError: the 'any' sampler has no option colour (its options: chains, draws, eps_std, progress, seed, warmup)
+    """
+    if options is None:
+        options = {}
+    if dataclasses.is_dataclass(options) and not isinstance(options, type):
+        if not isinstance(options, options_type):
+            raise UpdateError(f"the {name!r} {what} takes {options_type.__name__}, got {type(options).__name__}")
+        return dataclasses.replace(options, **fields) if fields else options
+    given = {**dict(options), **fields}
+    known = {f.name for f in dataclasses.fields(options_type)}
+    unknown = sorted(set(given) - known)
+    if unknown:
+        raise UpdateError(f"the {name!r} {what} has no option {', '.join(unknown)} "
+                          f"(its options: {', '.join(sorted(known))})")  # fmt: skip
+    return options_type(**given)

@@ -5,8 +5,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from twin.fem.effects import BearingChange, FluidAddedMass, MagneticPull, SealCrossCoupling
-from twin.loop.sensitivity import pole_jacobian, solve_modes
+from twin.fem.effects import (
+    BearingChange,
+    FluidAddedMass,
+    MagneticPull,
+    SealCrossCoupling,
+)
+from twin.modes.sensitivity import pole_jacobian, solve_modes
 
 
 @pytest.mark.parametrize(

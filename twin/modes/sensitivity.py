@@ -20,9 +20,23 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from twin.fem.model import RotorModel
+from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fem.parameters import Term
-from twin.fmu.statespace import full_state_space, state_modes
+from twin.modes.analysis import state_matrix
+
+
+def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poles (Im > 0, by frequency), right and left state eigenvectors with ``w_i v_i = 1``.
+
+    Returns ``(poles, right, left)`` with ``right`` and ``left`` of shape ``(r, n)``.
+    """
+    lam, vl, vr = sla.eig(A, left=True, right=True)
+    keep = lam.imag > 0
+    order = np.argsort(lam.imag[keep], kind="stable")
+    lam, vl, vr = lam[keep][order], vl[:, keep][:, order], vr[:, keep][:, order]
+    left = vl.conj().T
+    left /= np.sum(left * vr.T, axis=1, keepdims=True)
+    return lam, vr.T, left
 
 
 @dataclass(frozen=True)
@@ -53,14 +67,16 @@ def solve_modes(model: RotorModel, values: Mapping[str, float] | None = None) ->
     Examples
     --------
     >>> from twin import load_model, shipped_model
+    >>> from twin.modes import solve_modes
     >>> sol = solve_modes(load_model(shipped_model("hydro_unit")))
     >>> sol.right.shape == sol.left.shape
     True
     """
-    ss = full_state_space(model, values=values)
-    poles, right, left = state_modes(ss.A)
+    mats = model.matrices(values)
+    poles, right, left = state_modes(state_matrix(mats["M"], mats["C"], mats["G"], mats["K"],
+                                                  model.speed_rpm * RPM_TO_RAD_S))
     n = model.n_dof
-    mass = model.matrices(values)["M"]
+    mass = mats["M"]
     u = sla.cho_solve(sla.cho_factor(mass), left[:, n:].T).T  # M is symmetric: (w2 M⁻¹)ᵀ = M⁻¹ w2ᵀ
     return ModalSolution(poles, right[:, :n], u, model.speed_rad_s)
 

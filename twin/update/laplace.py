@@ -1,8 +1,8 @@
-"""Fit a hypothesis (a set of model parameters) to measured poles, and its evidence (Laplace approximation).
+"""The Laplace update: a hypothesis (a set of model parameters) fitted to measured poles, and its evidence.
 
 Data: the measured poles ``λ̂_i`` with uncertainties ``σ`` (real and
-imaginary part, see :func:`twin.loop.compare.measured_modes`), every measured
-mode paired with a model mode (:func:`twin.loop.compare.pair_with_measured`).
+imaginary part, see :func:`twin.modes.measured_modes`), every measured
+mode paired with a model mode (:func:`twin.modes.measured.pair_with_measured`).
 A *hypothesis* is a list of the model's parameters: those of its effects, of
 a candidate effect, of a local change, or element coefficients. Each has the
 prior ``θ_k = μ_k + s_k u_k``, ``u_k ~ N(0, 1)`` truncated to the
@@ -13,7 +13,7 @@ parameter (no effect until the data say so), ``μ_k`` the model's value and
 
 The MAP ``u*`` minimises ``½|r(u)|² + ½|u|²`` inside the bounds, ``r`` the
 pole residuals in sigmas (projected Levenberg-Marquardt, exact pole
-derivatives from :mod:`twin.loop.sensitivity`). The pairing is redone at
+derivatives from :mod:`twin.modes.sensitivity`). The pairing is redone at
 every trial point, so a model mode that moves past another is followed to
 where it pairs best. That makes the objective jump where a mode changes
 partner: a strongly moved mode pairs with a wrong, nearby model mode at the
@@ -37,6 +37,7 @@ eigen-solution per measured mode, and the mode's own parameters move only it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 from collections.abc import Mapping, Sequence
@@ -46,20 +47,33 @@ import numpy as np
 import scipy.stats
 import xarray as xr
 
-from twin.errors import ModelError
-from twin.fem.effects import CHANGE_FRACTION, plausible_scales, with_shared_fsi
-from twin.fem.model import RotorModel
-from twin.loop.compare import (
+from twin.errors import ModelError, UpdateError
+from twin.fem.effects import (
+    CHANGE_FRACTION,
     PER_MODE_NAME,
+    FluidAddedMassPerMode,
+    effect_label,
+    free_names,
+    library_effects,
+    per_mode_values,
+    plausible_scales,
+    with_shared_fsi,
+)  # fmt: skip
+from twin.fem.model import RotorModel
+from twin.modes.measured import (
     Measured,
     channel_dofs,
     measured_modes,
     overall_error,
     pair_with_measured,
-    pairing_cost,
-    per_mode_values,
 )
-from twin.loop.sensitivity import ModalSolution, follow_mode, pole_jacobian, solve_modes
+from twin.modes.pairing import pairing_cost
+from twin.modes.sensitivity import (
+    ModalSolution,
+    follow_mode,
+    pole_jacobian,
+    solve_modes,
+)
 from twin.modes.shapes import mac
 from twin.tasks import one_blas_thread
 
@@ -75,12 +89,12 @@ DECREMENT_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
-class Prior:
+class BoundedPrior:
     """Truncated Gaussian priors ``θ = mean + scale u``, ``u ~ N(0, 1)`` inside ``[low, high]`` (SI).
 
     Examples
     --------
-    >>> p = Prior(["MAG.stiffness"], np.zeros(1), np.array([1e8]), np.array([-np.inf]), np.zeros(1))
+    >>> p = BoundedPrior(["MAG.stiffness"], np.zeros(1), np.array([1e8]), np.array([-np.inf]), np.zeros(1))
     >>> round(p.log_mass, 4)  # a sign constraint keeps half the prior
     -0.6931
     """
@@ -117,14 +131,14 @@ class Prior:
         return np.clip(u, self.u_low, self.u_high)
 
 
-def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
+def prior_for(model: RotorModel, names: Sequence[str]) -> BoundedPrior:
     """The priors of parameters ``names`` of ``model`` (see the module docstring).
 
     Examples
     --------
     >>> from twin import load_model, shipped_model
-    >>> from twin.loop.candidates import add_effects
-    >>> model = add_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull"])
+    >>> from twin.fem.effects import MagneticPull
+    >>> model = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull())
     >>> p = prior_for(model, ["MAG.stiffness", "UGB.kxx"])
     >>> float(p.mean[0]), bool(p.scale[1] == 0.5 * model.parameter("UGB.kxx").nominal), float(p.high[0]), float(p.low[1])
     (0.0, True, 0.0, 0.0)
@@ -140,7 +154,7 @@ def prior_for(model: RotorModel, names: Sequence[str]) -> Prior:
         if not s > 0:
             raise ModelError(f"parameter '{n}' has no prior scale (nominal {p.nominal:g}): give it through an effect")
         mean.append(m), scale.append(float(s)), low.append(p.bounds[0]), high.append(p.bounds[1])
-    return Prior(list(names), np.array(mean), np.array(scale), np.array(low), np.array(high))
+    return BoundedPrior(list(names), np.array(mean), np.array(scale), np.array(low), np.array(high))
 
 
 @dataclass(frozen=True)
@@ -158,7 +172,7 @@ class PoleModel:
     Examples
     --------
     >>> from twin import load_model, shipped_model
-    >>> from twin.loop.compare import measured_modes
+    >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
     >>> model = load_model(shipped_model("hydro_unit"))
     >>> at = PoleModel(model, measured_modes(synthesize_modes(model, samples=5, seed=1))).at({}, ["runner.m"])
@@ -184,7 +198,7 @@ class PoleModel:
 
     def _partner(self, r: int, values: Mapping[str, float]) -> tuple[ModalSolution, int]:
         """The partner of measured mode ``r`` in the FEM at ``values``: followed by Newton from its last
-        partner (:func:`twin.loop.sensitivity.follow_mode`), or, the first time or when the followed mode
+        partner (:func:`twin.modes.sensitivity.follow_mode`), or, the first time or when the followed mode
         changed shape (MAC on all DOFs below :data:`FOLLOW_MAC`), chosen by pairing cost among all modes."""
         if r in self._followed:
             pole, shape = self._followed[r]
@@ -193,7 +207,7 @@ class PoleModel:
                 self._followed[r] = (sol.poles[0], sol.right[0])
                 return sol, 0
         sol = solve_modes(self.base, values)
-        cost, _ = pairing_cost(self.meas.subset(np.array([r])), sol.poles, sol.right[:, self.dofs])
+        cost, _ = pairing_cost(self.meas.pole[[r]], self.meas.shape[[r]], sol.poles, sol.right[:, self.dofs])
         k = int(np.argmin(cost[0]))
         self._followed[r] = (sol.poles[k], sol.right[k])
         return sol, k
@@ -348,7 +362,7 @@ def fit(
     >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
-    >>> from twin.loop.compare import measured_modes
+    >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
     >>> base = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(base, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1,
@@ -413,7 +427,7 @@ def fit(
                [n for n, b in zip(names, on_bound) if b])  # fmt: skip
 
 
-def _best_start(pm: PoleModel, prior: Prior, u0: np.ndarray, meas: Measured) -> np.ndarray:
+def _best_start(pm: PoleModel, prior: BoundedPrior, u0: np.ndarray, meas: Measured) -> np.ndarray:
     """``u0`` or the point of :data:`START_POINTS` along one shared parameter with the lowest objective."""
     best, best_cost = u0, np.inf
     shared = [k for k, n in enumerate(prior.names) if not PER_MODE_NAME.match(n)]
@@ -454,7 +468,7 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.loop.candidates import add_effects
-    >>> from twin.loop.compare import measured_modes
+    >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
     >>> base = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
@@ -478,7 +492,7 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
             "unit": ("parameter", f.units),
         },
         coords={"parameter": names, "parameter_2": names},
-        attrs={"method": "Laplace approximation of the pole-fit posterior (twin.loop.fit.laplace_update)",
+        attrs={"method": "Laplace approximation of the pole-fit posterior (twin.update.laplace.laplace_update)",
                "chi2_before": f.chi2_before, "chi2_after": f.chi2_after,
                "log_bayes_factor": f.log_bayes_factor, "converged": int(f.converged),
                "at_bound": ", ".join(f.at_bound)},
@@ -489,46 +503,82 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
 
 
 def laplace_file(post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: int | None = 0,
-                 command: str = "") -> xr.DataTree:  # fmt: skip
+                 command: str = "", draws: int = 1000) -> xr.DataTree:  # fmt: skip
     """A Laplace posterior of :func:`laplace_update` of ``model`` in the ``posterior.nc`` layout
     (:func:`twin.update.posterior.laplace_tree`), with the model, its effects and the fit's chi2 in the attrs."""
-    from twin.fem.effects import effect_label
     from twin.update.posterior import laplace_tree
 
     attrs = {"title": f"Laplace posterior of {model.name}", "command": command, "model": model.name,
              "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
              "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
-    return laplace_tree(post, modes, attrs, seed=seed)
+    return laplace_tree(post, modes, attrs, draws=draws, seed=seed)
+
+
+def with_per_mode_fsi(model: RotorModel, labels: Sequence[int]) -> RotorModel:
+    """The model with a zero-valued per-mode FSI effect over modes 1 to ``max(labels)``, if it has none.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> with_per_mode_fsi(load_model(shipped_model("hydro_unit")), [2, 5]).per_mode_effect.n_modes
+    5
+    """
+    if model.per_mode_effect is not None:
+        return model
+    if not any(e.per_mode for e in library_effects(model)):
+        raise ModelError(f"model '{model.name}' has no immersed region for the per-mode FSI")
+    n = int(max(labels))
+    return model.with_effects(FluidAddedMassPerMode((0.0,) * n, (0.0,) * n))
 
 
 def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool = False,
-                      seed: int | None = 0) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
+                      seed: int | None = 0, draws: int = 1000) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
     """The Laplace update of ``names`` (and with ``fsi`` each measured mode's added mass and damping) from the
     measured poles of ``modes``: the model at the MAP, the fit's Dataset (:func:`laplace_update`) and the
-    posterior in the ``posterior.nc`` layout (:func:`laplace_file`).
+    posterior in the ``posterior.nc`` layout (:func:`laplace_file`: ``draws`` draws of the Gaussian, from
+    ``seed``). :func:`twin.update.update` with ``method="laplace"`` returns the last.
 
     Examples
     --------
     >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
-    >>> from twin.loop.candidates import add_effects
-    >>> from twin.loop.fit import laplace_posterior
     >>> from twin.update import synthesize_modes
     >>> base = load_model(shipped_model("hydro_unit"))
     >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
-    >>> updated, fitted, tree = laplace_posterior(add_effects(base, ["magnetic_pull"]), data, ["MAG.stiffness"])
+    >>> updated, fitted, tree = laplace_posterior(base.with_effects(MagneticPull()), data, ["MAG.stiffness"])
     >>> sorted(tree.children), round(updated.parameter("MAG.stiffness").nominal / -1e8, 2)
     (['constant_data', 'observed_data', 'posterior', 'sample_stats'], 1.0)
     """
-    from twin.loop.candidates import free_names, with_effects
-
     meas = measured_modes(modes)
     names = list(names)
     if fsi:
-        if model.per_mode_effect is None:
-            model = with_effects(model, ["fsi_per_mode"], modes)
+        model = with_per_mode_fsi(model, meas.mode)
         names += free_names(model, model.per_mode_effect, meas.mode)
     updated, post = laplace_update(model, meas, names)
-    return updated, post, laplace_file(post, model, modes, seed)
+    return updated, post, laplace_file(post, model, modes, seed, draws=draws)
+
+
+@dataclass(frozen=True)
+class LaplaceOptions:
+    """Options of the Laplace update (:func:`twin.update.update` with ``method="laplace"``).
+
+    Attributes
+    ----------
+    draws : int
+        Draws of the Gaussian posterior written to ``posterior.nc`` (kept inside the physical bounds).
+    seed : int, optional
+        Seed of those draws.
+    """
+
+    draws: int = 1000
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.draws, int) and self.draws >= 1):
+            raise UpdateError(f"draws must be a whole number of at least 1, got {self.draws!r}")
+
+    def settings(self) -> dict:
+        """The options as a JSON-ready dict."""
+        return dataclasses.asdict(self)
