@@ -34,12 +34,12 @@ def main() -> None:
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
     from twin.tasks import blas_threads
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
-    options = dict(fmax_hz=60.0, samples=DEMO_SAMPLES, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * DEMO_SAMPLES,
+    options = dict(fmax_hz=60.0, samples=SAMPLES, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * SAMPLES,
                    progress=False)  # fmt: skip
     runs = {"one BLAS thread (extract)": extract, "BLAS's own threads": extract.__wrapped__}
     best, out = {k: np.inf for k in runs}, {}
@@ -54,7 +54,7 @@ def main() -> None:
     threads = blas_threads()
     lines = ["# Extraction: one BLAS thread against the machine's", "",
              f"Command: `python benchmarks/extract_threads.py --seed {args.seed} --repeat {args.repeat}`; one 20-min "
-             f"record at 256 Hz, fmax 60 Hz, {DEMO_SAMPLES} samples and {SHAPE_SAMPLES_PER_SAMPLE * DEMO_SAMPLES} shape samples; best of "
+             f"record at 256 Hz, fmax 60 Hz, {SAMPLES} samples and {SHAPE_SAMPLES_PER_SAMPLE * SAMPLES} shape samples; best of "
              f"{args.repeat}; BLAS's own threads here: {threads}.", "",
              "| setting | extract [s] |", "| --- | --- |"]  # fmt: skip
     lines += [f"| {name} | {t:.1f} |" for name, t in best.items()]

@@ -8,10 +8,10 @@ the pass count per group, and the calibration of the measured-pole
 uncertainty, chi2 / n of the true model against its own extracted modes over
 the nothing-hidden seeds (about 1 when the uncertainty is honest).
 
-    python benchmarks/loop_suite.py [--workers 2] [--out twin-suite] [--method gibbs|laplace]
+    python benchmarks/loop_suite.py [--workers 2] [--out twin-suite] [--method hmc|laplace]
                                     [--bootstrap R] [--from-table twin-suite/sweep.nc]
 
-About 35 min on 2 cores without the calibration of each scenario's last
+About 20 min on 2 cores without the calibration of each scenario's last
 update (``--bootstrap 0``, as ``results/loop_suite.md`` was measured); the
 loop's default calibration adds 12 simulated records to every scenario whose
 loop updates (about 1 min each on 2 cores, not measured over the suite). ``--method`` is how the loop updates (the APerCEM
@@ -35,7 +35,7 @@ import xarray as xr
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "benchmarks" / "loop_suite.txt"
-RESULTS = {"gibbs": ROOT / "benchmarks" / "results" / "loop_suite.md",
+RESULTS = {"hmc": ROOT / "benchmarks" / "results" / "loop_suite.md",
            "laplace": ROOT / "benchmarks" / "results" / "loop_suite_laplace.md"}
 
 
@@ -77,7 +77,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="twin-suite")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--method", choices=("gibbs", "laplace"), default="gibbs")
+    parser.add_argument("--method", choices=tuple(RESULTS), default="hmc")
     parser.add_argument("--from-table", default=None)
     parser.add_argument("--bootstrap", type=int, default=None, metavar="R",
                         help="records each scenario's last update is calibrated on (twin sweep --bootstrap; default: "
@@ -94,6 +94,7 @@ def main() -> None:
         path = Path(args.from_table)
     table = xr.load_dataset(path)
     method = json.loads(table.attrs.get("settings", "{}")).get("method", "laplace")  # tables before it: Laplace
+    method = {"gibbs": "hmc"}.get(method, method)  # tables whose 'gibbs' ran the HMC sampler
     lines = ["# The twin loop on scenarios it was not tuned to", "",
              f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}{flag}`, i.e. "
              f"`twin sweep --scenarios benchmarks/loop_suite.txt --workers {args.workers} --method {method}{flag}` "

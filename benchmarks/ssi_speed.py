@@ -40,7 +40,7 @@ def timed_extractions(signals, block_rows: int | None, repeat: int, shape_sample
     ``shape_samples``: ``extract``'s (0: the shapes come with the poles' samples)."""
     import twin.extract.ssi as ssi
     from twin.extract import extract
-    from twin.loop.demo import DEMO_SAMPLES
+    from twin.loop.demo import SAMPLES
 
     options = {"shape_block_rows": "auto"} if block_rows is None else {"block_rows": block_rows}
     if shape_samples:
@@ -52,7 +52,7 @@ def timed_extractions(signals, block_rows: int | None, repeat: int, shape_sample
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                out = extract(signals, fmax_hz=60.0, samples=DEMO_SAMPLES, progress=False, **options)
+                out = extract(signals, fmax_hz=60.0, samples=SAMPLES, progress=False, **options)
             best = min(best, time.perf_counter() - t0)
         return best, out
 
@@ -87,9 +87,9 @@ def main() -> None:
     args = ap.parse_args()
     from twin import load_model, shipped_model
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
 
-    shape_samples = SHAPE_SAMPLES_PER_SAMPLE * DEMO_SAMPLES if args.shape_samples is None else args.shape_samples
+    shape_samples = SHAPE_SAMPLES_PER_SAMPLE * SAMPLES if args.shape_samples is None else args.shape_samples
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)

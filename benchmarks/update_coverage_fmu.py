@@ -12,7 +12,7 @@ at once (``seal_cross_coupling+fsi``), all their parameters updated.
 
 Each update is calibrated on ``R`` records simulated at its estimate
 (``Twin.update(bootstrap=R)``, :mod:`twin.loop.bootstrap`; by default the
-loop's :data:`~twin.loop.bootstrap.DEFAULT_RECORDS`, 12) and its draws
+loop's :data:`~twin.defaults.DEFAULT_RECORDS`, 12) and its draws
 un-stretched by the factors, so one run gives both the sampler's own
 posterior ("model" columns) and the loop's calibrated one. With
 ``--bootstrap 0`` there is no calibration and the second column is the sampler's again.
@@ -88,10 +88,10 @@ def loop_extraction(extraction: dict | None) -> dict:
     >>> loop_extraction({"shape_samples": 0})
     {'samples': 15}
     """
-    from twin.loop.demo import DEMO_SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
 
     options = dict(extraction or {})
-    options.setdefault("samples", DEMO_SAMPLES)
+    options.setdefault("samples", SAMPLES)
     if "shape_samples" not in options and not {"blocks", "delete_blocks"} & set(options):
         options["shape_samples"] = SHAPE_SAMPLES_PER_SAMPLE * options["samples"]
     if not options.get("shape_samples", 1):

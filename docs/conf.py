@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import twin
 
 project = "twin"
@@ -10,15 +13,26 @@ release = version = twin.__version__
 copyright = "the twin developers"
 
 extensions = [
-    "myst_parser",
+    "myst_nb",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
     "sphinxarg.ext",
 ]
-source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build"]
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
+
+# The notebooks of notebooks/ are pages of the docs, executed at every build (their outputs are never
+# committed): copied into docs/examples/ (generated, not in git), where they write their output folders.
+EXAMPLES = Path(__file__).parent / "examples"
+EXAMPLES.mkdir(exist_ok=True)
+for notebook in sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb")):
+    shutil.copyfile(notebook, EXAMPLES / notebook.name)
+nb_execution_mode = "force"
+nb_execution_timeout = 900
+nb_execution_raise_on_error = True
+nb_merge_streams = True
+exclude_patterns = ["_build", "examples/*-output"]
 myst_enable_extensions = ["dollarmath", "deflist"]
 myst_heading_anchors = 3
 

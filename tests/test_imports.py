@@ -10,9 +10,9 @@ from tests.conftest import ROOT
 
 PACKAGE = ROOT / "twin"
 #: The stages in the order of the loop; a module may import from its own stage and the ones before it.
-#: ``common`` is what every stage shares (errors, NetCDF, progress, tasks), ``cli`` is on top of all.
+#: ``common`` is what every stage shares (defaults, errors, NetCDF, progress, tasks), ``cli`` is on top of all.
 STAGES = ("common", "fem", "modes", "fmu", "design", "extract", "update", "loop", "cli")
-COMMON = {"errors", "netcdf", "progress", "tasks"}
+COMMON = {"defaults", "errors", "netcdf", "progress", "tasks"}
 MAX_LINES = 600
 
 

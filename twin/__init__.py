@@ -26,11 +26,30 @@ Examples
 
 __version__ = "0.1.0"
 
+import importlib  # noqa: E402
+
 from twin.errors import ModelError, ModelFileError, TwinError  # noqa: E402
-from twin.fem import RotorModel, load_model, shipped_model  # noqa: E402
-from twin.modes import campbell, mac, modal, pair_modes  # noqa: E402
+
+#: The package's names and the modules they come from, imported on first use (PEP 562): ``import twin`` stays
+#: quick, so the ``twin`` command answers ``--help`` and argument errors at once.
+_LAZY = {
+    "RotorModel": "twin.fem", "load_model": "twin.fem", "shipped_model": "twin.fem",
+    "campbell": "twin.modes", "mac": "twin.modes", "modal": "twin.modes", "pair_modes": "twin.modes",
+}  # fmt: skip
 
 __all__ = [
     "ModelError", "ModelFileError", "RotorModel", "TwinError", "__version__",
     "campbell", "load_model", "mac", "modal", "pair_modes", "shipped_model",
 ]  # fmt: skip
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'twin' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})

@@ -72,8 +72,53 @@ def check_writable(path: str | Path, figure: bool = False) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise TwinError(f"cannot write {path}: cannot create folder {path.parent} ({exc.strerror})") from None
-    if not os.access(path.parent, os.W_OK):
-        raise TwinError(f"cannot write {path}: folder {path.parent} is not writable")
+    problem = _unwritable(path.parent)
+    if problem:
+        raise TwinError(f"cannot write {path}: folder {path.parent} is not writable ({problem})")
+    return path
+
+
+def _unwritable(folder: Path) -> str | None:
+    """Why no file can be made in ``folder`` (None if one can): a file made there and removed, which also
+    tells a read-only file system, or a folder the owner may not write, where root's permissions ignore it."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc)
+
+
+def check_folder(path: str | Path, flag: str | None = None, make: bool = False) -> Path:
+    """Check, before any work, that results can be written into the folder ``path`` (made if ``make``).
+
+    Refused with a :class:`~twin.errors.TwinError` naming it (and the option ``flag``, if given): a file
+    there, or a folder (or, when it does not exist yet, the folder it would be made in) that is not writable.
+    A refused command leaves nothing behind, not even an empty folder.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_folder(Path(tmp) / "report").exists(), check_folder(Path(tmp) / "report", make=True).is_dir()
+    (False, True)
+    """
+    path = Path(path)
+    what = f"--{flag} {path}" if flag else f"the folder {path}"
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise TwinError(f"{what} is a file, not a folder" if existing == path else
+                        f"cannot write into {what}: {existing} is a file, not a folder")  # fmt: skip
+    problem = _unwritable(existing)
+    if problem:
+        where = "it is not writable" if existing == path else f"{existing}, where it would be made, is not writable"
+        raise TwinError(f"cannot write into {what}: {where} ({problem})")
+    if make:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise TwinError(f"cannot write into {what}: cannot create it ({exc.strerror})") from None
     return path
 
 
@@ -90,6 +135,11 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     ...     float(xr.load_dataset(p).a.sum())
     3.0
     """
+    empty = [k for k, v in ds.variables.items() if v.size == 0 and {"contiguous", "chunksizes"} & set(v.encoding)]
+    if empty:  # a layout read from a file with data cannot hold none (NetCDF: Invalid argument)
+        ds = ds.copy()
+        for k in empty:
+            ds[k].encoding = {e: v for e, v in ds[k].encoding.items() if e not in ("contiguous", "chunksizes")}
     with atomic_output(path, ".nc.part") as tmp:
         ds.to_netcdf(tmp, engine="netcdf4")
     log.info("wrote %s", path)

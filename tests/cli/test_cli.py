@@ -12,8 +12,8 @@ def test_modal_table(capsys):
     assert main(["modal", "models/hydro_unit.toml"]) == 0
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if line.strip()[:1].isdigit()]
-    assert len(lines) >= 15
-    assert "116 DOF" in out and "134 rpm" in out
+    assert len(lines) == 20  # the first 20 of 112 by default
+    assert "116 DOF" in out and "134 rpm" in out and "the first 20 of 112 modes" in out
 
 
 def test_modal_json(capsys):
@@ -145,6 +145,7 @@ def test_compare_and_diagnose_commands(tmp_path, capsys):
     assert main(["compare", "models/hydro_unit.toml", modes, "--plot", str(tmp_path / "figs")]) == 0
     out = capsys.readouterr().out
     assert "error E = 0.18%" in out and "unweighted RMS 3.42%" in out and "GEN_y" in out
+    assert "E weighs each mode's error by the inverse variance of its measured pole" in out
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["errors.png", "mac.png", "spectra.png"]
     assert main(["diagnose", "models/hydro_unit.toml", modes, "--json", "--workers", "2",  # a local Dask cluster
                  "--candidates", "magnetic_pull,seal_cross_coupling,bearing_change:UGB"]) == 0  # fmt: skip
@@ -153,6 +154,8 @@ def test_compare_and_diagnose_commands(tmp_path, capsys):
     assert report["ranking"][0]["error_after"] < 0.2 * report["error"]
     assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["error"] == pytest.approx(0.001847, rel=1e-3)  # a zero-valued effect changes nothing
+    assert main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_pull", "--scheduler", "sync"]) == 0
+    assert "ln B: the log Bayes factor of the model with the candidate" in capsys.readouterr().out
     assert main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_push"]) == 2
     assert "no candidate effect ['magnetic_push']" in capsys.readouterr().err
 
@@ -231,6 +234,7 @@ def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, 
                  "--seed", "1", "--scheduler", "sync"]) == 0  # fmt: skip  (the default update: the Gibbs sampler)
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
+    assert "updated MAG.stiffness = -" in printed and "an effect is added at zero" in printed
     rounds = json.loads((out / "diagnosis.json").read_text())["rounds"]
     assert [r["verdict"] for r in rounds] == ["missing effect", "nothing missing"]
     steps = read_history(out / "history.csv")
@@ -249,3 +253,15 @@ def test_the_cli_methods_and_sampler_options_are_the_librarys():
     assert METHODS == LIBRARY_METHODS and METHODS[0] == DEFAULT_METHOD
     fields = {f.name for s in SAMPLERS.values() for f in dataclasses.fields(s.options_type)}
     assert set(SAMPLER_OPTIONS) <= fields
+
+
+def test_the_command_starts_without_the_numerical_stack():
+    """``twin --help`` and argument errors answer at once: building the parser imports no numpy, xarray or Dask
+    (benchmarks/startup.py times it)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from twin.cli.parser import build_parser; build_parser(); "
+            "print(sorted(m for m in ('numpy', 'xarray', 'scipy', 'distributed', 'fmpy') if m in sys.modules))")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

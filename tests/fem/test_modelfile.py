@@ -111,14 +111,26 @@ def test_effects_in_model_files(tmp_path):
         _load(tmp_path, BASE + "\n[effects.seal_cross_coupling]\nkxy = 1.0e5\n")
     with pytest.raises(ModelFileError, match="per-mode effect .* truth file"):
         _load(tmp_path, BASE + "\n[regions]\nimmersed = [6]\n\n[effects.fsi_per_mode]\nadded_mass = [1.0]\n")
-    with pytest.raises(ModelFileError, match=r"\[effects.magnetic_pull\]: key 'stiffness': missing key \(the table has 'stifness'"):
+    with pytest.raises(ModelFileError, match=r"\[effects.magnetic_pull\]: key 'stifness': unknown key; did you mean 'stiffness'"):
         _load(tmp_path, text.replace("stiffness = ", "stifness = "))
+    with pytest.raises(ModelFileError, match=r"\[effects.magnetic_pull\]: key 'stiffness': MAG.stiffness = 1e\+05 is outside "
+                                             r"its physical bounds \(<= 0"):  # fmt: skip
+        _load(tmp_path, text.replace("-1.0e5", "1.0e5"))
+    assert _load(tmp_path, text.replace("stiffness = -1.0e5", "")).parameter("MAG.stiffness").nominal == 0.0
 
 
 def test_element_effects_in_model_files(tmp_path):
-    table = '\n[effects.bearing_change]\nbearing = {}\nstiffness = -2.0e5\ndamping = 0.0\n'
+    table = '\n[effects.bearing_change]\nbearing = {}\nstiffness_change = -2.0e5\ndamping_change = 0.0\n'
     model = _load(tmp_path, BASE + table.format('"B6"'))
     assert model.parameter("B6.stiffness_change").nominal == -2.0e5
+    # the label, as twin params and --effect name it, for the table; two bearings at once
+    labelled = '\n[effects."bearing_change:B6"]\nstiffness_change = -2.0e5\n\n[effects."bearing_change:B0"]\ndamping_change = 5.0\n'
+    model = _load(tmp_path, BASE + labelled)
+    assert model.parameter("B6.stiffness_change").nominal == -2.0e5 and model.parameter("B0.damping_change").nominal == 5.0
+    with pytest.raises(ModelFileError, match=r'\[effects."bearing_change:B6"\]: a second table for the effect'):
+        _load(tmp_path, BASE + table.format('"B6"') + labelled)
+    with pytest.raises(ModelFileError, match=r"key 'stiffness': unknown key; did you mean 'stiffness_change'"):
+        _load(tmp_path, BASE + table.format('"B6"').replace("stiffness_change", "stiffness"))
     with pytest.raises(ModelFileError, match=r"\[effects.bearing_change\]: key 'bearing': no bearing named 'B7'.*'B0', 'B6'"):
         _load(tmp_path, BASE + table.format('"B7"'))
     with pytest.raises(ModelFileError, match=r"\[effects.bearing_change\]: key 'bearing'"):

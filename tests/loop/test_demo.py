@@ -15,11 +15,11 @@ from twin.loop.history import read_history
 
 def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     out = tmp_path / "demo"
-    # 10 min instead of 20 and the posterior calibrated on 4 simulated records instead of 12: the same loop at a
-    # fraction of the cost (twin demo runs the default), on twice the reference pull so that it
-    # stands five times above the noise floor of the shorter record. The records run on the default local cluster
+    # 10 min instead of 20: the same loop at a fraction of the cost, on twice the reference pull so that it
+    # stands five times above the noise floor of the shorter record. The posterior is calibrated on the demo's
+    # default records (twin.loop.demo.DEMO_RECORDS), which run on the default local cluster
     assert main(["demo", "--out", str(out), "--duration", "600", "--samples", "10", "--hidden", "magnetic_pull@2",
-                 "--bootstrap", "4", "--workers", "2"]) == 0
+                 "--workers", "2"]) == 0
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
     for name in ("report.md", "signals.nc", "modes.nc", "diagnosis.json", "history.csv", "history.png",

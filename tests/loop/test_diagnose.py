@@ -54,8 +54,8 @@ def test_undetermined_parameter_is_reported_with_its_uncertainty(hydro_unit):
     d = diagnose(hydro_unit, measured_modes(_modes(hydro_unit, [effect])), candidates=["bearing_change:LGB"])
     fit = d.ranking[0]
     k = fit.names.index("LGB.stiffness_change")
-    assert abs(fit.values[k] - effect.stiffness) < 3 * fit.std[k]
-    assert fit.std[k] > 0.1 * abs(effect.stiffness)
+    assert abs(fit.values[k] - effect.stiffness_change) < 3 * fit.std[k]
+    assert fit.std[k] > 0.1 * abs(effect.stiffness_change)
 
 
 def test_no_hidden_effect_no_false_alarm(hydro_unit):

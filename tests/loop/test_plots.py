@@ -45,3 +45,24 @@ def test_modal_spectrum_peaks_at_each_mode_with_the_half_power_width():
     half = f[s >= s.max() / 2]
     assert f[np.argmax(s)] == pytest.approx(f0 * np.sqrt(1 - zeta**2), abs=1e-3)
     assert half[-1] - half[0] == pytest.approx(2 * zeta * f0, rel=0.01)  # the half-power bandwidth
+
+
+def test_the_spectra_of_a_record_are_its_psd_peaking_at_its_modes(tmp_path, make_record):
+    """With the record, spectra.png is what a monitoring engineer reads: each channel's PSD [µm²/Hz], which peaks
+    at the modes the channel sees most, with the identified and the model's modes marked."""
+    import xarray as xr
+
+    from twin.loop.plots import psd_figure, record_psd
+
+    poles = [-0.02 * 2 * np.pi * 2 + 2j * np.pi * 2, -0.01 * 2 * np.pi * 5 + 2j * np.pi * 5]
+    record = make_record(poles, [[1e-6, 0.05e-6j], [0.05e-6, 1e-6]], fs_hz=32.0, duration_s=400.0, seed=2,
+                         channels=["A_x", "A_y"])  # fmt: skip
+    freq, psd, channels = record_psd(record, ["A_x", "A_y", "B_x"], 2.0)  # B_x: not in the record
+    assert channels == ("A_x", "A_y")
+    assert freq[np.argmax(psd[:, 0])] == pytest.approx(2.0, abs=2 * freq[1])
+    assert freq[np.argmax(psd[:, 1])] == pytest.approx(5.0, abs=2 * freq[1])
+    # the PSD integrates to the channel's variance [µm²]
+    assert np.sum(psd[:, 0]) * freq[1] == pytest.approx(1e12 * record["displacement"].values[:, 0].var(), rel=0.05)
+    table = xr.Dataset({"measured_frequency": ("mode", [2.0, 5.0]), "model_frequency": ("mode", [2.1, 4.9])},
+                       coords={"channel": ["A_x", "A_y"]})  # fmt: skip
+    assert psd_figure(record, [table], ["model"], tmp_path / "spectra.png").stat().st_size > 10_000

@@ -132,3 +132,20 @@ def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
     good = _row("missing effect", "magnetic_pull", 0.08, 0.002, {"MAG.stiffness": (-1.05e8, 5e6, -1e8)})
     t = tabulate([("magnetic_pull", 1), ("magnetic_pull", 2)], [row, good], Settings())
     assert t["passed"].values.tolist() == [False, True] and str(t["verdict"].values[0]) == "error"
+
+
+def test_a_sweep_calibrates_on_the_loops_records_not_the_demos(monkeypatch, hydro_unit, tmp_path):
+    import twin.loop.sweep as sw
+    from twin.loop.bootstrap import DEFAULT_RECORDS
+    from twin.loop.demo import DEMO_RECORDS
+
+    asked = []
+
+    def record(*args, **kwargs):
+        asked.append(kwargs["bootstrap"])
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(sw, "run_demo", record)
+    for settings in (Settings(), Settings(bootstrap=3), Settings(method="laplace")):
+        sw.run_scenario(("magnetic_pull", 1), hydro_unit, str(tmp_path), settings)
+    assert asked == [DEFAULT_RECORDS, 3, None] and DEMO_RECORDS < DEFAULT_RECORDS

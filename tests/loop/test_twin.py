@@ -28,7 +28,7 @@ def test_the_loop_brings_the_error_down_and_keeps_the_history(hydro_unit, tmp_pa
     assert float(theta.std()) < 0.005 * 1e8  # 0.2% (the creep gave 3.9%)
     assert float(np.abs(theta.isel(draw=slice(0, 10)) / 1e8 + 1).max()) < 0.02  # no transient after burn-in
     hist = tw.history_table()
-    assert list(hist["action"].values) == ["start", "add magnetic_pull", "update MAG.stiffness"]
+    assert list(hist["action"].values) == ["start", "add magnetic_pull at zero", "update MAG.stiffness"]
     assert hist["error"][1] == pytest.approx(hist["error"][0])  # a zero-valued effect changes nothing
     assert hist["error"][2] < 0.2 * hist["error"][0]  # the error falls by more than 80%
     assert tw.model.parameter("MAG.stiffness").nominal == pytest.approx(-1e8, rel=0.10)

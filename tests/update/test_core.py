@@ -135,6 +135,20 @@ def test_apply_posterior_updates_the_twin(hydro_unit):
         apply_posterior(hydro_unit, post.assign_coords(mode=[0, 1]))
 
 
+def test_a_posterior_estimate_on_or_beyond_a_physical_bound_is_applied_with_a_warning_naming_it(hydro_unit):
+    def post(value):
+        return xr.Dataset({"theta": (("chain", "draw", "parameter"), np.full((1, 2, 1), value))},
+                          coords={"parameter": ["UGB.kxx"]})  # fmt: skip
+
+    with pytest.warns(TwinWarning, match=r"UGB.kxx is on its physical bound, 0 \(bounds \[0, inf\]\)"):
+        assert apply_posterior(hydro_unit, post(0.0)).parameter("UGB.kxx").nominal == 0.0
+    with pytest.warns(TwinWarning, match="UGB.kxx, -5e.07, lies outside its physical bounds"):
+        assert apply_posterior(hydro_unit, post(-5e7)).parameter("UGB.kxx").nominal == 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        apply_posterior(hydro_unit, post(7e8))
+
+
 def test_a_mode_with_samples_below_the_axis_is_updated_and_a_conjugate_mode_refused(hydro_unit, paper_modes, caplog):
     """An extraction's scaled jackknife samples of a heavily damped mode may reach Im <= 0 (FMU record 10445,
     3.5 Hz at 16% damping: 4 of 60): the mean pole is the mode, so the update takes it and says so; a mode

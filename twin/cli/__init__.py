@@ -21,7 +21,7 @@ The parser is :mod:`twin.cli.parser`; the stages' commands are in
 :mod:`twin.cli.stages` (1-3) and :mod:`twin.cli.loop` (4-5). Progress (a
 line per stage, bars for the long ones) goes to stderr when it is a
 terminal, unless ``--quiet``. Errors in the input are reported on one line (``twin: error: ...``) with exit
-status 2, never as a traceback.
+status 2, never as a traceback; an interrupt (Ctrl-C) on one line with status 130.
 """
 
 from __future__ import annotations
@@ -49,15 +49,23 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 def _check_outputs(args) -> None:
-    """Before any work: every command's output file (``-o``) and output folder (``--out``, compare's ``--plot``)."""
-    if getattr(args, "output", None) is not None:
-        from twin.netcdf import check_writable
+    """Before any work: every command's output files (``-o``, ``--history`` and its chart, ``--design``,
+    extract's ``--plot``) and output folders (``--out``, compare's ``--plot``)."""
+    from twin.netcdf import check_folder, check_writable
 
+    if getattr(args, "output", None) is not None:
         check_writable(args.output, figure=args.command == "campbell")
+    if getattr(args, "history", None) is not None:
+        check_writable(args.history)
+        check_writable(Path(args.history).with_suffix(".png"), figure=True)
+    if getattr(args, "design", None) is not None:
+        check_writable(args.design)
+    if getattr(args, "plot", None) is not None and args.command == "extract":
+        check_writable(args.plot, figure=True)
     folders = {"out": getattr(args, "out", None), "plot": args.plot if args.command == "compare" else None}
     for flag, folder in folders.items():
-        if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
-            raise TwinError(f"--{flag} {folder} is a file, not a folder")
+        if folder is not None:
+            check_folder(folder, flag)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -82,6 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TwinError as exc:
         print(f"twin: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: files are written whole or not at all (twin.netcdf.atomic_output)
+        print("\ntwin: interrupted; the files written before are complete, none is half-written", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # output piped into e.g. `head`, which stopped reading
         import os
 

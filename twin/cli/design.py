@@ -6,11 +6,11 @@ import argparse
 import json
 import sys
 
-import numpy as np
-
 
 def observe_text(obs, ident=None) -> str:
     """The observability table (and the identifiability table when given) as text."""
+    import numpy as np
+
     from twin.design.observe import CLUSTER_SIGMAS, cluster_text
 
     ex = json.loads(obs.attrs["excitation"])

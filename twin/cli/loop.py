@@ -9,16 +9,12 @@ import logging
 import sys
 from pathlib import Path
 
-import numpy as np
-
+from twin.defaults import METHODS  # noqa: F401 (what --method takes: twin.update.METHODS)
 from twin.errors import TwinError
 
 log = logging.getLogger("twin")
 
 
-#: What ``--method`` takes: twin.update.METHODS, the update's samplers (the default first) and the Laplace fit.
-#: Literal (importing twin.update here would slow every command's start-up); tests/cli/test_cli.py checks it.
-METHODS = ("hmc", "gibbs", "paper", "laplace")
 #: The ``twin update`` options that go to the sampler's options (twin.update.samplers), by their field names.
 SAMPLER_OPTIONS = ("draws", "chains", "warmup", "seed", "noise_model", "collapsed", "pole_model")
 
@@ -33,12 +29,14 @@ def _update(args: argparse.Namespace) -> int:
     from twin.netcdf import check_writable
     from twin.update import sampler, summary, update
     from twin.update.posterior import write_posterior
+    from twin.update.problem import check_modes
 
     if args.params is None and not args.fsi:
         raise TwinError("nothing to update: give --params and/or --fsi")
     check_writable(args.output)
     modes = read_modes(args.modes)  # a bad modes file fails before a cluster starts
     model = _model_with_effects(args.model, args.effect, modes)
+    check_modes(modes, args.modes)
     if args.method == "laplace":
         return _update_laplace(args, model, modes)
     from twin.progress import stage
@@ -101,6 +99,8 @@ def _model_with_effects(path: str, labels: list[str] | None, modes=None):
 
 
 def _compare(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from twin.modes import read_modes
     from twin.loop.compare import compare
     from twin.loop.report import comparison_text
@@ -119,7 +119,11 @@ def _compare(args: argparse.Namespace) -> int:
     if args.plot:
         from twin.loop.plots import comparison_figures
 
-        for path in comparison_figures(table, args.plot):
+        from twin.errors import SignalError
+        from twin.netcdf import load_netcdf
+
+        signals = None if args.signals is None else load_netcdf(args.signals, "signals", SignalError)
+        for path in comparison_figures(table, args.plot, signals=signals):
             log.info("wrote %s", path)
     if args.json:
         keep = ["measured_frequency", "model_frequency", "frequency_error", "measured_damping_ratio",
@@ -170,9 +174,10 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.loop.demo import run_demo
+    from twin.loop.demo import check_demo, run_demo
 
-    model = load_model(args.model) if args.model else None
+    model, _, _ = check_demo(args.out, load_model(args.model) if args.model else None, args.hidden, args.method,
+                             args.bootstrap)  # before a cluster starts
     with _tasks(args) as client:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
                      samples=args.samples, method=args.method, bootstrap=args.bootstrap, tasks=client)  # fmt: skip
@@ -181,21 +186,28 @@ def _demo(args: argparse.Namespace) -> int:
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
               + (f"; at {d.locations[0].label}" if d.locations and d.verdict == "unexplained" else ""))  # fmt: skip
     if r.posterior is not None:
-        ident = r.identified()
-        for k, name in enumerate(ident["parameter"].values):
-            err = float(ident["relative_error"][k])
-            rhat = float(ident["r_hat"][k])
-            print(f"updated {name} = {float(ident['map'][k]):.4g} ± {float(ident['std'][k]):.2g} {ident['unit'].values[k]}"
-                  f", 90% in {float(ident['q05'][k]):.4g} to {float(ident['q95'][k]):.4g}"
-                  + ("" if np.isnan(rhat) else f", R-hat {rhat:.3f}, ESS {float(ident['ess_bulk'][k]):.0f}")
-                  + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
+        _print_updated(r.identified())
     _print_history(r.twin)
     print(f"{sum(r.timings_s.values()):.0f} s; report: {r.report}")
     return 0
 
 
+def _print_updated(table) -> None:
+    """One line per updated parameter: MAP ± std, the 90% interval, R-hat and ESS (when sampled), the error
+    from the truth (when known: a ``relative_error`` column)."""
+    import numpy as np
+
+    for k, name in enumerate(table["parameter"].values):
+        err = float(table["relative_error"][k]) if "relative_error" in table else np.nan
+        rhat = float(table["r_hat"][k]) if "r_hat" in table else np.nan
+        print(f"updated {name} = {float(table['map'][k]):.4g} ± {float(table['std'][k]):.2g} {table['unit'].values[k]}"
+              f", 90% in {float(table['q05'][k]):.4g} to {float(table['q95'][k]):.4g}"
+              + ("" if np.isnan(rhat) else f", R-hat {rhat:.3f}, ESS {float(table['ess_bulk'][k]):.0f}")
+              + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
+
+
 def _print_history(tw) -> None:
-    from twin.loop.history import interval_text
+    from twin.loop.history import HISTORY_KEY, interval_text
 
     width = max(44, *(len(step.action) for step in tw.history))
     print(f"{'step':>4}  {'action':<{width}} {'error E':>9} {'90% over the posterior':>23} {'chi2':>9}")
@@ -203,6 +215,7 @@ def _print_history(tw) -> None:
         interval = "-" if step.interval is None else interval_text(step.interval) + "%"
         print(f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {interval:>23} "
               f"{float(step.table.attrs['chi2']):>9.1f}")
+    print(f"{HISTORY_KEY}.")
 
 
 def _loop(args: argparse.Namespace) -> int:
@@ -238,6 +251,10 @@ def _loop(args: argparse.Namespace) -> int:
     for k, d in enumerate(tw.diagnoses, start=1):
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else ""))
         print(f"  {d.summary}")
+    if tw.posterior is not None:
+        from twin.loop.demo import posterior_table
+
+        _print_updated(posterior_table(tw.posterior, tw.model))
     _print_history(tw)
     wrote = ["diagnosis.json", "history.csv", "history.png"] + (["posterior.nc"] if tw.posterior is not None else [])
     print(f"wrote {', '.join(str(out / w) for w in wrote)}")

@@ -7,13 +7,23 @@ after the sub-command.
 from __future__ import annotations
 
 import argparse
+import math
 
 from twin import __version__
 from twin.cli import design, loop, stages
-from twin.cli.loop import METHODS
+from twin.defaults import (CHAINS, DEFAULT_RECORDS, DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, DEMO_RECORDS, DRAWS,
+                           GIBBS_BURN_IN, HMC_MIN_WARMUP, HMC_WARMUP, MAX_BATCHES, METHODS, ORDERS_PER_MODE, SAMPLES)
 
-MODEL_HELP = "model file (TOML), or the name of a shipped model (hydro_unit, ross_reference)"
+MODEL_HELP = ("model file (TOML), or the name of a shipped model: hydro_unit (every command), or ross_reference "
+              "(ROSS's test rotor, for checking the FEM: unstable by design and without water, so not for simulate, "
+              "synthesize-modes with the paper's truth, or the loop)")
 MODES_HELP = "modes file (NetCDF: mode x sample x channel, from twin extract or twin synthesize-modes)"
+#: What a truth file is, said where --truth is taken.
+TRUTH_HELP = ("a truth file (TOML: one table per hidden effect, named as twin params names it, its keys the "
+              "parameter names without their owner: [magnetic_pull] stiffness = -2e8 for MAG.stiffness, "
+              "[\"bearing_change:UGB\"] stiffness_change = -1e8 for UGB.stiffness_change; values outside the "
+              "physical bounds twin params lists are refused), 'paper' (the reference paper's Table 2 per-mode FSI) "
+              "or 'none' (the model as it is)")
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -34,6 +44,31 @@ def _common() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress display (bars and stage lines); results and errors are still printed")
     return p
+
+
+#: Modes ``twin modal`` lists by default, lowest first (a FEM has many more, up to kHz).
+MODAL_MODES = 20
+
+
+def number(kind: type = float, low: float = 0.0, strict: bool = False):
+    """An argparse ``type``: a ``kind`` number at least ``low`` (above it when ``strict``), else a one-line error."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
+        if not (value > low if strict else value >= low) or not math.isfinite(value):
+            what = "an integer" if kind is int else "a finite number"
+            raise argparse.ArgumentTypeError(f"must be {what} {'>' if strict else '>='} {low:g}, got {text}")
+        return value
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+#: Non-negative and positive numbers and counts for the options' ``type``.
+NONNEGATIVE, POSITIVE, COUNT, NATURAL = number(), number(strict=True), number(int, 1), number(int, 0)
 
 
 def rows_or_auto(text: str) -> int | str:
@@ -66,11 +101,11 @@ def _add_scheduler(p: argparse.ArgumentParser, what: str, default: str = "local"
     p.add_argument("--scheduler", default=default, metavar="ADDRESS",
                    help=f"where the {what} run as Dask tasks: 'local' (a local cluster of worker processes), "
                         f"a scheduler address such as tcp://host:8786, or 'sync' (in this process)")  # fmt: skip
-    p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
+    p.add_argument("--workers", type=COUNT, default=None, help="workers of the local cluster (default: one per core)")
 
 
 def _add_tolerance(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--tolerance", type=float, default=0.0,
+    p.add_argument("--tolerance", type=NONNEGATIVE, default=0.0,
                    help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
                         "error")  # fmt: skip
 
@@ -88,15 +123,16 @@ def _add_model_and_posterior(p: argparse.ArgumentParser) -> None:
     _add_tolerance(p)
 
 
-def _add_bootstrap(p: argparse.ArgumentParser) -> None:
-    """``--bootstrap``, the calibration of the last update on records simulated at its estimate."""
-    from twin.loop.bootstrap import DEFAULT_RECORDS, MAX_BATCHES
+def _add_bootstrap(p: argparse.ArgumentParser, default: int | None = None) -> None:
+    """``--bootstrap``, the calibration of the last update on records simulated at its estimate (by default on
+    ``default`` records, the loop's :data:`twin.defaults.DEFAULT_RECORDS` when None)."""
+    default = DEFAULT_RECORDS if default is None else default
 
-    p.add_argument("--bootstrap", type=int, default=None, metavar="R",
+    p.add_argument("--bootstrap", type=NATURAL, default=None, metavar="R",
                    help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
                         "(twin.loop.bootstrap; about 12 s a 20-min record on one core; up to "
                         f"{MAX_BATCHES} x R when a mode came out of too few; on the Dask workers, within a sweep "
-                        f"in its scenario's worker); default: {DEFAULT_RECORDS} with --method hmc, none with "
+                        f"in its scenario's worker); default: {default} with --method hmc, none with "
                         "the other methods; 0: none")  # fmt: skip
 
 def _add_method(p: argparse.ArgumentParser, what: str) -> None:
@@ -110,39 +146,37 @@ def _add_method(p: argparse.ArgumentParser, what: str) -> None:
 
 def _add_chain_options(p: argparse.ArgumentParser) -> None:
     """The options every sampler takes (their defaults are the sampler's own: twin.update.samplers)."""
-    p.add_argument("--draws", type=int, default=None, help="draws kept per chain (default: 500)")
-    p.add_argument("--chains", type=int, default=None, help="number of chains (default: 4)")
-    p.add_argument("--warmup", type=int, default=None,
-                   help="iterations per chain before the draws kept (default: the sampler's: 250 warm-up "
-                        "iterations of HMC, 20 burn-in sweeps of the Gibbs samplers)")
-    p.add_argument("--seed", type=int, default=None, help="random seed of the chains (default: fresh entropy)")
+    p.add_argument("--draws", type=COUNT, default=None, help=f"draws kept per chain (default: {DRAWS})")
+    p.add_argument("--chains", type=COUNT, default=None, help=f"number of chains (default: {CHAINS})")
+    p.add_argument("--warmup", type=NATURAL, default=None,
+                   help=f"iterations per chain before the draws kept (default: the sampler's: {HMC_WARMUP} warm-up "
+                        f"iterations of HMC, at least {HMC_MIN_WARMUP}; {GIBBS_BURN_IN} burn-in sweeps of the Gibbs "
+                        "samplers)")  # fmt: skip
+    p.add_argument("--seed", type=NATURAL, default=None, help="random seed of the chains (default: fresh entropy)")
 
 
-def _add_loop_settings(p: argparse.ArgumentParser) -> None:
-    """The demo's record and model options, shared by ``demo`` and ``sweep``."""
-    from twin.loop.demo import DEMO_SAMPLES
-
-    p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
-    p.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="jackknife samples per mode")
+def _add_loop_settings(p: argparse.ArgumentParser, records: int | None = None) -> None:
+    """The demo's record and model options, shared by ``demo`` and ``sweep``; ``records``: the default of
+    ``--bootstrap`` (the loop's when None)."""
+    p.add_argument("--duration", type=POSITIVE, default=1200.0, help="record length [s]")
+    p.add_argument("--samples", type=COUNT, default=SAMPLES, help="jackknife samples per mode")
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
     _add_method(p, "how each round updates the added effects")
-    _add_bootstrap(p)
+    _add_bootstrap(p, records)
 
 
 def _add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
     """The record and its excitation, as ``simulate`` makes it and ``observe`` judges it."""
-    from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD
-
     if duration_required:
-        p.add_argument("--duration", type=float, required=True, help="record length [s]")
+        p.add_argument("--duration", type=POSITIVE, required=True, help="record length [s]")
     else:
-        p.add_argument("--duration", type=float, default=1200.0, help="record length [s]")
-    p.add_argument("--fs", type=float, default=256.0, help="sampling rate [Hz]")
-    p.add_argument("--turbulence", type=float, default=DEFAULT_TURBULENCE_ASD,
+        p.add_argument("--duration", type=POSITIVE, default=1200.0, help="record length [s]")
+    p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate [Hz]")
+    p.add_argument("--turbulence", type=NONNEGATIVE, default=DEFAULT_TURBULENCE_ASD,
                    help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
-    p.add_argument("--noise", type=float, default=0.05,
+    p.add_argument("--noise", type=NONNEGATIVE, default=0.05,
                    help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)")
-    p.add_argument("--noise-std", type=float, default=None,
+    p.add_argument("--noise-std", type=NONNEGATIVE, default=None,
                    help="sensor noise std [m] per sample, instead of --noise (the same sensors on another layout)")
 
 
@@ -150,17 +184,15 @@ def _add_design_inputs(p: argparse.ArgumentParser) -> None:
     """The model, record, truth and parameters ``observe`` and ``sensors`` judge."""
     p.add_argument("model", help=MODEL_HELP)
     _add_record(p, duration_required=False)
-    p.add_argument("--fmax", type=float, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
-    p.add_argument("--truth", default=None,
-                   help="judge a truth with hidden effects instead of the model: a truth file, or 'paper' (default: none)")
+    p.add_argument("--fmax", type=POSITIVE, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
+    p.add_argument("--truth", default=None, help=f"judge a truth with hidden effects instead of the model: {TRUTH_HELP} "
+                                                  "(default: none)")
     p.add_argument("--params", default=None,
                    help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated")
     p.add_argument("--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode")
 
 
 def _add_stages(sub) -> None:
-    from twin.extract.core import ORDERS_PER_MODE
-    from twin.fmu.simulate import DEFAULT_UNBALANCE_ME
 
     p = _command(sub, "modal", "complex modes of a model at a speed",
                  "Frequency, damping ratio, log decrement and whirl of every under-damped mode (the state-space\n"
@@ -168,17 +200,17 @@ def _add_stages(sub) -> None:
                  ["twin modal hydro_unit", "twin modal models/ross_reference.toml --speed 0 --modes 4 --json"],
                  stages._modal)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
-    p.add_argument("--speed", type=float, default=None, help="speed [rpm] (default: the model's running speed)")
-    p.add_argument("--modes", type=int, default=None, help="number of modes to list (default: all)")
+    p.add_argument("--speed", type=NONNEGATIVE, default=None, help="speed [rpm] (default: the model's running speed)")
+    p.add_argument("--modes", type=COUNT, default=MODAL_MODES, help="number of modes, lowest first")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
     p = _command(sub, "campbell", "Campbell diagram of a model over a speed range",
                  "Frequencies of the first modes against speed, forward and backward whirl, with the 1X line.",
                  ["twin campbell hydro_unit -o campbell.png --max-speed 300"], stages._campbell)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
-    p.add_argument("--max-speed", type=float, default=None, help="highest speed [rpm] (default: 2x running speed)")
-    p.add_argument("--points", type=int, default=41, help="number of speeds")
-    p.add_argument("--modes", type=int, default=12, help="number of modes followed")
+    p.add_argument("--max-speed", type=POSITIVE, default=None, help="highest speed [rpm] (default: 2x running speed)")
+    p.add_argument("--points", type=COUNT, default=41, help="number of speeds")
+    p.add_argument("--modes", type=COUNT, default=12, help="number of modes followed")
     p.add_argument("-o", "--output", default="campbell.png", help="figure file (.png, .pdf or .svg)")
 
     p = _command(sub, "params", "the parameters and effects of a model",
@@ -213,7 +245,7 @@ def _add_stages(sub) -> None:
                   "twin sensors hydro_unit --add 1 --candidates 12,16,20 -o unit.toml --design design.nc"],
                  design._sensors)  # fmt: skip
     _add_design_inputs(p)
-    p.add_argument("--add", type=int, required=True, help="number of proximeter pairs (x and y) to add")
+    p.add_argument("--add", type=COUNT, required=True, help="number of proximeter pairs (x and y) to add")
     p.add_argument("--candidates", default=None,
                    help="nodes a pair may go to, comma-separated (default: every node without a sensor)")
     p.add_argument("-o", "--output", required=True, help="model file to write: the model with the added sensors")
@@ -226,10 +258,10 @@ def _add_stages(sub) -> None:
                  stages._export_fmu)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
-    p.add_argument("--fs", type=float, default=256.0, help="sampling rate = 1 / communication step [Hz]")
+    p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate = 1 / communication step [Hz]")
     p.add_argument("--basis", choices=("full", "modal"), default="full",
                    help="the full FEM, or a truncated basis of its modes below --fmax")
-    p.add_argument("--fmax", type=float, default=None,
+    p.add_argument("--fmax", type=POSITIVE, default=None,
                    help="highest mode kept by the modal basis [Hz] (required with --basis modal)")
     p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
 
@@ -241,46 +273,45 @@ def _add_stages(sub) -> None:
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
     _add_record(p, duration_required=True)
-    p.add_argument("--seed", type=int, default=1, help="random seed of turbulence and noise")
-    p.add_argument("--truth", default=None,
-                   help="truth file with hidden effects, or 'paper' (the paper's Table 2 FSI) (default: none, the "
-                        "model as it is)")  # fmt: skip
-    p.add_argument("--unbalance", type=float, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]")
+    p.add_argument("--seed", type=NATURAL, default=1, help="random seed of turbulence and noise")
+    p.add_argument("--truth", default=None, help=f"what the truth hides: {TRUTH_HELP} (default: none)")
+    p.add_argument("--unbalance", type=NONNEGATIVE, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]")
     p.add_argument("--basis", choices=("full", "modal"), default="full",
                    help="the full FEM, or a truncated basis of its modes below --fmax")
-    p.add_argument("--fmax", type=float, default=None,
+    p.add_argument("--fmax", type=POSITIVE, default=None,
                    help="highest mode of the modal basis [Hz] (required with --basis modal)")
 
     p = _command(sub, "extract", "automated modal extraction (SSI-cov) from signals to mode samples",
                  "Covariance-driven stochastic subspace identification over model orders, a stabilisation\n"
                  "diagram cleared automatically, harmonics of the running speed rejected; each mode's\n"
                  "uncertainty from jackknife samples over blocks of the record (modes.nc).",
-                 ["twin extract signals.nc -o modes.nc --samples 15 --fmax 110 --plot stabilisation.png"],
+                 ["twin extract signals.nc -o modes.nc --fmax 60 --plot stabilisation.png"],
                  stages._extract)  # fmt: skip
     p.add_argument("signals", help="signals file (NetCDF, time x channel, from twin simulate or a measurement)")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
-    p.add_argument("--samples", type=int, default=100, help="samples per mode J")
-    p.add_argument("--blocks", type=int, default=None,
+    p.add_argument("--samples", type=COUNT, default=SAMPLES,
+                   help="jackknife samples per mode J, one per block left out (blocks of the record / J)")
+    p.add_argument("--blocks", type=COUNT, default=None,
                    help="blocks the record is cut into (default: --samples; with --delete-half it may be fewer)")
-    p.add_argument("--fmax", type=float, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
-    p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency [Hz]")
-    p.add_argument("--block-rows", type=int, default=None,
+    p.add_argument("--fmax", type=POSITIVE, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
+    p.add_argument("--fmin", type=NONNEGATIVE, default=0.0, help="lowest frequency [Hz]")
+    p.add_argument("--block-rows", type=COUNT, default=None,
                    help="Hankel block rows the poles are read at (default: from fmax)")
     p.add_argument("--shape-block-rows", type=rows_or_auto, default=0,
                    help="block rows of a second pass every mode's shapes are read at (default 0: none, the "
                         "shapes come with the poles); auto: the slow modes' shapes at lags over 1.5 periods of "
                         "the slowest")
-    p.add_argument("--first-lag", type=int, default=None,
+    p.add_argument("--first-lag", type=COUNT, default=None,
                    help="lag the covariance Hankel matrix starts at, in samples (default: the first at or beyond "
                         "one period of fmax; 1: the textbook matrix)")
-    p.add_argument("--differenced-above", type=float, default=None, metavar="HZ",
+    p.add_argument("--differenced-above", type=POSITIVE, default=None, metavar="HZ",
                    help="read the modes above this frequency [Hz] from a second pass over the record differenced "
                         "twice, where the slow, strong modes no longer fill the covariances (default: none)")
-    p.add_argument("--shape-samples", type=int, default=None, metavar="M",
+    p.add_argument("--shape-samples", type=COUNT, default=None, metavar="M",
                    help="draw the shape samples from M random halves of the blocks (a multiple of --samples), "
                         "the poles keeping their own samples, each used M / samples times (default: the shapes "
                         "come with the poles)")
-    p.add_argument("--max-order", type=int, default=100, help="largest model order")
+    p.add_argument("--max-order", type=COUNT, default=100, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
     p.add_argument("--delete-half", action="store_true",
@@ -290,7 +321,7 @@ def _add_stages(sub) -> None:
                    help="add each mode's model-order error to the shape samples (the standard error of the "
                         "shape's mean over its orders; the default), to the pole samples too (their spread over "
                         "the orders: all) or to neither (none)")
-    p.add_argument("--orders-per-mode", type=int, default=ORDERS_PER_MODE,
+    p.add_argument("--orders-per-mode", type=NATURAL, default=ORDERS_PER_MODE,
                    help=f"average each mode over this many of its lowest settled model orders (default "
                         f"{ORDERS_PER_MODE}; 0: all of them)")
     p.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
@@ -304,10 +335,10 @@ def _add_stages(sub) -> None:
                  ["twin synthesize-modes hydro_unit -o modes.nc --samples 100 --seed 7"], stages._synthesize_modes)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP + ", the calibrated FEM")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
-    p.add_argument("--truth", default="paper", help="truth file with hidden effects, or 'paper' (the paper's Table 2 FSI)")
-    p.add_argument("--samples", type=int, default=100, help="samples per mode J")
-    p.add_argument("--seed", type=int, default=1, help="random seed")
-    p.add_argument("--modes", type=int, default=None,
+    p.add_argument("--truth", default="paper", help=f"what the truth hides: {TRUTH_HELP}")
+    p.add_argument("--samples", type=COUNT, default=100, help="samples per mode J")
+    p.add_argument("--seed", type=NATURAL, default=1, help="random seed")
+    p.add_argument("--modes", type=COUNT, default=None,
                    help="number of modes, for a truth without per-mode effect (default: the truth's per-mode count, "
                         "or every lightly damped mode of the model)")  # fmt: skip
 
@@ -355,9 +386,13 @@ def _add_loop(sub) -> None:
     _add_model_and_posterior(p)
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="write the figures (errors, MAC, spectra) into the folder DIR (created if missing)")
+    p.add_argument("--signals", default=None, metavar="FILE",
+                   help="with --plot: the record the modes came from (signals.nc), for spectra.png as its power "
+                        "spectral density per channel with the identified and the model modes marked (default: the "
+                        "modal spectra rebuilt from the modes)")  # fmt: skip
     p.add_argument("--history", default=None, metavar="FILE",
                    help="append this comparison's error as one row of the CSV file FILE (created if missing), and "
-                        "redraw the error chart FILE.png beside it")  # fmt: skip
+                        "redraw the error chart beside it, FILE with the suffix .png (history.csv: history.png)")  # fmt: skip
     p.add_argument("--step", default=None, help="name of the step in the history (default: from --effect/--posterior)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
@@ -383,7 +418,7 @@ def _add_loop(sub) -> None:
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
     _add_method(p, "how each round updates the added effects")
     _add_bootstrap(p)
-    p.add_argument("--rounds", type=int, default=4, help="rounds at most")
+    p.add_argument("--rounds", type=COUNT, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--effect", action="append", default=None, metavar="LABEL",
                    help="add a library effect to the model first; repeatable")
@@ -403,8 +438,8 @@ def _add_loop(sub) -> None:
                         "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
                         "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
                         "or none")  # fmt: skip
-    p.add_argument("--seed", type=int, default=1, help="seed of turbulence and noise")
-    _add_loop_settings(p)
+    p.add_argument("--seed", type=NATURAL, default=1, help="seed of turbulence and noise")
+    _add_loop_settings(p, DEMO_RECORDS)
     # the calibration's records (twin.loop.bootstrap) take most of the demo's time: on a local cluster by default
     _add_scheduler(p, "candidate fits and calibration records")
 

@@ -7,8 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from twin.errors import TwinError
 
 
@@ -17,7 +15,8 @@ def _modal(args: argparse.Namespace) -> int:
     from twin.modes import modal
 
     model = load_model(args.model)
-    ds = modal(model, speed_rpm=args.speed, n_modes=args.modes)
+    every = modal(model, speed_rpm=args.speed)
+    ds = every.isel(mode=slice(0, args.modes))
     modes = [
         {
             "mode": int(ds.mode[i]),
@@ -36,8 +35,9 @@ def _modal(args: argparse.Namespace) -> int:
         out = {"model": model.name, "n_dof": model.n_dof, "speed_rpm": ds.attrs["speed_rpm"], "modes": modes}
         print(json.dumps(out, indent=2))
         return 0
-    print(f"{model.name}: {model.n_dof} DOF, {ds.attrs['speed_rpm']:g} rpm, {len(modes)} modes"
-          f" ({ds.attrs['n_overdamped']} over-damped eigenvalues not listed)")  # fmt: skip
+    shown = "" if len(modes) == every.sizes["mode"] else f"the first {len(modes)} of "
+    print(f"{model.name}: {model.n_dof} DOF, {ds.attrs['speed_rpm']:g} rpm, {shown}{every.sizes['mode']} modes"
+          f" ({ds.attrs['n_overdamped']} over-damped eigenvalues not listed" + ("; --modes N for more)" if shown else ")"))  # fmt: skip
     print(f"{'mode':>4}  {'f [Hz]':>10}  {'fn [Hz]':>10}  {'zeta [%]':>8}  {'log dec':>8}  {'whirl':<8}  stable")
     for m in modes:
         print(f"{m['mode']:>4}  {m['frequency_hz']:>10.4f}  {m['natural_frequency_hz']:>10.4f}  "
@@ -47,6 +47,8 @@ def _modal(args: argparse.Namespace) -> int:
 
 
 def _campbell(args: argparse.Namespace) -> int:
+    import numpy as np
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -86,10 +88,14 @@ def _simulate(args: argparse.Namespace) -> int:
     from twin.fmu.simulate import simulate
 
     model = load_model(args.model)
+    from twin.progress import stage
+
     truth = None if args.truth is None else load_truth(args.truth, model)
-    simulate(model, duration_s=args.duration, fs_hz=args.fs, seed=args.seed, truth=truth,
-             turbulence_asd=args.turbulence, unbalance_me=args.unbalance, noise_ratio=args.noise,
-             noise_std_m=args.noise_std, basis=args.basis, fmax_hz=args.fmax, output=args.output, command=" ".join(sys.argv))  # fmt: skip
+    with stage(f"simulate {args.duration:g} s of {model.name} at {args.fs:g} Hz through its FMU (FMPy)"):
+        simulate(model, duration_s=args.duration, fs_hz=args.fs, seed=args.seed, truth=truth,
+                 turbulence_asd=args.turbulence, unbalance_me=args.unbalance, noise_ratio=args.noise,
+                 noise_std_m=args.noise_std, basis=args.basis, fmax_hz=args.fmax, output=args.output,
+                 command=" ".join(sys.argv))  # fmt: skip
     print(f"wrote {args.output}")
     return 0
 
@@ -118,6 +124,8 @@ def _extract(args: argparse.Namespace) -> int:
         print(f"{int(ds.mode[k]):>4}  {float(ds.frequency[k]):>9.4f}  {float(ds.frequency_se[k]):>7.4f}  "
               f"{100 * float(ds.damping_ratio[k]):>8.3f}  {100 * float(ds.damping_ratio_se[k]):>6.3f}  "
               f"{float(ds.MPC[k]):>5.2f}  {float(ds.MPD[k]):>5.1f}")  # fmt: skip
+    print("se: standard error of the mean over the samples; MPC: modal phase collinearity (1 for a standing mode, "
+          "0 for a circular whirl seen by an x-y pair); MPD: mean phase deviation [deg] (0 standing, 45 circular)")
     if plot is not None:
         import matplotlib
 
@@ -147,6 +155,8 @@ def _synthesize_modes(args: argparse.Namespace) -> int:
 
 def _params(args: argparse.Namespace) -> int:
     """``twin params``: the names ``--params`` and ``--effect`` take, with values, units and bounds."""
+    import numpy as np
+
     from twin.cli.loop import _model_with_effects
     from twin.fem.effects import describe, effect_label
     from twin.loop.candidates import library

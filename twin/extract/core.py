@@ -21,6 +21,7 @@ import scipy.signal as sig
 import xarray as xr
 
 from twin import __version__
+from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
 from twin.extract.harmonics import remove_running_harmonics
@@ -52,8 +53,6 @@ DEFAULT_FMIN_FRACTION = 0.01
 MIN_CYCLES = 100
 #: Each jackknife block must be this many times longer than the largest lag.
 MIN_BLOCK_LAGS = 2.0
-#: A mode is the average of its poles at this many model orders (at most).
-ORDERS_PER_MODE = 8
 #: A cluster's poles farther than this many robust std from its median pole are not used (unconverged orders).
 OUTLIER_MADS = 3.0
 #: What the model-order spread is added to (``extract(order_spread=...)``): the default first.
@@ -89,7 +88,7 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
 def extract(
     signals: xr.Dataset | str | Path,
     *,
-    samples: int = 100,
+    samples: int = SAMPLES,
     fmax_hz: float | None = None,
     fmin_hz: float = 0.0,
     block_rows: int | None = None,
@@ -116,9 +115,9 @@ def extract(
     signals : xarray.Dataset or path
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
     samples : int
-        Samples per mode: each comes from the record without
-        ``delete_blocks`` of its ``blocks`` (delete-d jackknife, see
-        :mod:`twin.extract.samples`).
+        Samples per mode (default :data:`twin.defaults.SAMPLES`): each comes
+        from the record without ``delete_blocks`` of its ``blocks``
+        (delete-d jackknife, see :mod:`twin.extract.samples`).
     fmax_hz : float, optional
         Highest frequency of interest [Hz] (default 40% of the sampling rate).
         The record is decimated to about ``2.5 fmax``.
@@ -266,6 +265,11 @@ def extract(
     fmax = DEFAULT_FMAX_FRACTION * rec.fs_hz if fmax_hz is None else float(fmax_hz)
     if not 0 < fmax <= nyquist:
         raise SignalError(f"{source}: fmax = {fmax:g} Hz must be positive and at most Nyquist ({nyquist:g} Hz)")
+    if fmax > DEFAULT_FMAX_FRACTION * rec.fs_hz * (1 + 1e-9):
+        warnings.warn(f"{source}: fmax = {fmax:g} Hz is above {DEFAULT_FMAX_FRACTION:.0%} of the sampling rate "
+                      f"({DEFAULT_FMAX_FRACTION * rec.fs_hz:g} Hz): modes near Nyquist are seen with few samples per "
+                      "period and through the anti-alias filter's roll-off; their estimates are poor", TwinWarning,
+                      stacklevel=2)  # fmt: skip
     if not 0 <= fmin_hz < fmax:
         raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
     if max_order < 2:
@@ -307,9 +311,12 @@ def extract(
     block_len = y.shape[0] // n_blocks
     lags = hankel_max_lag(i, k0)
     if block_len < MIN_BLOCK_LAGS * lags:
+        most = y.shape[0] // int(MIN_BLOCK_LAGS * lags)
+        fix = (f"ask for fewer samples or blocks (at most {most})" if most >= 2 else
+               "the record is too short for a jackknife of two blocks: give a longer record, a higher fmin or fewer "
+               "block rows")  # fmt: skip
         raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows "
-                          f"from lag {k0}: each block needs {MIN_BLOCK_LAGS * lags / fs:g} s; ask for fewer samples "
-                          f"or blocks (at most {y.shape[0] // int(MIN_BLOCK_LAGS * lags)})")  # fmt: skip
+                          f"from lag {k0}: each block needs {MIN_BLOCK_LAGS * lags / fs:g} s; {fix}")  # fmt: skip
 
     log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
              source, n_ch, rec.duration_s, fs, i, k0, max_order)  # fmt: skip

@@ -239,7 +239,9 @@ class BearingChange:
 
     Wear, a changed clearance or oil temperature, or re-shimming change a
     guide bearing's coefficients. The change is added to ``kxx``, ``kyy``
-    (``stiffness``) and ``cxx``, ``cyy`` (``damping``) of the named bearing.
+    (``stiffness_change``) and ``cxx``, ``cyy`` (``damping_change``) of the
+    named bearing: the parameters ``<bearing>.stiffness_change`` and
+    ``<bearing>.damping_change``.
     """
 
     key: ClassVar[str] = "bearing_change"
@@ -250,8 +252,8 @@ class BearingChange:
         "the guide bearing is softer or stiffer than modelled (wear, clearance, oil temperature)"
     )
     bearing: str = ""
-    stiffness: float = 0.0  # N/m, added to kxx and kyy
-    damping: float = 0.0  # N s/m, added to cxx and cyy
+    stiffness_change: float = 0.0  # N/m, added to kxx and kyy
+    damping_change: float = 0.0  # N s/m, added to cxx and cyy
 
     def parameters(self, model) -> list[Parameter]:
         """``<bearing>.stiffness_change`` and ``<bearing>.damping_change`` on the bearing's x, y."""
@@ -260,9 +262,9 @@ class BearingChange:
         k = min(_element_value(model, b.name, key, b.coefficients[key]) for key in ("kxx", "kyy"))
         c = min(_element_value(model, b.name, key, b.coefficients[key]) for key in ("cxx", "cyy"))
         return [
-            Parameter(f"{b.name}.stiffness_change", self.stiffness, "N/m", (Term("K", dofs, np.eye(2)),),
+            Parameter(f"{b.name}.stiffness_change", self.stiffness_change, "N/m", (Term("K", dofs, np.eye(2)),),
                       f"change of {b.name}'s direct stiffness kxx and kyy", bounds=(-max(k, 0.0), np.inf)),
-            Parameter(f"{b.name}.damping_change", self.damping, "N s/m", (Term("C", dofs, np.eye(2)),),
+            Parameter(f"{b.name}.damping_change", self.damping_change, "N s/m", (Term("C", dofs, np.eye(2)),),
                       f"change of {b.name}'s direct damping cxx and cyy", bounds=(-max(c, 0.0), np.inf)),
         ]  # fmt: skip
 
@@ -287,13 +289,13 @@ class ThrustTilt:
         "the thrust pads resist tilting of the collar more or less than modelled (load, pad wear)"
     )
     thrust: str = ""
-    k_tilt: float = 0.0  # N m/rad, added to the thrust's tilt stiffness
+    k_tilt_change: float = 0.0  # N m/rad, added to the thrust's tilt stiffness
 
     def parameters(self, model) -> list[Parameter]:
         """``<thrust>.k_tilt_change`` on the thrust node's alpha, beta."""
         t = _element(model, "thrust", self.thrust)
         k = _element_value(model, t.name, "k_tilt", t.k_tilt)
-        return [Parameter(f"{t.name}.k_tilt_change", self.k_tilt, "N m/rad",
+        return [Parameter(f"{t.name}.k_tilt_change", self.k_tilt_change, "N m/rad",
                           (Term("K", node_dofs(t.node)[2:], np.eye(2)),),
                           f"change of {t.name}'s tilt stiffness", bounds=(-max(k, 0.0), np.inf))]  # fmt: skip
 

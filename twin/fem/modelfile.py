@@ -19,6 +19,7 @@ and the key. The format (see ``models/hydro_unit.toml`` for a full example)::
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -28,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.errors import ModelFileError
-from twin.fem.effects import EFFECTS, effect_fields
+from twin.fem.effects import EFFECTS, effect_fields, effect_label
 from twin.fem.elements import BEARING_COEFFICIENTS, Bearing, Disk, Material, ShaftElement, ThrustBearing
 from twin.fem.model import RotorModel, Sensor
 
@@ -266,13 +267,35 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
     rayleigh = _read_damping(top)
-    effects = _read_effects(top, regions, element_names(bearings, thrusts))
+    tables: list[str] = []
+    effects = _read_effects(top, regions, element_names(bearings, thrusts), tables)
     top.finish()
-    return RotorModel(
+    model = RotorModel(
         name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
-        speed_rpm=speed_rpm, regions=regions, effects=effects, rayleigh=rayleigh, source=source,
+        speed_rpm=speed_rpm, regions=regions, effects=(), rayleigh=rayleigh, source=source,
         description=description,
     )  # fmt: skip
+    check_effect_bounds(effects, model, source, tables)
+    return model.with_effects(*effects)
+
+
+def check_effect_bounds(effects: Sequence, model, path: str, tables: Sequence[str]) -> None:
+    """Refuse effect values outside their parameters' physical bounds, naming the file, table and key.
+
+    A magnetic pull is not positive, added mass and damping are not negative, a
+    bearing change leaves the bearing's coefficient non-negative
+    (:attr:`twin.fem.parameters.Parameter.bounds`, as ``twin params`` lists them).
+    """
+    for effect, table in zip(effects, tables):
+        for p in effect.parameters(model):
+            if p.within(p.nominal):
+                continue
+            key = p.name.split(".", 1)[1]
+            if effect.per_mode:  # FSI.added_mass_3: entry 3 of added_mass
+                key = key.rsplit("_", 1)[0]
+            raise ModelFileError(path, table, key,
+                                 f"{p.name} = {p.nominal:.4g} is outside its physical bounds ({p.bounds_text()}: "
+                                 f"{p.description})")  # fmt: skip
 
 
 def _read_materials(top: _Table) -> dict[str, Material]:
@@ -389,9 +412,11 @@ def element_names(bearings, thrusts) -> dict[str, list[str]]:
     return {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
 
 
-def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]]) -> list:
+def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]],
+                  tables_read: list[str]) -> list:  # fmt: skip
     tables = _Table(top.path, "[effects]", top._get("effects", {}))
-    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements)
+    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements,
+                              tables_read=tables_read)  # fmt: skip
 
 
 def read_effect_tables(
@@ -400,29 +425,42 @@ def read_effect_tables(
     prefix: str = "",
     per_mode_allowed: bool = True,
     elements: Mapping[str, Sequence[str]] | None = None,
+    tables_read: list[str] | None = None,
 ) -> list:
-    """Effects from tables keyed by effect name (``[prefix + key]``), validated against :data:`EFFECTS`.
+    """Effects from tables keyed by effect label (``[prefix + label]``), validated against :data:`EFFECTS`.
 
-    ``elements`` maps ``"bearing"`` and ``"thrust"`` to the model's element
-    names, against which element effects (``bearing = "LGB"``) are checked.
+    A table is named as ``twin params`` and ``--effect`` name the effect: ``[magnetic_pull]``, or, for an
+    element effect, ``["bearing_change:UGB"]`` (quoted: TOML keys hold no colon otherwise; the older
+    ``[bearing_change]`` with ``bearing = "UGB"`` is read too). Its keys are the effect's parameter names
+    without their owner (``stiffness`` for ``MAG.stiffness``, ``stiffness_change`` for
+    ``UGB.stiffness_change``); a value left out is zero (no change). ``elements`` maps ``"bearing"`` and
+    ``"thrust"`` to the model's element names, against which element effects are checked.
+    ``tables_read``, if given, gets each effect's table name, for the messages of later checks.
     """
     out = []
     for key in tables.data:
         tables.used.add(key)
-        if key not in EFFECTS:
-            close = difflib.get_close_matches(key, EFFECTS, n=1)
+        base, _, element = key.partition(":")
+        if base not in EFFECTS:
+            close = difflib.get_close_matches(base, EFFECTS, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(EFFECTS)}"
             raise tables.error(key, f"unknown effect{hint}")
-        cls = EFFECTS[key]
-        t = _Table(tables.path, f"[{prefix}{key}]", tables.data[key])
+        cls = EFFECTS[base]
+        t = _Table(tables.path, f"[{prefix}{key}]" if ":" not in key else f'[{prefix}"{key}"]', tables.data[key])
+        if element and cls.element is None:
+            raise t.error(None, f"effect '{base}' acts on a region, not on a named element: call the table [{prefix}{base}]")
         if cls.per_mode and not per_mode_allowed:
             raise t.error(None, "a per-mode effect is not a single FEM; it belongs in a truth file")
         if cls.region is not None and cls.region not in regions:
             raise t.error(None, f"effect '{key}' acts on region '{cls.region}', which [regions] does not declare")
         values = {}
+        defaults = {fd.name: fd.default for fd in dataclasses.fields(cls)}
         for name, kind in effect_fields(cls).items():
             if kind is str:
-                values[name] = t.string(name)
+                if element and name in t.data and t.data[name] != element:
+                    raise t.error(name, f"{t.data[name]!r} contradicts the table's name, which says {element!r}")
+                values[name] = element if element else t.string(name)
+                t.used.add(name)
                 known = elements.get(cls.element, ()) if elements is not None else None
                 if known is not None and values[name] not in known:
                     raise t.error(name, f"no {cls.element} named {values[name]!r} in the model "
@@ -434,10 +472,15 @@ def read_effect_tables(
                         raise t.error(name, f"expected an array of numbers, got {v!r} in it")
                 values[name] = tuple(float(v) for v in items)
             else:
-                values[name] = t.number(name)
+                values[name] = t.number(name, defaults[name] if defaults[name] is not dataclasses.MISSING else _MISSING)
         t.finish()
         try:
-            out.append(cls(**values))
+            effect = cls(**values)
         except ValueError as exc:
             raise t.error(None, str(exc)) from None
+        if any(effect_label(e) == effect_label(effect) for e in out):
+            raise t.error(None, f"a second table for the effect '{effect_label(effect)}'")
+        out.append(effect)
+        if tables_read is not None:
+            tables_read.append(t.where)
     return out

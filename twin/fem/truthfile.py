@@ -1,13 +1,21 @@
 """Truth files: the effects that make synthetic "measured" data differ from the model.
 
-A truth file is TOML with one table per effect of :mod:`twin.fem.effects`::
+A truth file is TOML with one table per effect of :mod:`twin.fem.effects`,
+named by its label as ``twin params`` and ``--effect`` name it, its keys the
+effect's parameter names without their owner (a value left out is zero)::
 
     [fsi_per_mode]                 # mode i of the truth: FEM altered by (m_i, c_i)
-    added_mass = [1.00e5, 9.83e4, ...]      # kg
-    added_damping = [7.52e7, 1.26e7, ...]   # N s/m
+    added_mass = [1.00e5, 9.83e4, ...]      # kg      FSI.added_mass_<i>
+    added_damping = [7.52e7, 1.26e7, ...]   # N s/m   FSI.added_damping_<i>
 
     [magnetic_pull]
-    stiffness = -2.0e8                      # N/m
+    stiffness = -2.0e8                      # N/m     MAG.stiffness
+
+    ["bearing_change:UGB"]                  # quoted: a TOML key holds no colon otherwise
+    stiffness_change = -1.0e8               # N/m     UGB.stiffness_change
+
+Values outside a parameter's physical bounds (a positive magnetic pull, a
+negative added mass) are refused, naming the file, table and key.
 
 The truth is written into the attrs of every file made from it, so tests can
 check answers; nothing that plays the twin's role may read it.
@@ -22,7 +30,7 @@ from pathlib import Path
 from twin.errors import ModelFileError
 from twin.fem.effects import EFFECTS, FluidAddedMassPerMode, effect_fields, effect_label
 from twin.fem.model import RotorModel
-from twin.fem.modelfile import _Table, element_names, read_effect_tables, read_toml
+from twin.fem.modelfile import _Table, check_effect_bounds, element_names, read_effect_tables, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
 PAPER_TABLE2 = FluidAddedMassPerMode(
@@ -60,6 +68,11 @@ class Truth:
         return json.dumps({"source": self.source, "effects": {effect_label(e): asdict(e) for e in self.effects}})
 
 
+#: Fields of the truth descriptions in files written before the fields took their parameters' names.
+_RENAMED = {("bearing_change", "stiffness"): "stiffness_change", ("bearing_change", "damping"): "damping_change",
+            ("thrust_tilt", "k_tilt"): "k_tilt_change"}  # fmt: skip
+
+
 def truth_from_json(text: str) -> Truth:
     """The truth a file's ``truth`` attr describes (:meth:`Truth.to_json`'s inverse).
 
@@ -82,6 +95,7 @@ def truth_from_json(text: str) -> Truth:
         effects = []
         for label, fields in data["effects"].items():
             cls = known[label.split(":", 1)[0]]
+            fields = {_RENAMED.get((cls.key, k), k): v for k, v in fields.items()}
             kinds = effect_fields(cls)
             effects.append(cls(**{k: tuple(v) if kinds.get(k) is tuple else v for k, v in fields.items()}))
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
@@ -97,7 +111,8 @@ def paper_truth() -> Truth:
 def load_truth(path: str | Path, model: RotorModel) -> Truth:
     """Read and validate a truth file for ``model`` (regions must exist in the model).
 
-    ``path`` may also be ``"paper"`` for :func:`paper_truth`.
+    ``path`` may also be ``"paper"`` for :func:`paper_truth`, or ``"none"`` for no hidden effect (the
+    model as it is, as ``twin demo --hidden none``).
 
     Examples
     --------
@@ -107,13 +122,23 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
     15
     """
     if str(path) == "paper":
+        region = PAPER_TABLE2.region
+        if region not in model.regions:
+            raise ModelFileError("paper", "(truth)", None, f"the paper's truth is per-mode FSI on the region "
+                                 f"'{region}', which model '{model.name}' does not declare: give 'none' or a truth "
+                                 "file of effects this model can take")  # fmt: skip
         return paper_truth()
+    if str(path) == "none":
+        return Truth((), "none (the model as it is)")
     path = Path(path)
     data = read_toml(path)
     elements = element_names(model.bearings, model.thrusts)
-    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions, elements=elements)
+    tables: list[str] = []
+    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions, elements=elements,
+                                 tables_read=tables)  # fmt: skip
     if not effects:
         raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")
     if sum(e.per_mode for e in effects) > 1:
         raise ModelFileError(str(path), "(top level)", None, "at most one per-mode effect")
+    check_effect_bounds(effects, model, str(path), tables)
     return Truth(tuple(effects), str(path))

@@ -19,7 +19,8 @@ import scipy.linalg as sla
 import xarray as xr
 
 from twin import __version__
-from twin.errors import ModelError, TwinError
+from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME  # noqa: F401 (shared with the CLI)
+from twin.errors import ModelError, TwinError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
@@ -31,9 +32,6 @@ from twin.progress import bar
 
 log = logging.getLogger(__name__)
 
-#: Default excitation: turbulence on the runner [N/sqrt(Hz)] and 1X unbalance [kg m].
-DEFAULT_TURBULENCE_ASD = 3000.0
-DEFAULT_UNBALANCE_ME = 100.0  # about balance grade G2.5 for the 600 t generator rotor at 134 rpm
 #: The warm-up lasts this many of the slowest mode's time constants (at most MAX_WARMUP_S).
 WARMUP_TIME_CONSTANTS = 5.0
 MAX_WARMUP_S = 300.0
@@ -164,7 +162,8 @@ def simulate(
                   min(100.0, float(np.max(light.imag)) / (2 * np.pi)) if light.size else 0.0)  # fmt: skip
     if fs_hz < 2.5 * f_interest:
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
-                      f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", stacklevel=2)  # fmt: skip
+                      f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", TwinWarning,
+                      stacklevel=2)  # fmt: skip
     if warmup_s is None:
         warmup_s = default_warmup_s(ss)
     n_warm = int(np.ceil(warmup_s * fs_hz))

@@ -39,8 +39,9 @@ MAX_TARGET_DAMPING = 0.10
 CONTINUATION_STEPS = 6
 
 
-def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
-    """Indices of the lowest ``n`` poles (sorted by frequency) with damping ratio below the limit.
+def target_mode_indices(poles: np.ndarray, n: int | None = None) -> np.ndarray:
+    """Indices of the lowest ``n`` poles (sorted by frequency) with damping ratio below the limit (all of them
+    when ``n`` is None).
 
     Examples
     --------
@@ -49,10 +50,10 @@ def target_mode_indices(poles: np.ndarray, n: int) -> np.ndarray:
     """
     zeta = damping_ratio(poles)
     light = np.nonzero(zeta < MAX_TARGET_DAMPING)[0]
-    if len(light) < n:
-        raise ModelError(f"the truth gives values for {n} modes but the model has only {len(light)} modes "
+    if n is not None and len(light) < n:
+        raise ModelError(f"{n} target modes asked for, but the model has only {len(light)} modes "
                          f"damped less than {MAX_TARGET_DAMPING:.0%}")  # fmt: skip
-    return light[:n]
+    return light if n is None else light[:n]
 
 
 def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
@@ -156,7 +157,7 @@ def truth_modes(model: RotorModel, truth: Truth, n_modes: int | None = None) -> 
     if per_mode is None:
         ss = full_state_space(altered)
         lam, right, left = state_modes(ss.A)
-        targets = target_mode_indices(lam, n_modes or len(lam))
+        targets = target_mode_indices(lam, n_modes)
         return TruthModes(lam[targets], right[targets], left[targets], left[targets] @ ss.B, targets, ss)
     if n_modes not in (None, per_mode.n_modes):
         raise ModelError(f"the truth gives per-mode values for {per_mode.n_modes} modes, not {n_modes}")

@@ -71,11 +71,11 @@ of 6 records simulated at the estimate, of 4 of 6 with the true added mass
 and of 3 of 6 simulated from the truth: the synthesis's mode is harder to
 see with more water on it. So a determined parameter seen on at least one
 record but too few is seen on more: batches of ``R`` further records, up to
-:data:`MAX_BATCHES` in all (a parameter seen on none asks for none).
+:data:`~twin.defaults.MAX_BATCHES` in all (a parameter seen on none asks for none).
 
 A record and its extraction take about 12 s on one core, so this costs
 minutes per update; :meth:`twin.loop.twin.Twin.update` does it by default
-for the sampler's update of extracted modes (:data:`DEFAULT_RECORDS`,
+for the sampler's update of extracted modes (:data:`~twin.defaults.DEFAULT_RECORDS`,
 :func:`records_for`), as do ``twin loop``, ``twin demo`` and ``twin sweep``.
 """
 
@@ -91,6 +91,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.defaults import DEFAULT_RECORDS, MAX_BATCHES  # noqa: F401 (shared with the CLI)
 from twin.errors import TwinError, UpdateError
 from twin.fem.model import RotorModel
 from twin.loop.pooling import MIN_RECORDS, pooled_rms, predictive_widening
@@ -108,13 +109,6 @@ EXTRACT_KEYS = ("samples", "shape_samples", "blocks", "fmin_hz", "fmax_hz", "blo
 MATCH_TOLERANCE = 0.02
 #: A measured mode is the simulated system's mode nearest in frequency only within this fraction of its own.
 PAIR_LIMIT = 0.05
-#: A determined parameter seen on at least one but fewer than :data:`~twin.loop.pooling.MIN_RECORDS` records is seen on more:
-#: further batches of ``records`` are simulated, up to this many batches in all (see :func:`bootstrap_factors`).
-MAX_BATCHES = 3
-#: Records the loop calibrates the sampler's posterior on when not told otherwise (``bootstrap=None``):
-#: the number every calibrated coverage figure was measured with (docs/decisions/loop-calibration.md). About 2 min on
-#: 2 cores for 20-min records at 256 Hz.
-DEFAULT_RECORDS = 12
 
 
 def check_records(records: int | None, method: str) -> None:
@@ -137,7 +131,7 @@ def check_records(records: int | None, method: str) -> None:
 
 
 def records_for(records: int | None, modes: xr.Dataset, method: str) -> int:
-    """The records a calibration runs on: ``records`` as given, or by default (None) :data:`DEFAULT_RECORDS`
+    """The records a calibration runs on: ``records`` as given, or by default (None) :data:`~twin.defaults.DEFAULT_RECORDS`
     for the sampler's update of modes extracted from a record (their attr ``settings`` says how, as
     :func:`twin.extract.extract` writes it) and none otherwise: the Laplace fit, or modes with no record to
     repeat (:func:`twin.update.synthesize_modes`'s).
@@ -392,7 +386,7 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
     records : int
         Records to simulate (each about 12 s on one core for 20 min at 256 Hz, with its extraction). When a
         ``pooled`` parameter's mode came out of at least one of them but of fewer than :data:`~twin.loop.pooling.MIN_RECORDS`,
-        ``records`` more are simulated, up to :data:`MAX_BATCHES` batches in all: a mode the sensors
+        ``records`` more are simulated, up to :data:`~twin.defaults.MAX_BATCHES` batches in all: a mode the sensors
         hardly see may be found in one simulated record of six (per-mode FSI, the 17.1 Hz mode with its
         added mass estimated high), and without a factor its draws would stay uncalibrated.
     seed : int, optional

@@ -63,6 +63,10 @@ log = logging.getLogger(__name__)
 #: What the ``error`` attr of a comparison is (see the module docstring).
 ERROR_DEFINITION = ("RMS over the measured modes of |model pole - measured pole| / |measured pole|, real and "
                     "imaginary parts weighed by the inverse variance of the measured pole")
+#: What E weighs, in a sentence for the tables and reports that show it beside the per-mode errors.
+ERROR_WEIGHTS = ("E weighs each mode's error by the inverse variance of its measured pole: a mode the record "
+                 "determines well counts much, one it hardly determines (a wide error bar) little, so E can be small "
+                 "beside a large error of such a mode; the unweighted RMS weighs every mode alike")
 #: A measured mode whose partner has a MAC below this is reported as one the model cannot reproduce.
 MIN_MAC = 0.5
 

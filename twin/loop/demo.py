@@ -24,25 +24,23 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.defaults import DEMO_RECORDS, SAMPLES  # noqa: F401 (shared with the CLI)
 from twin.design.observe import target_lines
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
 from twin.fem.model import RotorModel
 from twin.loop.bootstrap import check_records
-from twin.loop.compare import PER_MODE_NAME, error_text
-from twin.loop.diagnose import Diagnosis
-from twin.loop.history import INTERVAL_DRAWS, interval_text, write_history
+from twin.loop.compare import ERROR_WEIGHTS, PER_MODE_NAME, error_text
+from twin.loop.diagnose import LN_B_KEY, Diagnosis
+from twin.loop.history import HISTORY_KEY, INTERVAL_DRAWS, interval_text, write_history
 from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.modes.measured import Measured
-from twin.netcdf import atomic_output
+from twin.netcdf import atomic_output, check_folder
 
 log = logging.getLogger(__name__)
 
-#: Jackknife samples per mode of the demo: 80 s blocks of its 20-min record, longer than three time
-#: constants (about 3 x 25 s) of the unit's slowest mode, so the sample spread is honest for every mode.
-DEMO_SAMPLES = 15
 #: Shape samples per pole sample (``extract(shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples)``): the shapes
 #: from 60 random halves of the 15 blocks, enough for their covariance over the 16 real entries of a shape on
 #: 8 sensors without lifting the directions the bearings are read from (docs/decisions/extraction-shape-samples.md).
@@ -190,6 +188,33 @@ class DemoResult:
                            relative_error=("parameter", rel, {"units": "1", "long_name": "MAP / truth - 1"}))  # fmt: skip
 
 
+def check_demo(out: str | Path, model: RotorModel | None, hidden: str, method: str = "hmc",
+               bootstrap: int | None = None) -> tuple[RotorModel, Scenario, Path]:  # fmt: skip
+    """Check the demo's inputs before any work (and before a cluster starts): the model, what is hidden, the
+    method and its calibration, the report folder. Returns the model, the scenario and the (made) folder.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     model, scenario, out = check_demo(tmp, None, "magnetic_pull@2")
+    >>> scenario.labels
+    ('magnetic_pull',)
+    """
+    from twin.fem import load_model
+
+    check_records(bootstrap, method)
+    scenario = parse_scenario(hidden)
+    if model is None:
+        path = default_model_path()
+        if not path.exists():
+            raise TwinError(f"the demo model {path} is not there (an installed copy without the source tree?): "
+                            "give a model file")  # fmt: skip
+        model = load_model(path)
+    scenario.check(model)
+    return model, scenario, check_folder(out)
+
+
 def run_demo(
     out: str | Path = "twin-demo",
     *,
@@ -197,7 +222,7 @@ def run_demo(
     hidden: str = "magnetic_pull",
     duration_s: float = 1200.0,
     fs_hz: float = 256.0,
-    samples: int = DEMO_SAMPLES,
+    samples: int = SAMPLES,
     fmax_hz: float = 60.0,
     seed: int = 1,
     method: str = "hmc",
@@ -235,8 +260,9 @@ def run_demo(
     bootstrap : int, optional
         HMC only: records simulated at the last update's estimate to
         calibrate its spread (:mod:`twin.loop.bootstrap`; about 11 s a 20-min
-        record on one core, on ``tasks``); default
-        :data:`twin.loop.bootstrap.DEFAULT_RECORDS` with the sampler; 0: none.
+        record on one core, on ``tasks``); default :data:`~twin.defaults.DEMO_RECORDS` with
+        the sampler (the loop's default is
+        :data:`twin.defaults.DEFAULT_RECORDS`); 0: none.
     progress : bool
         Progress bars.
     tasks : distributed.Client or mapper, optional
@@ -249,23 +275,15 @@ def run_demo(
     """
     from twin.extract import extract
     from twin.extract.plot import plot_stabilisation
-    from twin.fem import load_model
     from twin.fmu import export_fmu
     from twin.fmu.simulate import simulate
     from twin.loop.plots import _pyplot, comparison_figures
     from twin.progress import stage
 
-    check_records(bootstrap, method)
-    scenario = parse_scenario(hidden)
-    if model is None:
-        path = default_model_path()
-        if not path.exists():
-            raise TwinError(f"the demo model {path} is not there (an installed copy without the source tree?): "
-                            "give a model file")  # fmt: skip
-        model = load_model(path)
-    scenario.check(model)
-    out = Path(out)
+    model, scenario, out = check_demo(out, model, hidden, method, bootstrap)
     out.mkdir(parents=True, exist_ok=True)
+    if bootstrap is None and method == "hmc":
+        bootstrap = DEMO_RECORDS
     timings: dict[str, float] = {}
     with stage("export FMU", timings):
         export_fmu(model, out / f"{model.name}.fmu", step_s=1.0 / fs_hz)
@@ -287,9 +305,9 @@ def run_demo(
     with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
         tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
     if tw.added:
-        comparison_figures([tw.history[0].table, tw.compare()], out, labels=["before", "after"])
+        comparison_figures([tw.history[0].table, tw.compare()], out, labels=["before", "after"], signals=signals)
     else:
-        comparison_figures(tw.history[0].table, out, labels=["model"])
+        comparison_figures(tw.history[0].table, out, labels=["model"], signals=signals)
     tw.plot_history(out / "history.png")
     write_history(tw.history_table(), out / "history.csv")
     truth = truth_for_measured(scenario.truth_values(model), meas, json.loads(modes.attrs.get("truth_modes", "[]")))
@@ -327,7 +345,7 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
               f"harmonics rejected: {rejected}.", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
               "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
     before = tw.history[0].table
-    lines += ["## Model against measurement", "", f"Error {error_text(before)}.", ""]
+    lines += ["## Model against measurement", "", f"Error {error_text(before)}. {ERROR_WEIGHTS}.", ""]
     rows = [[str(int(r["mode"])), f"{float(r.measured_frequency):.4f}", f"{float(r.model_frequency):.4f}",
              f"{100 * float(r.frequency_error):+.2f}", f"{100 * float(r.measured_damping_ratio):.3f}",
              f"{100 * float(r.model_damping_ratio):.3f}", f"{float(r.mac):.3f}"]
@@ -337,8 +355,8 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
               + "; the bars at zero are the measurement's own standard uncertainty:", "", "![errors](errors.png)", "",
               "The MAC of each measured mode against the model modes near the band (red: the model mode paired "
               "with it):", "", "![MAC](mac.png)", "",
-              "Modal spectra per channel: each set of poles and unit-norm shapes with equal unit forcing (the "
-              "measured curve is rebuilt from the identified modes, not from the signals):", "",
+              "The record's power spectral density per channel, with the identified modes (black) and the model's "
+              "partners (dashed) marked:", "",
               "![spectra](spectra.png)", "", "## Diagnosis", ""]  # fmt: skip
     for k, dk in enumerate(tw.diagnoses, start=1):
         lines += [f"Round {k}: **{dk.verdict}**" + (f" ({', '.join(dk.missing)})" if dk.missing else "") + ".", "",
@@ -347,7 +365,7 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     rows = [[str(k), f.label, f"{f.log_bayes_factor:.1f}", f"{100 * f.error_after(meas):.3f}"]
             for k, f in enumerate(d.ranking, start=1)]  # fmt: skip
     lines += _md_table(["rank", "effect", "ln B", "E after fit [%]"], rows)
-    lines += ["", "Why:", ""] + [f"- {d.explanations[f.label]}" for f in d.ranking] + [""]
+    lines += ["", LN_B_KEY + ".", "", "Why:", ""] + [f"- {d.explanations[f.label]}" for f in d.ranking] + [""]
     if result.posterior is not None:
         ident = result.identified()
         lines += ["## Update", "", f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.", ""]
@@ -371,7 +389,7 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     rows = [[str(k), s.action, f"{100 * s.error:.3f}", interval_text(s.interval), f"{float(s.table.attrs['chi2']):.1f}"]
             for k, s in enumerate(tw.history)]  # fmt: skip
     lines += _md_table(["step", "action", "E [%]", "E, 90% over the posterior [%]", "chi2"], rows)
-    lines += ["", f"The interval is E's spread over the update's posterior: E of the model at {INTERVAL_DRAWS} of "
+    lines += ["", f"{HISTORY_KEY}. The interval is E's spread over the update's posterior: E of the model at {INTERVAL_DRAWS} of "
               "its draws (twin.loop.history.error_interval). E is not the density the update fits, so E at the "
               "estimate need not be the interval's least."]  # fmt: skip
     first, last = tw.history[0].error, tw.history[-1].error

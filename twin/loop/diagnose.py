@@ -67,6 +67,11 @@ log = logging.getLogger(__name__)
 Z_LIMIT = 3.0
 #: Log Bayes factor counted as strong evidence (Kass & Raftery: 2 ln B > 6).
 STRONG_EVIDENCE = 3.0
+#: What ``ln B`` means, in a sentence for the tables that show it.
+LN_B_KEY = ("ln B: the log Bayes factor of the model with the candidate against the model without it (the evidence "
+            "of the better fit less the Occam penalty of its parameters over their plausible scales); above "
+            f"{STRONG_EVIDENCE:g} is strong evidence, below 0 the fit does not pay for its parameters; 'N ln-units "
+            "below the best' is the best candidate's ln B less this one's")
 #: Quantile of the χ² law above which residuals are not consistent with the uncertainty.
 CONSISTENCY_QUANTILE = 0.999
 #: Library effects named at most (the stepwise search stops there).

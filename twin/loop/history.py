@@ -37,6 +37,10 @@ COLUMNS = ("step", "action", "error_percent", "chi2", "modes", "error_low_percen
 OLD_COLUMNS = COLUMNS[:5]
 #: Posterior draws the error's interval is computed at (evenly spaced over all chains' draws).
 INTERVAL_DRAWS = 100
+#: What a history's steps and columns mean, in a sentence for the tables that show them.
+HISTORY_KEY = ("Each step is the model after an action: an effect is added at zero, so its step keeps the error until "
+               "the update that sizes it; E is the error of the model's poles (inverse-variance weighted RMS of "
+               "|model pole - measured pole| / |measured pole|), chi2 the sum of the squared z of the poles' parts")
 
 
 def history_dataset(actions: list[str], errors: list[float], chi2: list[float], modes: str = "",
@@ -140,7 +144,8 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
     """The error E after each step, points joined on a log axis, each labelled with its value.
 
     Where the history has ``error_low``/``error_high`` (a 90% interval of E
-    over an update's posterior), they are drawn as error bars.
+    over an update's posterior, which only an update's step has), they are
+    drawn as error bars on those steps, and the legend says which.
     """
     from twin.loop.plots import _pyplot, _save
 
@@ -148,14 +153,14 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 3.4), layout="constrained")
     steps = np.arange(history.sizes["step"])
     errors = 100 * history["error"].values
+    ax.plot(steps, errors, "o-", color="tab:blue", label="E of the model at the step")
     if "error_low" in history and np.isfinite(history["error_low"].values).any():
         low, high = 100 * history["error_low"].values, 100 * history["error_high"].values
-        yerr = np.vstack([np.clip(errors - low, 0, None), np.clip(high - errors, 0, None)])
-        yerr = np.where(np.isfinite(yerr), yerr, 0.0)
-        ax.errorbar(steps, errors, yerr=yerr, fmt="o-", color="tab:blue", capsize=4, label="E (90% interval)")
-        ax.legend(fontsize=8)
-    else:
-        ax.plot(steps, errors, "o-", color="tab:blue")
+        has = np.isfinite(low) & np.isfinite(high)
+        yerr = np.vstack([np.clip(errors - low, 0, None), np.clip(high - errors, 0, None)])[:, has]
+        ax.errorbar(steps[has], errors[has], yerr=yerr, fmt="none", ecolor="tab:orange", capsize=4,
+                    label="90% interval of E over the update's posterior")  # fmt: skip
+    ax.legend(fontsize=8, loc="lower left")
     ax.set_xticks(steps, history["action"].values, rotation=15, fontsize=8)
     ax.set_xlabel("step")
     ax.set_ylabel("error E [%] (log scale)")
@@ -163,6 +168,9 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
     ax.set_title("error of the model against the measured modes, step by step", fontsize=10)
     for k, e in zip(steps, errors):
         ax.annotate(f"{e:.3g}%", (k, e), textcoords="offset points", xytext=(6, 6), fontsize=8)
+    low_y, high_y = ax.get_ylim()
+    ax.set_ylim(low_y / 2, high_y * 3)  # room for the labels under the title and for the legend
+    ax.set_xlim(-0.4, len(steps) - 0.4)
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, Path(path), tight=False)
 

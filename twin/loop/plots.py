@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from twin.netcdf import check_folder
+
 
 def _pyplot():
     import matplotlib
@@ -37,7 +39,7 @@ def modal_spectrum(poles: np.ndarray, shapes: np.ndarray, frequency_hz: np.ndarr
 
 
 def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str | Path, prefix: str = "",
-                       labels: Sequence[str] | None = None) -> list[Path]:  # fmt: skip
+                       labels: Sequence[str] | None = None, signals: xr.Dataset | None = None) -> list[Path]:  # fmt: skip
     """Write ``errors.png``, ``mac.png`` and ``spectra.png`` of one comparison or several side by side.
 
     Parameters
@@ -51,6 +53,10 @@ def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str
         Put before each file name.
     labels : sequence of str, optional
         One per table (default ``model``, or ``model 1, 2, ...``).
+    signals : Dataset, optional
+        The record the modes were identified from (``signals.nc``): ``spectra.png`` is then its power
+        spectral density per channel with the identified and the model frequencies marked
+        (:func:`psd_figure`); without it, the modal spectra rebuilt from the modes (:func:`spectra_figure`).
 
     Examples
     --------
@@ -67,11 +73,11 @@ def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str
     tables = [tables] if isinstance(tables, xr.Dataset) else list(tables)
     if labels is None:
         labels = ["model"] if len(tables) == 1 else [f"model {k}" for k in range(1, len(tables) + 1)]
-    out_dir = Path(directory)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = check_folder(directory, make=True)
     return [error_figure(tables, labels, out_dir / f"{prefix}errors.png"),
             mac_figure(tables, labels, out_dir / f"{prefix}mac.png"),
-            spectra_figure(tables, labels, out_dir / f"{prefix}spectra.png")]  # fmt: skip
+            (spectra_figure(tables, labels, out_dir / f"{prefix}spectra.png") if signals is None else
+             psd_figure(signals, tables, labels, out_dir / f"{prefix}spectra.png"))]  # fmt: skip
 
 
 def _mode_ticks(table: xr.Dataset) -> list[str]:
@@ -167,6 +173,73 @@ def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Pa
     fig.supylabel("Σ|ψ|² / |i2πf − λ|² [s²]")
     fig.suptitle("modal spectra: each set of poles and unit-norm shapes with equal unit forcing\n"
                  "(the measured curve is rebuilt from the identified modes, not the signals' spectrum)", fontsize=9)  # fmt: skip
+    return _save(fig, path)
+
+
+#: Length of the PSD's Welch segments in periods of the slowest identified mode (its resolution: a tenth of it).
+PSD_SEGMENT_PERIODS = 40
+
+
+def record_psd(signals: xr.Dataset, channels: Sequence[str], slowest_hz: float
+               ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:  # fmt: skip
+    """Welch's PSD of the record's ``channels`` (those it has) [µm²/Hz] over frequency [Hz].
+
+    Hann segments of :data:`PSD_SEGMENT_PERIODS` periods of ``slowest_hz`` (a power of two of samples, at
+    most the record), half overlapping. Returns the frequencies, the PSD (frequency x channel) and the channels.
+
+    Examples
+    --------
+    >>> t = np.arange(8192) / 64.0
+    >>> ds = xr.Dataset({"displacement": (("time", "channel"), 1e-6 * np.sin(2 * np.pi * 3.0 * t)[:, None]
+    ...                  + 1e-8 * np.random.default_rng(0).standard_normal((8192, 1)))},
+    ...                 coords={"channel": ["A_x"]}, attrs={"sampling_rate": 64.0})
+    >>> freq, psd, channels = record_psd(ds, ["A_x"], 3.0)
+    >>> float(freq[np.argmax(psd[:, 0])])
+    3.0
+    """
+    import scipy.signal as sg
+
+    from twin.extract.signals import check_record
+
+    have = set(map(str, signals["channel"].values))
+    rec = check_record(signals, "signals", channels=[c for c in channels if c in have])
+    nperseg = min(len(rec.y), int(2 ** np.ceil(np.log2(PSD_SEGMENT_PERIODS * rec.fs_hz / max(slowest_hz, 1e-3)))))
+    freq, psd = sg.welch(rec.y, fs=rec.fs_hz, nperseg=nperseg, axis=0)
+    return freq, 1e12 * psd, rec.channels
+
+
+def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
+    """The measured power spectral density of each channel [µm²/Hz], the identified and the model frequencies marked.
+
+    What a monitoring engineer reads: Welch's PSD of the record (Hann segments of
+    :data:`PSD_SEGMENT_PERIODS` periods of the slowest identified mode, half overlapping), a black line at each
+    identified mode's frequency and a dashed coloured line at each model's partner frequency.
+    """
+    plt = _pyplot()
+    first = tables[0]
+    f_meas = first["measured_frequency"].values
+    f_max = 1.15 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
+    freq, psd, channels = record_psd(signals, [str(c) for c in first["channel"].values], float(f_meas.min()))
+    band = (freq >= 0.5 * float(f_meas.min())) & (freq <= f_max)
+    ncol = 2
+    nrow = int(np.ceil(len(channels) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(9, 1.8 * nrow + 1.0), sharex=True, squeeze=False)
+    for k, c in enumerate(channels):
+        ax = axes.flat[k]
+        ax.loglog(freq[band], psd[band, k], lw=0.8, color="tab:gray", label="measured PSD")
+        for j, f in enumerate(f_meas):
+            ax.axvline(f, color="k", lw=0.7, label="identified modes" if j == 0 else None)
+        for i, (t, label) in enumerate(zip(tables, labels)):
+            for j, f in enumerate(t["model_frequency"].values):
+                ax.axvline(f, color=f"C{i}", lw=1.0, ls=("--", ":", "-.")[i % 3], label=f"{label} modes" if j == 0 else None)
+        ax.set_title(c, fontsize=8)
+    for ax in axes.flat[len(channels):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7)
+    fig.supxlabel("frequency [Hz] (log scale)")
+    fig.supylabel("displacement PSD [µm²/Hz]")
+    fig.suptitle(f"power spectral density per channel (Welch, {freq[1]:.3g} Hz resolution)\n"
+                 "identified modes: black lines; the model's partner modes: dashed", fontsize=9)  # fmt: skip
     return _save(fig, path)
 
 

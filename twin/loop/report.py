@@ -6,8 +6,8 @@ import numpy as np
 import xarray as xr
 
 from twin.design.observe import target_lines
-from twin.loop.compare import error_text
-from twin.loop.diagnose import Diagnosis
+from twin.loop.compare import ERROR_WEIGHTS, error_text
+from twin.loop.diagnose import LN_B_KEY, Diagnosis
 from twin.loop.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
 from twin.modes.measured import Measured
 
@@ -45,6 +45,7 @@ def comparison_text(table: xr.Dataset) -> str:
     lines += target_lines(table.attrs)
     lines.append("shape error per sensor (RMS over modes, unit-norm shapes): " + ", ".join(
         f"{c} {float(v):.3f}" for c, v in zip(table["channel"].values, table["channel_shape_error"].values)))
+    lines.append(ERROR_WEIGHTS + ".")
     lines.append(f"error {error_text(table)}")
     return "\n".join(lines)
 
@@ -70,7 +71,7 @@ def diagnosis_text(d: Diagnosis, meas: Measured) -> str:
             params = f"{len(f.names)} per-mode values"
         lines.append(f"{k:>4} {f.label:<22} {f.log_bayes_factor:>10.1f} {100 * f.error_before(meas):>12.3f} "
                      f"{100 * f.error_after(meas):>11.3f}  {params}")  # fmt: skip
-    lines += ["", "why:"] + [f"  {d.explanations[f.label]}" for f in d.ranking]
+    lines += [LN_B_KEY, "", "why:"] + [f"  {d.explanations[f.label]}" for f in d.ranking]
     return "\n".join(lines)
 
 

@@ -38,9 +38,10 @@ import xarray as xr
 from twin import __version__
 from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
-from twin.loop.demo import DEMO_SAMPLES, run_demo
+from twin.loop.bootstrap import DEFAULT_RECORDS
+from twin.loop.demo import SAMPLES, run_demo
 from twin.loop.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
-from twin.netcdf import check_writable, write_netcdf
+from twin.netcdf import check_folder, check_writable, write_netcdf
 from twin.tasks import mapper
 
 log = logging.getLogger(__name__)
@@ -59,10 +60,10 @@ class Settings:
 
     duration_s: float = 1200.0
     fs_hz: float = 256.0
-    samples: int = DEMO_SAMPLES
+    samples: int = SAMPLES
     fmax_hz: float = 60.0
     method: str = "hmc"
-    bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.records_for)
+    bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.DEFAULT_RECORDS), not the demo's
 
 
 def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:
@@ -148,8 +149,11 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
     with warnings.catch_warnings(record=True) as caught:  # sent back with the summary: a worker's stderr is not ours
         warnings.simplefilter("always")
         try:
+            options = dataclasses.asdict(settings)
+            if options["bootstrap"] is None and options["method"] == "hmc":
+                options["bootstrap"] = DEFAULT_RECORDS
             r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
-                         **dataclasses.asdict(settings))  # fmt: skip
+                         **options)  # fmt: skip
         except Exception as exc:  # one scenario's failure fails that scenario, not the sweep  # noqa: BLE001
             log.exception("scenario %s, seed %d failed", hidden, seed)
             return _failed_row(f"{type(exc).__name__}: {exc}", time.perf_counter() - t0, caught)
@@ -247,8 +251,7 @@ def sweep(
     model = model if model is not None else load_model(default_model_path())
     for h, _ in scenarios:
         parse_scenario(h).check(model)  # a bad spec fails before any work
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_folder(out, make=True)
     check_writable(out / "sweep.nc")
     t0 = time.perf_counter()
     rows = mapper(tasks, progress=progress, desc="scenarios")(

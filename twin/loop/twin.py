@@ -118,7 +118,7 @@ class Twin:
 
         A per-mode effect (``fsi_per_mode``) takes one value per measured mode.
         """
-        step = self._record(f"add {label}", add_effects(self.model, [label], self.measured.mode))
+        step = self._record(f"add {label} at zero", add_effects(self.model, [label], self.measured.mode))
         self.added.append(label)
         return step
 
@@ -155,7 +155,7 @@ class Twin:
         effects again), or after ``max_rounds`` rounds. The last update's
         posterior is then calibrated on records simulated at its estimate, on
         ``tasks`` (:meth:`calibrate`): ``bootstrap=R`` (in ``kwargs``) records,
-        by default :data:`twin.loop.bootstrap.DEFAULT_RECORDS` when the modes
+        by default :data:`twin.defaults.DEFAULT_RECORDS` when the modes
         were extracted from a record and the method is the sampler's
         (:func:`twin.loop.bootstrap.records_for`); ``bootstrap=0``: none.
         ``progress`` draws
@@ -175,7 +175,7 @@ class Twin:
         ...        seed=1).verdict
         'nothing missing'
         >>> [s.action for s in tw.history]  # doctest: +NORMALIZE_WHITESPACE
-        ['start', 'add seal_cross_coupling', 'add magnetic_pull', 'update SEAL.kxy, MAG.stiffness']
+        ['start', 'add seal_cross_coupling at zero', 'add magnetic_pull at zero', 'update SEAL.kxy, MAG.stiffness']
         >>> abs(tw.model.parameter("MAG.stiffness").nominal / -1.5e8 - 1) < 0.10
         True
         """
@@ -225,7 +225,7 @@ class Twin:
         bootstrap : int, optional
             Records to simulate at the posterior's estimate to calibrate its spread
             (:meth:`calibrate`; about 11 s a 20-min record on one core, on ``tasks`` when given); 0: none.
-            Default: :data:`twin.loop.bootstrap.DEFAULT_RECORDS` for the HMC sampler on modes extracted
+            Default: :data:`twin.defaults.DEFAULT_RECORDS` for the HMC sampler on modes extracted
             from a record, none otherwise (:func:`twin.loop.bootstrap.records_for`).
         """
         from twin.update.problem import select_parameters

@@ -148,8 +148,9 @@ def modal(
     False
     """
     speed_rpm = model.speed_rpm if speed_rpm is None else float(speed_rpm)
-    if not np.isfinite(speed_rpm):
-        raise ModelError(f"speed must be a finite number of rpm, got {speed_rpm}")
+    if not (np.isfinite(speed_rpm) and speed_rpm >= 0):
+        raise ModelError(f"speed must be a finite, non-negative number of rpm, got {speed_rpm:g} (the model's "
+                         "spin direction is fixed by its gyroscopic matrix)")  # fmt: skip
     if n_modes is not None and n_modes < 1:
         raise ModelError(f"n_modes must be at least 1, got {n_modes}")
     mats = model.matrices(values)

@@ -19,6 +19,7 @@ import xarray as xr
 
 from twin.errors import CompareError
 from twin.fem.model import RotorModel
+from twin.modes.modesfile import NO_MODES
 from twin.modes.pairing import partners
 from twin.modes.sensitivity import ModalSolution
 from twin.modes.shapes import normalise_shapes
@@ -93,10 +94,12 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
     >>> meas.pole.shape, meas.shape.shape
     ((15,), (15, 8))
     """
-    source = str(modes.attrs.get("source", modes.attrs.get("title", "modes")))
+    source = str(modes.encoding.get("source", modes.attrs.get("source", modes.attrs.get("title", "modes"))))
     for name in ("pole", "shape"):
         if name not in modes:
             raise CompareError(f"{source}: no variable '{name}' (a modes.nc file has pole and shape samples)")
+    if modes.sizes.get("mode", 0) == 0:
+        raise CompareError(f"{source}: {NO_MODES}")
     pole, shape = modes["pole"].transpose("mode", "sample").values, modes["shape"].transpose("mode", "sample", "channel").values
     bad = ~np.isfinite(pole).all(axis=1) | ~np.isfinite(shape).all(axis=(1, 2))
     if bad.any():

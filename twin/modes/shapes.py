@@ -151,12 +151,14 @@ def mpd(shapes: np.ndarray) -> np.ndarray:
     0.0
     >>> float(mpd(np.array([1.0, 1j])).round(9))
     45.0
+    >>> float(mpd(np.array([1j])))  # one component lies on its own line
+    0.0
     """
     shapes = np.asarray(shapes, dtype=complex)
     out = np.empty(shapes.shape[:-1])
     for idx in np.ndindex(out.shape):
         v = shapes[idx]
-        _, _, vt = np.linalg.svd(np.column_stack([v.real, v.imag]), full_matrices=False)
+        _, _, vt = np.linalg.svd(np.column_stack([v.real, v.imag]))  # 2 x 2 even for one component
         v12, v22 = vt[1, 0], vt[1, 1]  # V = vt.T: the direction normal to the best line is V[:, 1]
         amp = np.abs(v)
         with np.errstate(invalid="ignore", divide="ignore"):

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from twin import __version__
+from twin.defaults import METHODS as DEFAULT_METHODS
 from twin.errors import TwinWarning
 from twin.fem.effects import effect_label
 from twin.fem.model import RotorModel
@@ -46,8 +47,10 @@ POORLY_DETERMINED = 0.5
 DEFAULT_METHOD = next(iter(SAMPLERS))
 #: The Laplace approximation of the pole fit (:mod:`twin.update.laplace`), the method beside the samplers.
 LAPLACE = "laplace"
-#: Every method of :func:`update`: the samplers, then the Laplace approximation.
+#: Every method of :func:`update`: the samplers, then the Laplace approximation (:data:`twin.defaults.METHODS`).
 METHODS = (*SAMPLERS, LAPLACE)
+if METHODS != DEFAULT_METHODS:  # pragma: no cover (a sampler added here must be named there, for the CLI)
+    raise ImportError(f"twin.defaults.METHODS {DEFAULT_METHODS} is not the update's methods {METHODS}")
 
 
 def update(

@@ -169,7 +169,8 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     values (zero when it has none). An estimate outside its parameter's
     physical bounds (a flat-prior posterior of a parameter the data hardly
     determine) is put on the bound, with a warning naming it: the model
-    stays physical and solvable.
+    stays physical and solvable. An estimate on a bound (a fit the bound
+    stopped) is used, with a warning naming it.
 
     Examples
     --------
@@ -209,6 +210,11 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
 
 def _within_bounds(name: str, value: float, bounds: tuple[float, float]) -> float:
     low, high = bounds
+    if value in (low, high):  # a fit pushed there: the data ask for more than physics allows
+        warnings.warn(f"the posterior estimate of {name} is on its physical bound, {value:.4g} "
+                      f"(bounds [{low:.4g}, {high:.4g}]): the data push it beyond, which usually means an effect "
+                      "the model lacks (twin diagnose) rather than that value", TwinWarning, stacklevel=3)  # fmt: skip
+        return value
     if low <= value <= high:
         return value
     bound = low if value < low else high

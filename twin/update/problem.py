@@ -30,6 +30,7 @@ from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.parameters import MATRIX_KINDS, Parameter
 from twin.modes.analysis import state_matrix
+from twin.modes.modesfile import NO_MODES
 from twin.update.condense import LATENT_SHAPE, dynamic_stiffness, parametrised_dofs, real_augment
 from twin.update.poles import check_pole_model, condense_samples
 
@@ -255,6 +256,8 @@ def check_modes(modes: xr.Dataset, source: str) -> None:
             raise UpdateError(f"{source}: no variable '{v}'")
         if tuple(modes[v].dims) != dims:
             raise UpdateError(f"{source}: '{v}' has dimensions {tuple(modes[v].dims)}, expected {dims}")
+    if modes.sizes["mode"] == 0:
+        raise UpdateError(f"{source}: {NO_MODES}")
     if modes.sizes["sample"] < 2:
         raise UpdateError(f"{source}: {modes.sizes['sample']} sample per mode; the updater needs at least 2")
     for v in ("pole", "shape"):

@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 
 import xarray as xr
 
+from twin.defaults import CHAINS, DRAWS, HMC_WARMUP
 from twin.update.chain import Chain, Prior
 from twin.update.problem import Problem, UpdateError
 
@@ -52,9 +53,9 @@ class SamplerOptions:
         Progress bars over the iterations (over the chains when they run as tasks).
     """
 
-    draws: int = 500
-    chains: int = 4
-    warmup: int = 250
+    draws: int = DRAWS
+    chains: int = CHAINS
+    warmup: int = HMC_WARMUP
     seed: int | None = None
     eps_std: float = 1e-6
     progress: bool = True

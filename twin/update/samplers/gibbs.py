@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.defaults import GIBBS_BURN_IN
 from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
 from twin.update.chain import NOISE_PRIOR_SHAPE, Chain, Prior, State, check_noise_model
@@ -81,7 +82,7 @@ class GibbsOptions(SamplerOptions):
         Weight ``a0`` of the prior on each row of ``Δ_i`` (worth ``2 a0`` pole samples).
     """
 
-    warmup: int = 20
+    warmup: int = GIBBS_BURN_IN
     noise_model: str = "full"
     collapsed: bool = True
     pole_model: str = "linear"

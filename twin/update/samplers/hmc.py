@@ -48,6 +48,7 @@ import numpy as np
 import scipy.linalg as sla
 import xarray as xr
 
+from twin.defaults import HMC_MIN_WARMUP, HMC_WARMUP
 from twin.fem.effects import PER_MODE_NAME
 from twin.fem.model import RotorModel
 from twin.progress import bar
@@ -67,7 +68,7 @@ from twin.update.shrinkage import shrunk_covariance
 log = logging.getLogger(__name__)
 
 #: Warm-up iterations by default (the step size and the metric are tuned there).
-WARMUP = 250
+WARMUP = HMC_WARMUP
 #: Mean path length of a trajectory in the whitened parameters: a quarter period of the Gaussian at the mode
 #: (see :func:`run_chain`).
 PATH_LENGTH = 0.5 * np.pi
@@ -113,7 +114,7 @@ class HMCOptions(SamplerOptions):
     combine: str = COMBINATIONS[0]
     pole_error: str = POLE_ERRORS[0]
 
-    MIN_WARMUP: ClassVar[int] = 50
+    MIN_WARMUP: ClassVar[int] = HMC_MIN_WARMUP
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from twin.defaults import GIBBS_BURN_IN
 from twin.update.chain import NOISE_PRIOR_SHAPE
 from twin.update.samplers.gibbs import Gibbs, GibbsOptions
 from twin.update.samplers.base import SamplerOptions
@@ -38,7 +39,7 @@ class PaperOptions(SamplerOptions):
     ``warmup`` is the number of burn-in sweeps (20 by default).
     """
 
-    warmup: int = 20
+    warmup: int = GIBBS_BURN_IN
 
     def gibbs(self) -> GibbsOptions:
         """The same run as options of the Gibbs sampler in the paper's configuration."""
