@@ -263,3 +263,40 @@ def test_an_updated_per_mode_model_is_simulated_with_each_value_on_its_measured_
     as_numbered = model_state_space(updated).poles  # values by target number: measured mode 3 comes out wrong
     assert np.min(np.abs(as_numbered - expected[2])) > 1e-3 * abs(expected[2])
     assert target_numbered(hydro_unit, modes) is hydro_unit
+
+
+def test_the_records_of_a_calibration_are_extracted_with_settings_that_work(make_record):
+    """Whatever a user gave the extraction, its modes file records settings the calibration can extract its
+    records with: ``--samples 15`` alone recorded ``shape_samples = 15``, which the extraction refused, and
+    the loop lost its result after the work."""
+    from twin.extract import extract
+
+    poles = [-0.02 * 2 * np.pi * 2 + 2j * np.pi * 2, -0.01 * 2 * np.pi * 5 + 2j * np.pi * 5]
+    record = make_record(poles, [[1.0, 0.3j, 0.5], [0.2, 1.0, -0.4j]], fs_hz=32.0, duration_s=600.0, seed=5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TwinWarning)
+        for given in ({"samples": 15}, {"samples": 10, "shape_samples": 40}, {"samples": 12, "delete_blocks": None}):
+            modes = extract(record, fmax_hz=8.0, progress=False, **given)
+            duration_s, fs_hz, options = record_settings(modes)
+            again = extract(record, progress=False, **options)
+            assert (duration_s, fs_hz) == (600.0, 32.0)
+            np.testing.assert_array_equal(again["pole"].values, modes["pole"].values)
+
+
+def test_a_calibration_that_cannot_run_keeps_the_sampler_s_posterior_with_a_warning(hydro_unit, monkeypatch):
+    import twin.loop.bootstrap
+    from twin.loop.twin import Twin
+    from twin.modes.modesfile import read_modes
+
+    def fails(*args, **kwargs):
+        raise TwinError("the update's density was fitted on 0 of 3 simulated records")
+
+    monkeypatch.setattr(twin.loop.bootstrap, "bootstrap_factors", fails)
+    tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
+    tw.add_effect("seal_cross_coupling")
+    with pytest.warns(TwinWarning, match=r"could not be calibrated on simulated records \(the update's density was "
+                                         r"fitted on 0 of 3 simulated records\); it is the sampler's own"):  # fmt: skip
+        post = tw.update(tw.added_parameters(), seed=1, draws=100, progress=False, bootstrap=3)
+    assert "bootstrap_calibration" not in post.attrs and tw.posterior is post
+    assert tw.history[-1].action == "update SEAL.kxy (not calibrated)" and tw.history[-1].interval is not None
+    assert tw.model.parameter("SEAL.kxy").nominal > 0

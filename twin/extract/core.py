@@ -447,12 +447,13 @@ def extract(
 
 def _shape_sample_repeats(shape_samples: object, samples: int, n_blocks: int, differenced_above_hz: float | None,
                           shape_block_rows: int | str) -> int:  # fmt: skip
-    """How many times each pole sample is used beside ``shape_samples`` delete-half shape samples (1: none asked)."""
-    if shape_samples is None or _as_float(shape_samples) == 0:
+    """How many times each pole sample is used beside ``shape_samples`` delete-half shape samples (1: none asked,
+    or as many as the poles': the shapes come with the poles, as a modes file's settings record it)."""
+    if shape_samples is None or _as_float(shape_samples) in (0, samples):
         return 1
     if not _whole_at_least_one(shape_samples) or int(shape_samples) % samples or int(shape_samples) <= samples:
-        raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} above it "
-                          f"(e.g. {4 * samples}), got {shape_samples!r}")  # fmt: skip
+        raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} (e.g. {4 * samples}; "
+                          f"{samples} or none: the shapes come with the poles), got {shape_samples!r}")  # fmt: skip
     if n_blocks < 4:
         raise SignalError(f"shape_samples draws random halves of the blocks: it needs at least 4 blocks, "
                           f"got {n_blocks}")  # fmt: skip

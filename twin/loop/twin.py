@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from typing import Any
 
 import xarray as xr
 
+from twin.errors import TwinError, TwinWarning
 from twin.fem.effects import effect_label, free_names
 from twin.fem.model import RotorModel
 from twin.loop.candidates import add_effects, replaces
@@ -202,8 +204,21 @@ class Twin:
                               100 * self.history[-1].error)  # fmt: skip
         if bootstrap and isinstance(self.posterior, xr.DataTree) and self.history[-1].action.startswith("update"):
             with stage(f"calibrate the posterior on {bootstrap} simulated records"):
-                self.calibrate(bootstrap, seed=kwargs.get("seed"), tasks=tasks, progress=progress)
+                self._calibrate_or_keep(bootstrap, seed=kwargs.get("seed"), tasks=tasks, progress=progress)
         return d
+
+    def _calibrate_or_keep(self, records: int, **kwargs: Any) -> None:
+        """:meth:`calibrate`, or, where the calibration cannot run (its records could not be extracted or
+        fitted), the sampler's own posterior kept with a warning saying why: the loop's work is not lost."""
+        try:
+            self.calibrate(records, **kwargs)
+        except TwinError as exc:
+            warnings.warn(f"the posterior could not be calibrated on simulated records ({exc}); it is the sampler's "
+                          "own, uncalibrated: its intervals may be too narrow", TwinWarning, stacklevel=3)  # fmt: skip
+            last = self.history[-1]
+            if last.interval is None:  # recorded for a calibration that did not come: E's interval of its own
+                self.history.pop()
+                self._record(last.action + " (not calibrated)", last.model, self.posterior)
 
     def update(
         self, params: str | Sequence[str], *, method: str = "hmc", options: Any = None, estimate: str = "map",
@@ -260,7 +275,7 @@ class Twin:
         self._record(f"update {label}", apply_posterior(self.model, tree, estimate), None if bootstrap else tree)
         self.posterior = tree
         if bootstrap:
-            self.calibrate(bootstrap, estimate=estimate, seed=opts.seed, tasks=tasks, progress=opts.progress)
+            self._calibrate_or_keep(bootstrap, estimate=estimate, seed=opts.seed, tasks=tasks, progress=opts.progress)
         return self.posterior
 
     def calibrate(self, records: int, *, estimate: str = "map", seed: int | None = None, tasks: Any = None,
