@@ -24,6 +24,7 @@ from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
+from twin.extract.quantities import displacement_shapes
 from twin.extract.harmonics import remove_running_harmonics
 from twin.modes.modesfile import write_modes
 from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations, repeated
@@ -113,7 +114,9 @@ def extract(
     Parameters
     ----------
     signals : xarray.Dataset or path
-        ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``).
+        ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``), or ``signal``
+        with each channel's ``quantity`` and ``units`` (:mod:`twin.extract.quantities`): velocity and
+        acceleration channels are read as such and every shape is reported in displacement.
     samples : int
         Samples per mode (default :data:`twin.defaults.SAMPLES`): each comes
         from the record without ``delete_blocks`` of its ``blocks``
@@ -392,6 +395,9 @@ def extract(
             log.info("%.4f Hz: no counterpart at %d block rows, its shapes are read at %d", f, i_s, i)
     if order_spread != "none":
         sample_s = sample_s + d_s
+    if rec.orders.any():  # velocity and acceleration channels: every shape in displacement, as the model's
+        shapes = displacement_shapes(shapes, poles, rec.orders)
+        sample_s = displacement_shapes(sample_s, poles, rec.orders)
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
@@ -407,6 +413,7 @@ def extract(
         "block_rows": i,
         "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
+        "quantities": list(rec.quantities),
         "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
         "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
         "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(remove_harmonics),

@@ -100,7 +100,8 @@ def extracted_modes(rec: Record, ds: xr.Dataset, poles: np.ndarray, shapes: np.n
     mode_vars = {
         "pole": (("mode", "sample"), sample_p, {"units": "1/s", "long_name": "pole samples"}),
         "shape": (("mode", "sample", "channel"), sample_s,
-                  {"units": "1", "long_name": "mode shape samples (unit norm, reference channel real positive)"}),
+                  {"units": "1", "long_name": "mode shape samples in displacement (unit norm, reference channel real "
+                                              "positive)"}),
         "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
         "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency"}),
         "damping_ratio": ("mode", damping_ratio(poles), {"units": "1", "long_name": "damping ratio"}),

@@ -17,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from twin.errors import SignalError, TwinWarning
+from twin.extract.quantities import channel_quantities, derivative_orders
 
 #: A channel whose std is below this fraction of the median channel std is dead.
 DEAD_CHANNEL_RATIO = 1e-6
@@ -33,13 +34,24 @@ RATE_TOLERANCE = 1e-4
 
 @dataclass(frozen=True)
 class Record:
-    """A checked record: zero-mean samples (time x channel) [m], sampling rate [Hz], channel names."""
+    """A checked record: zero-mean samples (time x channel) in SI (m, m/s or m/s², each channel's
+    ``quantities``), sampling rate [Hz], channel names."""
 
     y: np.ndarray
     fs_hz: float
     channels: tuple[str, ...]
     source: str
     attrs: dict
+    quantities: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.quantities:
+            object.__setattr__(self, "quantities", ("displacement",) * self.y.shape[1])
+
+    @property
+    def orders(self) -> np.ndarray:
+        """0, 1 or 2 per channel: displacement, velocity, acceleration (:func:`~twin.extract.quantities.derivative_orders`)."""
+        return derivative_orders(self.quantities)
 
     @property
     def duration_s(self) -> float:
@@ -129,15 +141,14 @@ def sampling_rate(ds: xr.Dataset, source: str) -> float:
     return fs
 
 
-def check_record(
-    ds: xr.Dataset, source: str = "signals", channels: Sequence[str] | None = None, variable: str = "displacement"
-) -> Record:
-    """Check a signals Dataset and return its zero-mean samples.
+def check_record(ds: xr.Dataset, source: str = "signals", channels: Sequence[str] | None = None) -> Record:
+    """Check a signals Dataset and return its zero-mean samples in SI.
 
     Parameters
     ----------
     ds : xarray.Dataset
-        ``displacement`` over ``time`` and ``channel`` (``docs/guide/own-measurements.md``).
+        ``displacement`` over ``time`` and ``channel``, or ``signal`` with each channel's ``quantity`` and
+        ``units`` (:mod:`twin.extract.quantities`, ``docs/guide/own-measurements.md``).
     source : str
         Name used in messages (usually the file name).
     channels : sequence of str, optional
@@ -152,8 +163,7 @@ def check_record(
     >>> rec.channels, rec.duration_s
     (('A_x', 'A_y'), 10.0)
     """
-    if variable not in ds:
-        raise SignalError(f"{source}: no variable '{variable}' (it has: {', '.join(map(str, ds.data_vars)) or 'none'})")
+    variable, quantities, factors = channel_quantities(ds, source)
     da = ds[variable]
     if set(da.dims) != {"time", "channel"}:
         raise SignalError(f"{source}: '{variable}' must have dimensions (time, channel), not {da.dims}")
@@ -166,10 +176,11 @@ def check_record(
         unknown = [c for c in channels if c not in names]
         if unknown:
             raise SignalError(f"{source}: no channel {', '.join(map(repr, unknown))} (it has: {', '.join(names)})")
-        da = da.isel(channel=[names.index(c) for c in channels])
+        pick = [names.index(c) for c in channels]
+        da, quantities, factors = da.isel(channel=pick), tuple(quantities[k] for k in pick), factors[pick]
         names = list(channels)
     fs = sampling_rate(ds, source)
-    y = np.asarray(da.transpose("time", "channel").values, dtype=float)
+    y = np.asarray(da.transpose("time", "channel").values, dtype=float) * factors
     if y.shape[1] == 0 or y.shape[0] < 2:
         raise SignalError(f"{source}: the record has {y.shape[0]} samples of {y.shape[1]} channels")
     bad = ~np.isfinite(y)
@@ -178,10 +189,12 @@ def check_record(
         raise SignalError(f"{source}: channel '{names[c]}' has {int(bad[:, c].sum())} NaN or inf samples "
                           f"(first at t = {first / fs:g} s): fill the gap, cut the record or drop the channel")  # fmt: skip
     std = y.std(axis=0)
-    ref = float(np.median(std)) or float(std.max())  # most channels flat: compare with the live one(s)
-    for c in np.flatnonzero(std <= DEAD_CHANNEL_RATIO * ref):
-        raise SignalError(f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against {ref:.3g} for the "
-                          "others): a dead sensor? Leave it out (channels=... / --channels)")  # fmt: skip
+    for quantity in sorted(set(quantities)):  # a displacement in m is tiny beside an acceleration in m/s²
+        same = np.array([q == quantity for q in quantities])
+        ref = float(np.median(std[same])) or float(std[same].max())  # most channels flat: the live one(s)
+        for c in np.flatnonzero(same & (std <= DEAD_CHANNEL_RATIO * ref)):
+            raise SignalError(f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against {ref:.3g} for the "
+                              "others): a dead sensor? Leave it out (channels=... / --channels)")  # fmt: skip
     for c, name in enumerate(names):
         hi, lo = y[:, c].max(), y[:, c].min()
         tol = 1e-9 * (hi - lo)
@@ -191,4 +204,5 @@ def check_record(
                 f"{at_lo:.2%} of its samples at its minimum {lo:.4g}"  # fmt: skip
             warnings.warn(f"{source}: channel '{name}' looks clipped (saturated): {where}; the modes it sees "
                           "are distorted", TwinWarning, stacklevel=3)  # fmt: skip
-    return Record(y=y - y.mean(axis=0), fs_hz=fs, channels=tuple(names), source=source, attrs=dict(ds.attrs))
+    return Record(y=y - y.mean(axis=0), fs_hz=fs, channels=tuple(names), source=source, attrs=dict(ds.attrs),
+                  quantities=tuple(quantities))

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from twin.extract.signals import check_record
 from twin.netcdf import check_folder
 
 
@@ -185,7 +186,8 @@ def record_psd(signals: xr.Dataset, channels: Sequence[str], slowest_hz: float
     """Welch's PSD of the record's ``channels`` (those it has) [µm²/Hz] over frequency [Hz].
 
     Hann segments of :data:`PSD_SEGMENT_PERIODS` periods of ``slowest_hz`` (a power of two of samples, at
-    most the record), half overlapping. Returns the frequencies, the PSD (frequency x channel) and the channels.
+    most the record), half overlapping. Returns the frequencies, the PSD (frequency x channel; of a velocity or
+    acceleration channel in (µm/s)²/Hz or (µm/s²)²/Hz, :data:`PSD_UNITS`) and the channels.
 
     Examples
     --------
@@ -199,13 +201,15 @@ def record_psd(signals: xr.Dataset, channels: Sequence[str], slowest_hz: float
     """
     import scipy.signal as sg
 
-    from twin.extract.signals import check_record
-
     have = set(map(str, signals["channel"].values))
     rec = check_record(signals, "signals", channels=[c for c in channels if c in have])
     nperseg = min(len(rec.y), int(2 ** np.ceil(np.log2(PSD_SEGMENT_PERIODS * rec.fs_hz / max(slowest_hz, 1e-3)))))
     freq, psd = sg.welch(rec.y, fs=rec.fs_hz, nperseg=nperseg, axis=0)
     return freq, 1e12 * psd, rec.channels
+
+
+#: The PSD's units by a channel's quantity (its SI values times 1e6: µm, µm/s, µm/s²).
+PSD_UNITS = {"displacement": "µm²/Hz", "velocity": "(µm/s)²/Hz", "acceleration": "(µm/s²)²/Hz"}
 
 
 def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
@@ -220,6 +224,8 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
     f_meas = first["measured_frequency"].values
     f_max = 1.15 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
     freq, psd, channels = record_psd(signals, [str(c) for c in first["channel"].values], float(f_meas.min()))
+    whole = check_record(signals, "signals")
+    quantities = dict(zip(whole.channels, whole.quantities))
     band = (freq >= 0.5 * float(f_meas.min())) & (freq <= f_max)
     ncol = 2
     nrow = int(np.ceil(len(channels) / ncol))
@@ -232,7 +238,8 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
         for i, (t, label) in enumerate(zip(tables, labels)):
             for j, f in enumerate(t["model_frequency"].values):
                 ax.axvline(f, color=f"C{i}", lw=1.0, ls=("--", ":", "-.")[i % 3], label=f"{label} modes" if j == 0 else None)
-        ax.set_title(c, fontsize=8)
+        ax.set_title(c if quantities[c] == "displacement" else f"{c} ({quantities[c]}, {PSD_UNITS[quantities[c]]})",
+                     fontsize=8)  # fmt: skip
     for ax in axes.flat[len(channels):]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
