@@ -195,3 +195,22 @@ def test_the_help_says_what_the_command_does(capsys, command, said):
     with pytest.raises(SystemExit):
         main([command, "--help"])
     assert said in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_measurement_table_comes_in_with_its_units(tmp_path, capsys):
+    t = np.arange(12000) / 32.0
+    rng = np.random.default_rng(2)
+    y = np.column_stack([np.sin(2 * np.pi * 2 * t + p) for p in (0.0, 1.0, 2.0)]) * 0.01 + rng.standard_normal((12000, 3))
+    (tmp_path / "probes.txt").write_text("# sampling_rate: 32\nA B C\n" + "\n".join(" ".join(f"{v:.6f}" for v in r) for r in y))
+    assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc")]) == 2
+    assert "channel 'A' has no units" in capsys.readouterr().err and not (tmp_path / "s.nc").exists()
+    assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc"), "--units", "A=um,=mm/s"]) == 2
+    assert "--units takes one value or NAME=VALUE pairs" in capsys.readouterr().err
+    assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc"), "--units", "A=um,B=um,C=mm/s",
+                 "--channels", "UGB_x,UGB_y,LGB_x"]) == 0  # fmt: skip
+    assert "12000 samples at 32 Hz of UGB_x (displacement, um), UGB_y (displacement, um), LGB_x (velocity, mm/s)" \
+        in capsys.readouterr().out  # fmt: skip
+    from twin.extract.signals import check_record
+    import xarray as xr
+
+    assert check_record(xr.load_dataset(tmp_path / "s.nc")).quantities == ("displacement", "displacement", "velocity")

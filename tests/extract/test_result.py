@@ -13,3 +13,14 @@ def test_a_mode_without_counterparts_in_many_samples_is_judged_on_its_full_sprea
     assert pole_determined(pole, pole[:, None] + d)
     # with half the (sample, order) pairs missing the spread stands for half of the real one: 1.2 bandwidths
     assert not pole_determined(pole, pole[:, None] + d, missing=np.array([0.5]))
+
+
+def test_a_pole_whose_damping_the_blocks_cannot_tell_is_judged_on_its_frequency():
+    rng = np.random.default_rng(1)
+    p = np.array([-0.1 + 50j, -0.1 + 80j])
+    # the first: damping scattering by 3 bandwidths, frequency pinned (a light mode in short blocks);
+    # the second: the frequency wandering too (a noise pole)
+    samples = p[:, None] + np.array([[1.0], [1.0]]) * rng.standard_normal((2, 15)) \
+        + 1j * np.array([[0.01], [1.0]]) * rng.standard_normal((2, 15))  # fmt: skip
+    assert pole_determined(p, samples).tolist() == [False, False]
+    assert pole_determined(p, samples, damping_judged=np.array([False, False])).tolist() == [True, False]

@@ -281,6 +281,24 @@ def _add_stages(sub) -> None:
     p.add_argument("--fmax", type=POSITIVE, default=None,
                    help="highest mode of the modal basis [Hz] (required with --basis modal)")
 
+    p = _command(sub, "import", "a measurement file (CSV or text table) into signals.nc",
+                 "Reads the channels, their units and the time (or the rate) from the file, works out each\n"
+                 "channel's quantity from its units (um: displacement, mm/s: velocity, g: acceleration), checks\n"
+                 "the record as the extraction will and writes it as signals.nc (variable 'signal').",
+                 ["twin import probes.csv -o signals.nc",
+                  "twin import probes.txt -o signals.nc --fs 256 --units um --channels UGB_x,UGB_y"],
+                 stages._import)  # fmt: skip
+    p.add_argument("file", help="the measurement file: .csv, .txt, .tsv or .dat with a header line of column names "
+                                "(units as 'UGB_x [um]'; a column 'time [s]', or '# sampling_rate: 256' above)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
+    p.add_argument("--fs", type=POSITIVE, default=None, help="sampling rate [Hz] where the file gives none")
+    p.add_argument("--units", default=None, metavar="U|NAME=U,...",
+                   help="units of every channel, or of some by name, where the header gives none (um, mil, mm/s, g, ...)")
+    p.add_argument("--quantity", default=None, metavar="Q|NAME=Q,...",
+                   help="displacement, velocity or acceleration, for every channel or some by name (default: "
+                        "the quantity of its units)")  # fmt: skip
+    p.add_argument("--channels", default=None, help="new channel names in the file's order, e.g. UGB_x,UGB_y")
+
     p = _command(sub, "extract", "automated modal extraction (SSI-cov) from signals to mode samples",
                  "Covariance-driven stochastic subspace identification over model orders, a stabilisation\n"
                  "diagram cleared automatically, harmonics of the running speed rejected; each mode's\n"

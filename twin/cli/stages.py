@@ -100,6 +100,29 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _import(args: argparse.Namespace) -> int:
+    from twin.extract.importing import import_record
+    from twin.netcdf import write_netcdf
+
+    def per_channel(text: str | None, flag: str):
+        if text is None or "=" not in text:
+            return text
+        pairs = [p.split("=", 1) for p in text.split(",") if p.strip()]
+        if any(len(p) != 2 or not p[0].strip() for p in pairs):
+            raise TwinError(f"{flag} takes one value or NAME=VALUE pairs separated by commas, got {text!r}")
+        return {k.strip(): v.strip() for k, v in pairs}
+
+    channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
+    ds = import_record(args.file, fs_hz=args.fs, units=per_channel(args.units, "--units"),
+                       quantities=per_channel(args.quantity, "--quantity"), channels=channels)  # fmt: skip
+    ds.attrs["command"] = " ".join(sys.argv)
+    write_netcdf(ds, args.output)
+    described = ", ".join(f"{c} ({q}, {u})" for c, q, u in zip(ds["channel"].values, ds["quantity"].values,
+                                                                 ds["units"].values))  # fmt: skip
+    print(f"{ds.sizes['time']} samples at {ds.attrs['sampling_rate']:g} Hz of {described}; wrote {args.output}")
+    return 0
+
+
 def _extract(args: argparse.Namespace) -> int:
     from twin.extract import extract
     from twin.extract.harmonics import line_frequencies

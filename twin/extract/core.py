@@ -32,7 +32,7 @@ from twin.extract.signals import Record, check_record
 from twin.extract.passes import (DIFFERENCES, SSIPass, differenced, first_lag_for, modes_from_differenced,
                                  shape_lag_rows, shapes_at_longer_lags, ssi_pass)
 from twin.extract.stabilisation import Criteria
-from twin.extract.result import extracted_modes, frequency_damping_std, pole_determined
+from twin.extract.result import extracted_modes, frequency_damping_std, pole_determined, pole_scatter
 from twin.extract.ssi import hankel_max_lag
 from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, load_netcdf
@@ -62,7 +62,8 @@ ORDER_SPREADS = ("shapes", "all", "none")
 MAX_MISSING = 0.05
 #: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread; docs/decisions/extraction-jackknife.md).
 DELETE_BLOCKS: int | None = 1
-#: Warn when a block is shorter than this many time constants of a mode (samples then too narrow).
+#: Warn when a block is shorter than this many time constants of a mode (samples then too narrow); a pole in such
+#: blocks is judged on its frequency alone (:func:`twin.extract.result.pole_determined`).
 MIN_BLOCK_TIME_CONSTANTS = 3.0
 
 
@@ -360,15 +361,25 @@ def extract(
         sample_p = sample_p + d_p
     n_orders = np.array([len(m[0]) for m in members])
     missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
-    keep = pole_determined(poles, sample_p, missing.mean(axis=1))
+    # blocks shorter than a few time constants cannot tell a pole's damping: its frequency alone is judged
+    damping_judged = block_len / fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(poles.real), 1e-12)
+    keep = pole_determined(poles, sample_p, missing.mean(axis=1), damping_judged)
+    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged)[~keep]
     f_se, z_se = (x / np.sqrt(n_samples) for x in frequency_damping_std(sample_p[~keep]))
     undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
                      "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
                     for p, f, z in zip(poles[~keep], f_se, z_se)]  # fmt: skip
-    for u in undetermined:
-        log.info("%.4f Hz (damping ratio %.3g) dropped: stable over orders, but its samples scatter beyond its "
-                 "bandwidth (standard errors %.3g Hz, %.3g): no physical mode", u["frequency_hz"],
-                 u["damping_ratio"], u["frequency_se_hz"], u["damping_ratio_se"])  # fmt: skip
+    judged = damping_judged[~keep]
+    for u, s, ratio, whole in zip(undetermined, sample_p[~keep], scatter, judged):
+        # which part of the pole scatters most: its imaginary part is the frequency, its real part the damping
+        damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
+        part = (f"its damping (standard error {u['damping_ratio_se']:.3g} of a damping ratio {u['damping_ratio']:.3g})"
+                if damping_most else f"its frequency (standard error {u['frequency_se_hz']:.3g} Hz)")  # fmt: skip
+        warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but "
+                      f"{part} scatters over the samples by {ratio:.2g} times the pole's half-power "
+                      "bandwidth, as a noise pole fitted by surplus states does; if a mode of the structure is "
+                      "there, a longer record (or fewer samples: --samples) would show it", TwinWarning,
+                      stacklevel=2)  # fmt: skip
     if not keep.any():
         raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(undetermined)} stable pole(s) dropped: their samples scatter beyond their "
@@ -575,13 +586,14 @@ def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, blo
     if slow.size:
         k = slow[np.argmax(tau[slow])]
         need = MIN_BLOCK_TIME_CONSTANTS * tau[k]
-        most = max(int(block_s * n_blocks // need), 1)
+        most = int(block_s * n_blocks // need)
+        fix = (f"ask for {most} blocks or fewer (the samples, unless more than one block is deleted)" if most >= 2
+               else f"a record of {2 * need:.3g} s or more would give the fewest blocks a jackknife takes (2); read "
+                    "this one's uncertainty as a lower bound")  # fmt: skip
         warnings.warn(f"{source}: the samples come from {block_s:.3g} s blocks, shorter than "
                       f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode "
                       f"({MIN_BLOCK_TIME_CONSTANTS:g} x {tau[k]:.3g} s = {need:.3g} s): its sample spread "
-                      f"underestimates the uncertainty; ask for at most {most} blocks (the samples, unless more than "
-                      "one block is deleted)", TwinWarning,
-                      stacklevel=3)  # fmt: skip
+                      f"underestimates the uncertainty; {fix}", TwinWarning, stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
                       "identifications without a sample's blocks: its sample spread is too narrow; treat it with care",
