@@ -32,9 +32,8 @@ from twin.extract.signals import Record, check_record
 from twin.extract.passes import (DIFFERENCES, SSIPass, differenced, first_lag_for, modes_from_differenced,
                                  shape_lag_rows, shapes_at_longer_lags, ssi_pass)
 from twin.extract.stabilisation import Criteria
-from twin.extract.result import extracted_modes, frequency_damping_std, pole_determined, pole_scatter
+from twin.extract.result import MAX_POLE_SE, extracted_modes, left_out, pole_scatter
 from twin.extract.ssi import hankel_max_lag
-from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, load_netcdf
 from twin.tasks import one_blas_thread
 
@@ -363,23 +362,9 @@ def extract(
     missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
     # blocks shorter than a few time constants cannot tell a pole's damping: its frequency alone is judged
     damping_judged = block_len / fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(poles.real), 1e-12)
-    keep = pole_determined(poles, sample_p, missing.mean(axis=1), damping_judged)
-    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged)[~keep]
-    f_se, z_se = (x / np.sqrt(n_samples) for x in frequency_damping_std(sample_p[~keep]))
-    undetermined = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
-                     "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
-                    for p, f, z in zip(poles[~keep], f_se, z_se)]  # fmt: skip
-    judged = damping_judged[~keep]
-    for u, s, ratio, whole in zip(undetermined, sample_p[~keep], scatter, judged):
-        # which part of the pole scatters most: its imaginary part is the frequency, its real part the damping
-        damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
-        part = (f"its damping (standard error {u['damping_ratio_se']:.3g} of a damping ratio {u['damping_ratio']:.3g})"
-                if damping_most else f"its frequency (standard error {u['frequency_se_hz']:.3g} Hz)")  # fmt: skip
-        warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but "
-                      f"{part} scatters over the samples by {ratio:.2g} times the pole's half-power "
-                      "bandwidth, as a noise pole fitted by surplus states does; if a mode of the structure is "
-                      "there, a longer record (or fewer samples: --samples) would show it", TwinWarning,
-                      stacklevel=2)  # fmt: skip
+    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged)
+    keep = scatter < MAX_POLE_SE  # pole_determined's test, with the scatter kept for the warnings
+    undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep])
     if not keep.any():
         raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(undetermined)} stable pole(s) dropped: their samples scatter beyond their "

@@ -28,7 +28,7 @@ import xarray as xr
 from twin import __version__
 from twin.errors import SignalError
 from twin.extract.quantities import QUANTITIES, si_factor
-from twin.extract.signals import check_record
+from twin.extract.signals import check_record, seconds_per
 
 #: Column names read as the time [s] (case-insensitive, units in the header aside).
 TIME_NAMES = ("time", "t", "time_s", "timestamp")
@@ -95,8 +95,7 @@ def read_table(path: Path) -> Table:
     time_col = next((k for k, c in enumerate(lowered) if c in TIME_NAMES), None)
     time_s = None
     if time_col is not None:
-        scale = 1.0 if units[time_col] in (None, "s") else _time_scale(units[time_col], path)
-        time_s = data[:, time_col] * scale
+        time_s = data[:, time_col] * seconds_per(units[time_col] or "s", f"{path}: the time column's")
     keep = [k for k in range(len(names)) if k != time_col]
     fs = meta.get("sampling_rate", meta.get("fs"))
     try:
@@ -112,15 +111,6 @@ def _is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
-
-
-def _time_scale(units: str, path: Path) -> float:
-    from twin.extract.signals import TIME_UNITS
-
-    if units not in TIME_UNITS:
-        raise SignalError(f"{path}: the time column's units {units!r} are not a unit of time twin knows "
-                          f"({', '.join(TIME_UNITS)})")  # fmt: skip
-    return TIME_UNITS[units]
 
 
 #: The readers by file suffix: each takes the path and returns a :class:`Table`.

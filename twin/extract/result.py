@@ -9,9 +9,12 @@ stabilisation diagram as :func:`twin.extract.extract` returns them
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import xarray as xr
 
+from twin.errors import TwinWarning
 from twin.extract.signals import Record
 from twin.extract.stabilisation import Diagram
 from twin.modes.analysis import damping_ratio
@@ -91,6 +94,28 @@ def pole_scatter(poles: np.ndarray, sample_poles: np.ndarray, missing: np.ndarra
 def frequency_damping_std(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Std (ddof 1, over the last axis) of the damped frequency [Hz] and the damping ratio of poles [1/s]."""
     return np.std(poles.imag / (2 * np.pi), axis=-1, ddof=1), np.std(damping_ratio(poles), axis=-1, ddof=1)
+
+
+def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: np.ndarray,
+             damping_judged: np.ndarray) -> list[dict]:  # fmt: skip
+    """The stable poles :func:`pole_determined` leaves out, for the modes file's ``undetermined_poles``, each
+    said in a warning naming it and the part of it (frequency or damping) that scattered by ``scatter``
+    bandwidths (:func:`pole_scatter`)."""
+    f_se, z_se = (x / np.sqrt(sample_poles.shape[-1]) for x in frequency_damping_std(sample_poles))
+    out = []
+    for p, s, f, z, ratio, whole in zip(poles, sample_poles, f_se, z_se, scatter, damping_judged):
+        u = {"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
+             "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
+        # which part of the pole scatters most: its imaginary part is the frequency, its real part the damping
+        damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
+        part = (f"its damping (standard error {z:.3g} of a damping ratio {u['damping_ratio']:.3g})" if damping_most
+                else f"its frequency (standard error {f:.3g} Hz)")  # fmt: skip
+        warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but {part} "
+                      f"scatters over the samples by {ratio:.2g} times the pole's half-power bandwidth, as a noise "
+                      "pole fitted by surplus states does; if a mode of the structure is there, a longer record (or "
+                      "fewer samples: --samples) would show it", TwinWarning, stacklevel=3)  # fmt: skip
+        out.append(u)
+    return out
 
 
 def extracted_modes(rec: Record, ds: xr.Dataset, poles: np.ndarray, shapes: np.ndarray, sample_p: np.ndarray,

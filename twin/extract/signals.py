@@ -64,18 +64,29 @@ TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "
               "h": 3600.0, "hours": 3600.0}  # fmt: skip
 
 
+def seconds_per(units: str, whose: str) -> float:
+    """Seconds in one ``units`` of time (:data:`TIME_UNITS`); an error saying ``whose`` units they are.
+
+    Examples
+    --------
+    >>> seconds_per("ms", "the time column's")
+    0.001
+    """
+    units = str(units).strip()
+    if units not in TIME_UNITS:
+        raise SignalError(f"{whose} units {units!r} are not a unit of time twin knows ({', '.join(TIME_UNITS)})")
+    return TIME_UNITS[units]
+
+
 def _seconds(time: xr.DataArray, source: str) -> np.ndarray:
     """The ``time`` coordinate in seconds: numbers in the unit its ``units`` attr states (seconds when it
     states none), or datetimes / durations."""
     t = np.asarray(time.values)
     if np.issubdtype(t.dtype, np.datetime64) or np.issubdtype(t.dtype, np.timedelta64):
         return (t - t[0]) / np.timedelta64(1, "s")
-    units = str(time.attrs.get("units", "s")).strip()
-    if units not in TIME_UNITS:
-        raise SignalError(f"{source}: the 'time' coordinate's units {units!r} are not a unit of time twin knows "
-                          f"({', '.join(TIME_UNITS)})")  # fmt: skip
+    scale = seconds_per(time.attrs.get("units", "s"), f"{source}: the 'time' coordinate's")
     try:
-        return t.astype(float) * TIME_UNITS[units]
+        return t.astype(float) * scale
     except (TypeError, ValueError):
         raise SignalError(f"{source}: the 'time' coordinate is not numbers of seconds nor datetimes "
                           f"(dtype {t.dtype})") from None  # fmt: skip

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from twin.extract.quantities import channel_quantities
 from twin.extract.signals import check_record
 from twin.netcdf import check_folder
 
@@ -224,8 +225,7 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
     f_meas = first["measured_frequency"].values
     f_max = 1.15 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
     freq, psd, channels = record_psd(signals, [str(c) for c in first["channel"].values], float(f_meas.min()))
-    whole = check_record(signals, "signals")
-    quantities = dict(zip(whole.channels, whole.quantities))
+    quantities = dict(zip(map(str, signals["channel"].values), channel_quantities(signals, "signals")[1]))
     band = (freq >= 0.5 * float(f_meas.min())) & (freq <= f_max)
     ncol = 2
     nrow = int(np.ceil(len(channels) / ncol))
