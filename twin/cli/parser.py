@@ -281,15 +281,18 @@ def _add_stages(sub) -> None:
     p.add_argument("--fmax", type=POSITIVE, default=None,
                    help="highest mode of the modal basis [Hz] (required with --basis modal)")
 
-    p = _command(sub, "import", "a measurement file (CSV or text table) into signals.nc",
+    p = _command(sub, "import", "a measurement file (CSV/text, UFF 58, TDMS, MATLAB, HDF5) into signals.nc",
                  "Reads the channels, their units and the time (or the rate) from the file, works out each\n"
                  "channel's quantity from its units (um: displacement, mm/s: velocity, g: acceleration), checks\n"
                  "the record as the extraction will and writes it as signals.nc (variable 'signal').",
                  ["twin import probes.csv -o signals.nc",
-                  "twin import probes.txt -o signals.nc --fs 256 --units um --channels UGB_x,UGB_y"],
+                  "twin import probes.txt -o signals.nc --fs 256 --units um --channels UGB_x,UGB_y",
+                  "twin import run.tdms -o signals.nc", "twin import test.mat -o signals.nc --units mm/s"],
                  stages._import)  # fmt: skip
-    p.add_argument("file", help="the measurement file: .csv, .txt, .tsv or .dat with a header line of column names "
-                                "(units as 'UGB_x [um]'; a column 'time [s]', or '# sampling_rate: 256' above)")
+    p.add_argument("file", help="the measurement file, read by its suffix: .csv, .txt, .tsv or .dat with a header "
+                                "line of column names (units as 'UGB_x [um]'; a column 'time [s]', or "
+                                "'# sampling_rate: 256' above); .uff/.unv (dataset 58 time responses); .tdms; "
+                                ".mat; .h5/.hdf5 (see twin.extract.readers)")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
     p.add_argument("--fs", type=POSITIVE, default=None, help="sampling rate [Hz] where the file gives none")
     p.add_argument("--units", default=None, metavar="U|NAME=U,...",

@@ -1,7 +1,7 @@
 """Records from measurement systems into ``signals.nc``: one reader per file format, one record layout.
 
-A reader (:data:`READERS`, by file suffix) returns what its file holds as a
-:class:`Table`: the channels' samples, their names and units, a time column or
+A reader (:data:`twin.extract.readers.READERS`, by file suffix) returns what
+its file holds as a :class:`twin.extract.readers.Table`: the channels' samples, their names and units, a time column or
 a sampling rate, where the file has them. :func:`import_record` completes it
 with what the caller says (``fs_hz``, ``units``, ``quantities``, ``channels``),
 works out each channel's quantity from its units where none is given (µm is a
@@ -10,16 +10,13 @@ extraction will (:func:`twin.extract.signals.check_record`) and returns it in
 the ``signal`` layout of :mod:`twin.extract.quantities`. Every problem is an
 error naming the file, and the row, column or channel.
 
-The readers: CSV and text tables with a header line (``.csv``, ``.txt``,
-``.tsv``, ``.dat``).
+The readers (:mod:`twin.extract.readers`): CSV and text tables with a header
+line, UFF dataset 58, TDMS, MATLAB ``.mat`` and HDF5.
 """
 
 from __future__ import annotations
 
-import csv
-import re
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -28,95 +25,8 @@ import xarray as xr
 from twin import __version__
 from twin.errors import SignalError
 from twin.extract.quantities import QUANTITIES, si_factor
-from twin.extract.signals import check_record, seconds_per
-
-#: Column names read as the time [s] (case-insensitive, units in the header aside).
-TIME_NAMES = ("time", "t", "time_s", "timestamp")
-#: A header cell's units: ``name [unit]`` or ``name (unit)``.
-_UNITS_IN_HEADER = re.compile(r"^\s*(?P<name>.*?)\s*[\[(](?P<units>[^\])]*)[\])]\s*$")
-
-
-@dataclass
-class Table:
-    """What a file holds: samples (time x channel), channel names, their units (None where the file says
-    none), the time [s] of each sample or the sampling rate [Hz] (either may be None)."""
-
-    values: np.ndarray
-    channels: list[str]
-    units: list[str | None]
-    time_s: np.ndarray | None = None
-    fs_hz: float | None = None
-    attrs: dict = field(default_factory=dict)
-
-
-def read_table(path: Path) -> Table:
-    """A CSV or text table: one header line of column names (units as ``name [unit]``), then one row per sample.
-
-    The delimiter is found from the header (comma, semicolon, tab or spaces); lines starting with ``#`` are
-    comments, except ``# sampling_rate: 256`` (or ``fs``), which gives the rate [Hz]. A column named as in
-    :data:`TIME_NAMES` is the time.
-    """
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise SignalError(f"{path}: not a text file (a CSV or text table is UTF-8 text)") from None
-    lines = [line for line in text.splitlines() if line.strip()]
-    meta = {}
-    for line in lines:
-        if line.lstrip().startswith("#") and ":" in line:
-            key, _, value = line.lstrip("# ").partition(":")
-            meta[key.strip().lower()] = value.strip()
-    rows = [line for line in lines if not line.lstrip().startswith("#")]
-    if len(rows) < 3:
-        raise SignalError(f"{path}: a table needs a header line and at least two rows, got {len(rows)} line(s)")
-    header = rows[0]
-    delimiter = next((d for d in (",", ";", "\t") if d in header), None)
-    split = (lambda s: next(csv.reader([s], delimiter=delimiter))) if delimiter else str.split
-    names = [c.strip() for c in split(header)]
-    if not names or all(_is_number(n) for n in names):
-        raise SignalError(f"{path}: the first line must name the columns (e.g. time [s], UGB_x [um], ...), "
-                          f"got {header[:60]!r}")  # fmt: skip
-    data = np.empty((len(rows) - 1, len(names)))
-    for r, row in enumerate(rows[1:], start=2):
-        cells = [c.strip() for c in split(row)]
-        if len(cells) != len(names):
-            raise SignalError(f"{path}: row {r} has {len(cells)} values, the header {len(names)} columns")
-        for c, cell in enumerate(cells):
-            try:
-                data[r - 2, c] = float(cell)
-            except ValueError:
-                raise SignalError(f"{path}: row {r}, column '{names[c]}': {cell!r} is not a number") from None
-    columns, units = [], []
-    for n in names:
-        m = _UNITS_IN_HEADER.match(n)
-        columns.append(m["name"] if m else n)
-        units.append(m["units"].strip() if m else None)
-    lowered = [c.lower() for c in columns]
-    time_col = next((k for k, c in enumerate(lowered) if c in TIME_NAMES), None)
-    time_s = None
-    if time_col is not None:
-        time_s = data[:, time_col] * seconds_per(units[time_col] or "s", f"{path}: the time column's")
-    keep = [k for k in range(len(names)) if k != time_col]
-    fs = meta.get("sampling_rate", meta.get("fs"))
-    try:
-        fs_hz = None if fs is None else float(fs.split()[0])
-    except ValueError:
-        raise SignalError(f"{path}: the comment's sampling rate {fs!r} is not a number of Hz") from None
-    return Table(data[:, keep], [columns[k] for k in keep], [units[k] for k in keep], time_s, fs_hz)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-#: The readers by file suffix: each takes the path and returns a :class:`Table`.
-READERS: dict[str, Callable[[Path], Table]] = {".csv": read_table, ".txt": read_table, ".tsv": read_table,
-                                               ".dat": read_table}  # fmt: skip
-
+from twin.extract.readers import READERS
+from twin.extract.signals import check_record
 
 def quantity_of(units: str, where: str) -> str:
     """The quantity ``units`` measure: displacement, velocity or acceleration.
@@ -190,7 +100,7 @@ def import_record(
         if u is None:
             raise SignalError(f"{path}: channel '{c}' has no units: write them in the header ('{c} [um]') or give "
                               "them (--units um, or --units UGB_x=um,...)")  # fmt: skip
-        q = given_quantities.get(c) or quantity_of(u, f"{path}: channel '{c}'")
+        q = given_quantities.get(c) or (table.quantities or [None] * n)[k] or quantity_of(u, f"{path}: channel '{c}'")
         si_factor(u, q, f"{path}: channel '{c}'")  # units of that quantity
         unit_list.append(u)
         quantity_list.append(q)
