@@ -265,3 +265,22 @@ def test_the_command_starts_without_the_numerical_stack():
             "print(sorted(m for m in ('numpy', 'xarray', 'scipy', 'distributed', 'fmpy') if m in sys.modules))")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.slow
+def test_loop_after_an_extraction_with_documented_options_goes_to_the_end(tmp_path, capsys):
+    """``twin extract --samples 15 --fmax 60`` then ``twin loop``: the calibration re-extracts its simulated
+    records with the settings the modes file records, and the loop writes its result."""
+    truth = tmp_path / "truth.toml"
+    truth.write_text("[seal_cross_coupling]\nkxy = 4e7\n")
+    signals, modes, out = tmp_path / "signals.nc", tmp_path / "modes.nc", tmp_path / "loop"
+    assert main(["simulate", "hydro_unit", "--duration", "600", "--truth", str(truth), "--seed", "21",
+                 "-o", str(signals), "-q"]) == 0  # fmt: skip
+    assert main(["extract", str(signals), "--samples", "15", "--fmax", "60", "-o", str(modes), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["loop", "hydro_unit", str(modes), "--out", str(out), "--candidates", "seal_cross_coupling",
+                 "--bootstrap", "3", "--draws", "100", "--seed", "1", "--scheduler", "sync", "-q"]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    assert "seal_cross_coupling" in printed
+    assert (out / "posterior.nc").is_file() and (out / "history.csv").is_file()
+    assert "calibrated on 3 simulated records" in (out / "history.csv").read_text()
