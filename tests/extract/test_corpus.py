@@ -77,8 +77,9 @@ def test_the_frequency_tolerance_widens_to_what_one_record_allows():
         (shear_frame(6, stiffness_n_m=1.6e8, damping_ratio=0.005), 60.0, 100.0, 40.0, ["displacement", V, A] * 2),
         (cantilever(8, damping_ratio=0.02, sensors=4), 150.0, 400.0, 40.0, A),
         (close_pair(4.0, 0.01, 0.005), 1800.0, 16.0, 40.0, "displacement"),
+        (shear_frame(5, damping_ratio=0.001), 240.0, 20.0, 40.0, V),  # 0.9 Hz: 240 s is 1.4 time constants
     ],
-    ids=["240s-0.2%-vel-acc", "60s-0.5%-mixed", "cantilever-2%-acc", "two-modes-1%-apart"],
+    ids=["240s-0.2%-vel-acc", "60s-0.5%-mixed", "cantilever-2%-acc", "two-modes-1%-apart", "240s-0.1%-slow-mode"],
 )
 def test_defaults_find_every_visible_mode_and_nothing_spurious(structure, duration_s, fs_hz, snr_db, quantities):
     ds = simulate_record(structure, duration_s=duration_s, fs_hz=fs_hz, snr_db=snr_db, quantities=quantities, seed=11)

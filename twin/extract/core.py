@@ -362,7 +362,7 @@ def extract(
     missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
     # blocks shorter than a few time constants cannot tell a pole's damping: its frequency alone is judged
     damping_judged = block_len / fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(poles.real), 1e-12)
-    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged)
+    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged, rec.duration_s)
     keep = scatter < MAX_POLE_SE  # pole_determined's test, with the scatter kept for the warnings
     undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep])
     if not keep.any():
