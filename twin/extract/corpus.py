@@ -14,8 +14,8 @@ the noise; :func:`score` counts what an extraction found, missed and made up.
 
 A mode is *visible* when, at its frequency, its own response's spectral
 density on some channel stands :data:`VISIBLE_DB` above the sensor noise's
-(and it lies below the band an extraction reads by default, 40% of the
-sampling rate): below that no method can be asked to find it.
+(and it lies below the band an extraction reads by default,
+:data:`twin.extract.core.DEFAULT_FMAX_FRACTION` of the sampling rate): below that no method can be asked to find it.
 
 Examples
 --------
@@ -29,7 +29,7 @@ Examples
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sl
@@ -37,7 +37,9 @@ import scipy.signal as sg
 import xarray as xr
 
 from twin import __version__
-from twin.extract.quantities import QUANTITIES
+from twin.extract.core import DEFAULT_FMAX_FRACTION
+from twin.extract.quantities import derivative_orders
+from twin.extract.result import attainable_frequency_se
 from twin.modes.shapes import mac
 
 #: A mode stands out of the noise when its spectral density at its frequency exceeds the noise's by this [dB].
@@ -66,7 +68,6 @@ class Structure:
     forced: Sequence[int]
     G: np.ndarray | None = None
     speed_rad_s: float = 0.0
-    attrs: dict = field(default_factory=dict)
 
     def state_matrix(self) -> np.ndarray:
         """``A = [[0, I], [-M^-1 K, -M^-1 (C + speed G)]]``."""
@@ -119,16 +120,15 @@ def cantilever(elements: int = 10, *, length_m: float = 2.0, ei_n_m2: float = 2e
 
 def close_pair(frequency_hz: float = 5.0, separation: float = 0.01, damping_ratio: float = 0.005,
                sensors: int = 3) -> Structure:  # fmt: skip
-    """Two modes ``separation`` apart in frequency (a two-mass system with a weak coupling spring), seen
-    by ``sensors`` channels: both masses and, beyond two, their sum and difference."""
+    """Two modes ``separation`` apart in frequency (two unit masses whose in-phase and out-of-phase modes
+    are set apart), seen by ``sensors`` channels: the two masses and, beyond two, light masses on stiff
+    springs to one of them (their own modes 40 times higher), which follow it."""
     w1, w2 = 2 * np.pi * frequency_hz, 2 * np.pi * frequency_hz * (1 + separation)
     phi = np.array([[1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2)  # mass-normalised shapes of unit masses
-    K = phi @ np.diag([w1**2, w2**2]) @ phi.T
-    M = np.eye(2)
-    # extra channels combine the masses: a sensor on a degree of freedom of an enlarged model
-    big_m, big_k = np.eye(2 + max(sensors - 2, 0)) * 1.0, np.zeros((2 + max(sensors - 2, 0),) * 2)
-    big_m[:2, :2], big_k[:2, :2] = M, K
-    for j in range(2, len(big_m)):  # a light mass on a stiff spring to mass j % 2 follows it below its own mode
+    size = max(sensors, 2)
+    big_m, big_k = np.eye(size), np.zeros((size, size))
+    big_k[:2, :2] = phi @ np.diag([w1**2, w2**2]) @ phi.T
+    for j in range(2, size):  # a light mass on a stiff spring to mass j % 2 follows it below its own mode
         big_m[j, j] = 1e-4
         kk = 1e-4 * (2 * np.pi * 40 * frequency_hz) ** 2
         big_k[j, j] += kk
@@ -136,7 +136,7 @@ def close_pair(frequency_hz: float = 5.0, separation: float = 0.01, damping_rati
         big_k[j, j % 2] -= kk
         big_k[j % 2, j] -= kk
     C = modal_damping(big_m, big_k, damping_ratio)
-    names = {f"s{j + 1}": j for j in range(len(big_m))[:sensors]}
+    names = {f"s{j + 1}": j for j in range(size)[:sensors]}
     return Structure(f"two modes {separation:.1%} apart", big_m, C, big_k, names, [0, 1])
 
 
@@ -180,10 +180,9 @@ def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, sn
     rng = np.random.default_rng(seed)
     n_t, h = int(round(duration_s * fs_hz)), 1.0 / fs_hz
     lam, vec = _eig(structure)
-    n = len(structure.M)
     dofs = np.array(list(structure.sensors.values()))
     qs = [quantities] * len(dofs) if isinstance(quantities, str) else list(quantities)
-    orders = np.array([QUANTITIES[q][1] for q in qs])
+    orders = derivative_orders(qs)
     gains = _modal_inputs(structure, vec)
     u = rng.standard_normal((len(structure.forced), n_t))
     y = np.zeros((n_t, len(dofs)))
@@ -198,7 +197,7 @@ def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, sn
         y += np.real(z[:, None] * (shape * li ** orders))
     accel = orders == 2  # an accelerometer feels the force directly too
     if accel.any():
-        direct = np.linalg.solve(structure.M, _force_matrix(n, structure.forced)) @ u
+        direct = _accelerations_per_force(structure) @ u
         y[:, accel] += direct[dofs[accel]].T
     scale = rms_m / x_disp.std(axis=0).max()
     y *= scale
@@ -218,31 +217,33 @@ def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, sn
 
 def _modal_inputs(structure: Structure, vec: np.ndarray) -> np.ndarray:
     """How the white forces drive each state mode: ``V^-1 B``, ``B = [0; M^-1 F]``."""
-    n = len(structure.M)
-    B = np.vstack([np.zeros((n, len(structure.forced))), np.linalg.solve(structure.M, _force_matrix(n, structure.forced))])
-    return np.linalg.solve(vec, B)
+    per_force = _accelerations_per_force(structure)
+    return np.linalg.solve(vec, np.vstack([np.zeros_like(per_force), per_force]))
 
 
-def _force_matrix(n: int, forced: Sequence[int]) -> np.ndarray:
+def _accelerations_per_force(structure: Structure) -> np.ndarray:
+    """``M^-1 F``: the accelerations of the degrees of freedom per unit of each white force."""
+    n, forced = len(structure.M), np.asarray(structure.forced)
     F = np.zeros((n, len(forced)))
-    F[np.asarray(forced), np.arange(len(forced))] = 1.0
-    return F
+    F[forced, np.arange(len(forced))] = 1.0
+    return np.linalg.solve(structure.M, F)
 
 
 def frequency_limit(frequency_hz, damping_ratio, duration_s: float) -> np.ndarray:
     """The relative frequency error an estimate may have [fraction]: :data:`FREQUENCY_TOLERANCE`, or three
     times the standard error that one record of ``duration_s`` allows, where that is wider: the asymptotic
-    spread of a lone mode's angular frequency estimated from its response to white noise,
-    ``var(omega) = 2 zeta omega / T``, i.e. ``sqrt(zeta / (pi f T))`` of the frequency (a 5%-damped 0.6 Hz
-    mode in 300 s is known to 0.9% at best).
+    spread of a lone mode's angular frequency estimated from its response to white noise
+    (:func:`twin.extract.result.attainable_frequency_se`), ``sqrt(zeta / (pi f T))`` of the frequency (a
+    5%-damped 0.6 Hz mode in 300 s is known to 0.9% at best).
 
     Examples
     --------
     >>> frequency_limit([0.6, 6.0], [0.05, 0.001], 300.0).round(4).tolist()
     [0.0282, 0.005]
     """
-    f, z = np.asarray(frequency_hz, dtype=float), np.asarray(damping_ratio, dtype=float)
-    return np.maximum(FREQUENCY_TOLERANCE, 3 * np.sqrt(z / (np.pi * f * duration_s)))
+    w = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    relative = attainable_frequency_se(np.asarray(damping_ratio, dtype=float) * w, duration_s) / w
+    return np.maximum(FREQUENCY_TOLERANCE, 3 * relative)
 
 
 def truth_modes(structure: Structure, record: xr.Dataset | None = None) -> xr.Dataset:
@@ -269,8 +270,7 @@ def truth_modes(structure: Structure, record: xr.Dataset | None = None) -> xr.Da
 def _visible(structure, record, lam, vec, keep) -> np.ndarray:
     fs = float(record.attrs["sampling_rate"])
     h = 1.0 / fs
-    qs = [str(q) for q in record["quantity"].values]
-    orders = np.array([QUANTITIES[q][1] for q in qs])
+    orders = derivative_orders([str(q) for q in record["quantity"].values])
     dofs = np.array(list(structure.sensors.values()))
     gains = _modal_inputs(structure, vec)
     scale = float(record.attrs["force_scale"])
@@ -282,7 +282,7 @@ def _visible(structure, record, lam, vec, keep) -> np.ndarray:
         drive = np.abs((np.exp(li * h) - 1) / li) ** 2 * np.sum(np.abs(gains[i]) ** 2) * scale**2
         psd_z = drive * h / np.abs(1 - np.exp(li * h) * np.exp(-1j * wi * h)) ** 2
         psd = np.abs(vec[dofs, i] * li**orders) ** 2 * psd_z
-        out[j] = wi / (2 * np.pi) < 0.4 * fs and np.max(psd / noise_psd) >= 10 ** (VISIBLE_DB / 10)
+        out[j] = wi / (2 * np.pi) < DEFAULT_FMAX_FRACTION * fs and np.max(psd / noise_psd) >= 10 ** (VISIBLE_DB / 10)
     return out
 
 

@@ -321,11 +321,9 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
             values = values.T
         names = lookup(CHANNEL_NAMES)
         names = [f"{data_key}_{k + 1}" for k in range(values.shape[1])] if names is None else _strings(names)
-        units = lookup(UNIT_NAMES)
-        units = [units_of.get(data_key) if units_of else None] * values.shape[1] if units is None else units
-        units = _strings(units) if not isinstance(units, list) or len(units) != values.shape[1] else units
-        if isinstance(units, list) and len(units) == 1:
-            units = units * values.shape[1]
+        given = lookup(UNIT_NAMES)
+        units = ([(units_of or {}).get(data_key)] * values.shape[1] if given is None
+                 else _every_channel(_strings(given), values.shape[1]))  # fmt: skip
     else:
         one_d = {k: np.asarray(v, dtype=float).ravel() for k, v in arrays.items()
                  if numeric(v) and np.squeeze(v).ndim == 1 and k not in skip}  # fmt: skip
@@ -341,7 +339,7 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
         units = [(units_of or {}).get(k) for k in names]
         common = lookup(UNIT_NAMES)
         if common is not None and not any(units):
-            units = _strings(common) * (len(names) if len(_strings(common)) == 1 else 1)
+            units = _every_channel(_strings(common), len(names))
     if len(names) != values.shape[1] or len(units) != values.shape[1]:
         raise SignalError(f"{path}: {values.shape[1]} channels but {len(names)} channel names and "
                           f"{len(units)} units")  # fmt: skip
@@ -349,6 +347,11 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
     return Table(values, [str(n) for n in names], [_no_label(u) for u in units], time_s,
                  _rate(lookup(RATE_NAMES), f"{path}: its sampling rate"),
                  {"start_time": str(_strings(start)[0])} if start is not None else {})  # fmt: skip
+
+
+def _every_channel(strings: list[str], n: int) -> list[str]:
+    """One string for every one of ``n`` channels: a single one repeated, else as given."""
+    return strings * n if len(strings) == 1 else strings
 
 
 def _strings(value) -> list[str]:

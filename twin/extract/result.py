@@ -107,8 +107,20 @@ def pole_scatter(poles: np.ndarray, sample_poles: np.ndarray, missing: np.ndarra
     kept = 1.0 if missing is None else np.clip(1.0 - np.asarray(missing, dtype=float), 1e-12, 1.0)
     scale = np.maximum(np.abs(poles.real), 1e-300)
     if duration_s is not None:
-        scale = np.maximum(scale, ATTAINABLE_SE_FACTOR * np.sqrt(2 * scale / float(duration_s)))
+        scale = np.maximum(scale, ATTAINABLE_SE_FACTOR * attainable_frequency_se(scale, duration_s))
     return se / np.sqrt(J) / kept / scale
+
+
+def attainable_frequency_se(decay_rate: np.ndarray, duration_s: float) -> np.ndarray:
+    """The least standard error [rad/s] of a lone mode's angular frequency estimated from ``duration_s`` of
+    its response to white noise: ``sqrt(2 |Re λ| / T)``, ``decay_rate = |Re λ| = ζ ω`` [1/s].
+
+    Examples
+    --------
+    >>> float(attainable_frequency_se(0.02, 200.0))
+    0.01414213562373095
+    """
+    return np.sqrt(2 * np.abs(decay_rate) / float(duration_s))
 
 
 def frequency_damping_std(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
