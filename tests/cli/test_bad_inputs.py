@@ -4,8 +4,6 @@ Each case is a file or an argument a newcomer could give; none may end in a
 silent wrong answer, a traceback or lost work.
 """
 
-import os
-import signal
 import tempfile
 from pathlib import Path
 
@@ -148,8 +146,7 @@ def test_an_interrupt_is_one_line(monkeypatch, capsys):
     import twin.cli.stages
 
     def interrupted(args):
-        os.kill(os.getpid(), signal.SIGINT)  # as Ctrl-C does
-        return 0
+        raise KeyboardInterrupt  # what Ctrl-C raises in the main thread
 
     monkeypatch.setattr(twin.cli.stages, "_modal", interrupted)
     from twin.cli.parser import build_parser
@@ -214,3 +211,21 @@ def test_a_measurement_table_comes_in_with_its_units(tmp_path, capsys):
     import xarray as xr
 
     assert check_record(xr.load_dataset(tmp_path / "s.nc")).quantities == ("displacement", "displacement", "velocity")
+
+
+def test_extract_says_how_many_blocks_it_chose_and_a_refusal_names_a_number_it_takes(files, tmp_path, capsys):
+    import re
+
+    import xarray as xr
+
+    short = tmp_path / "short.nc"
+    with xr.open_dataset(files / "good.nc") as ds:
+        ds.isel(time=slice(0, 32 * 60)).load().to_netcdf(short)  # 60 s
+    rc = main(["extract", str(short), "-o", str(tmp_path / "m.nc"), "--samples", "15", "-q"])
+    err = capsys.readouterr().err
+    most = re.search(r"too short for 15 blocks .*at most (\d+)\), or none: the extraction then chooses", err)
+    assert rc == 2 and most, err
+    assert main(["extract", str(short), "-o", str(tmp_path / "m.nc")]) == 0
+    out = capsys.readouterr().out
+    assert f"jackknife: {most.group(1)} blocks of " in out and "the most the record holds" in out
+    assert f"{most.group(1)} samples each" in out

@@ -310,8 +310,9 @@ def _add_stages(sub) -> None:
                  stages._extract)  # fmt: skip
     p.add_argument("signals", help="signals file (NetCDF, time x channel, from twin simulate or a measurement)")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
-    p.add_argument("--samples", type=COUNT, default=SAMPLES,
-                   help="jackknife samples per mode J, one per block left out (blocks of the record / J)")
+    p.add_argument("--samples", type=COUNT, default=None,
+                   help=f"jackknife samples per mode J, one per block left out (default: {SAMPLES}, or as many "
+                        "blocks as a short record holds; the output says which)")
     p.add_argument("--blocks", type=COUNT, default=None,
                    help="blocks the record is cut into (default: --samples; with --delete-half it may be fewer)")
     p.add_argument("--fmax", type=POSITIVE, default=None, help="highest frequency [Hz] (default: 40%% of fs)")

@@ -139,6 +139,9 @@ def _extract(args: argparse.Namespace) -> int:
                  orders_per_mode=args.orders_per_mode or None,
                  differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
+    chosen = json.loads(ds.attrs["settings"]).get("blocks_chosen")
+    if chosen:
+        print(f"jackknife: {chosen}")
     print(f"{ds.sizes['mode']} modes, {ds.sizes['sample']} samples each"
           + (f"; running-speed lines removed at {removed} Hz" if removed else "")
           + (f"; harmonics rejected at {rejected} Hz" if rejected else ""))

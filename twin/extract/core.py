@@ -24,6 +24,8 @@ from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
+from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, check_block_length,
+                                 most_blocks, warn_about_few_blocks)
 from twin.extract.quantities import displacement_shapes
 from twin.extract.harmonics import remove_running_harmonics
 from twin.modes.modesfile import write_modes
@@ -51,8 +53,6 @@ SAMPLES_PER_PERIOD = 2.5
 DEFAULT_FMIN_FRACTION = 0.01
 #: The record must hold this many periods of the lowest frequency asked for.
 MIN_CYCLES = 100
-#: Each jackknife block must be this many times longer than the largest lag.
-MIN_BLOCK_LAGS = 2.0
 #: A cluster's poles farther than this many robust std from its median pole are not used (unconverged orders).
 OUTLIER_MADS = 3.0
 #: What the model-order spread is added to (``extract(order_spread=...)``): the default first.
@@ -61,9 +61,6 @@ ORDER_SPREADS = ("shapes", "all", "none")
 MAX_MISSING = 0.05
 #: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread; docs/decisions/extraction-jackknife.md).
 DELETE_BLOCKS: int | None = 1
-#: Warn when a block is shorter than this many time constants of a mode (samples then too narrow); a pole in such
-#: blocks is judged on its frequency alone (:func:`twin.extract.result.pole_determined`).
-MIN_BLOCK_TIME_CONSTANTS = 3.0
 
 
 def _open(signals: xr.Dataset | str | Path) -> tuple[xr.Dataset, str]:
@@ -89,7 +86,7 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
 def extract(
     signals: xr.Dataset | str | Path,
     *,
-    samples: int = SAMPLES,
+    samples: int | None = None,
     fmax_hz: float | None = None,
     fmin_hz: float = 0.0,
     block_rows: int | None = None,
@@ -117,10 +114,17 @@ def extract(
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``), or ``signal``
         with each channel's ``quantity`` and ``units`` (:mod:`twin.extract.quantities`): velocity and
         acceleration channels are read as such and every shape is reported in displacement.
-    samples : int
-        Samples per mode (default :data:`twin.defaults.SAMPLES`): each comes
-        from the record without ``delete_blocks`` of its ``blocks``
-        (delete-d jackknife, see :mod:`twin.extract.samples`).
+    samples : int, optional
+        Samples per mode: each comes from the record without
+        ``delete_blocks`` of its ``blocks`` (delete-d jackknife, see
+        :mod:`twin.extract.samples`). With neither ``samples`` nor
+        ``blocks`` given the extraction chooses both
+        (:func:`twin.extract.blocks.adapted_blocks`:
+        :data:`twin.defaults.SAMPLES` where the record holds that many
+        blocks for the Hankel matrix, else as many as it holds) and says
+        what it chose and why, naming its slowest mode's decay, in the
+        ``settings`` attr (``blocks_chosen``). Given ``blocks`` alone,
+        one sample per block.
     fmax_hz : float, optional
         Highest frequency of interest [Hz] (default 40% of the sampling rate).
         The record is decimated to about ``2.5 fmax``.
@@ -178,7 +182,8 @@ def extract(
         jackknife shapes alone; the poles' jackknife error is what the loop's
         comparison is calibrated to (``docs/decisions/extraction-jackknife.md``).
     blocks : int, optional
-        J, contiguous blocks the record is cut into (default ``samples``).
+        J, contiguous blocks the record is cut into (default ``samples``,
+        or chosen with it when neither is given).
         The delete-one jackknife gives one sample per block; with more
         blocks deleted, ``samples`` may exceed ``blocks`` (random subsets),
         for a steadier spread from blocks that must stay long.
@@ -201,7 +206,8 @@ def extract(
     shape_samples : int, optional
         Draw the shape samples from their own delete-half jackknife: this
         many random halves of the same ``blocks`` (a multiple of
-        ``samples``), while the poles keep the samples of ``delete_blocks``,
+        ``samples``; with ``samples`` chosen by the extraction, the nearest
+        multiple of at least two), while the poles keep the samples of ``delete_blocks``,
         each used ``shape_samples / samples`` times with its deviation
         scaled so that the standard error stays
         (:func:`twin.extract.samples.repeated`). The update estimates each
@@ -277,7 +283,7 @@ def extract(
         raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
     if max_order < 2:
         raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
-    if samples < 2:
+    if samples is not None and samples < 2:
         raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
     if first_lag is not None and not _whole_at_least_one(first_lag):
         raise SignalError(f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
@@ -288,12 +294,11 @@ def extract(
     if orders_per_mode is not None and orders_per_mode < 1:
         raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
                           f"got {orders_per_mode}")  # fmt: skip
-    n_blocks = samples if blocks is None else int(blocks)
-    try:  # checked before the record is read
-        n_deleted = len(deleted_blocks(n_blocks, delete_blocks, n_samples=samples)[0])
-    except ValueError as exc:
-        raise SignalError(f"delete_blocks: {exc}") from None
-    repeats = _shape_sample_repeats(shape_samples, samples, n_blocks, differenced_above_hz, shape_block_rows)
+    chosen = samples is None and blocks is None  # the extraction chooses the blocks from the record
+    n_blocks = SAMPLES if chosen else int(blocks if blocks is not None else samples)  # type: ignore[arg-type]
+    samples = n_blocks if samples is None else samples
+    if not chosen:  # checked before the record is read
+        _jackknife_plan(n_blocks, samples, delete_blocks, shape_samples, differenced_above_hz, shape_block_rows, chosen)
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
         raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
@@ -311,21 +316,24 @@ def extract(
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
     k0 = first_lag_for(fs, fmax) if first_lag is None else int(first_lag)
-    block_len = y.shape[0] // n_blocks
     lags = hankel_max_lag(i, k0)
-    if block_len < MIN_BLOCK_LAGS * lags:
-        most = y.shape[0] // int(MIN_BLOCK_LAGS * lags)
-        fix = (f"ask for fewer samples or blocks (at most {most})" if most >= 2 else
-               "the record is too short for a jackknife of two blocks: give a longer record, a higher fmin or fewer "
-               "block rows")  # fmt: skip
-        raise SignalError(f"{source}: {rec.duration_s:g} s is too short for {n_blocks} blocks with {i} block rows "
-                          f"from lag {k0}: each block needs {MIN_BLOCK_LAGS * lags / fs:g} s; {fix}")  # fmt: skip
+    if chosen:
+        n_blocks = samples = max(2, min(n_blocks, most_blocks(y.shape[0], lags)))
+    check_block_length(source, rec.duration_s, y.shape[0], n_blocks, lags, fs, i, k0)
+    n_deleted, repeats = _jackknife_plan(n_blocks, samples, delete_blocks, shape_samples, differenced_above_hz,
+                                         shape_block_rows, chosen)  # fmt: skip
 
     log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
              source, n_ch, rec.duration_s, fs, i, k0, max_order)  # fmt: skip
     spectrum: dict = {}
     found = ssi_pass(y, fs, i, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
                      first_lag=k0)  # fmt: skip
+    plan = None
+    if chosen:
+        plan = adapted_blocks(y.shape[0] / fs, n_blocks, np.array([found.diag.pole[c.representative]
+                                                                   for c in found.modes]))  # fmt: skip
+        log.info("jackknife: %s", plan.reason)
+    block_len = y.shape[0] // n_blocks
     covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
     harmonics = list(removed) + found.harmonics
     if not modes:
@@ -364,7 +372,8 @@ def extract(
     damping_judged = block_len / fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(poles.real), 1e-12)
     scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged, rec.duration_s)
     keep = scatter < MAX_POLE_SE  # pole_determined's test, with the scatter kept for the warnings
-    undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep])
+    undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep],
+                            rec.duration_s)
     if not keep.any():
         raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(undetermined)} stable pole(s) dropped: their samples scatter beyond their "
@@ -397,7 +406,7 @@ def extract(
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing, block_len / fs, n_blocks)
+    _warn_about_samples(source, poles, missing, n_blocks, chosen)
 
     out = extracted_modes(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                           [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
@@ -406,7 +415,7 @@ def extract(
                                                              "the mode is read from"})  # fmt: skip
     settings = {
         "samples": samples, "shape_samples": n_samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax,
-        "block_rows": i,
+        "block_rows": i, "blocks_chosen": None if plan is None else plan.reason,
         "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
         "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
         "quantities": list(rec.quantities),
@@ -448,12 +457,20 @@ def extract(
     return out
 
 
-def _shape_sample_repeats(shape_samples: object, samples: int, n_blocks: int, differenced_above_hz: float | None,
-                          shape_block_rows: int | str) -> int:  # fmt: skip
-    """How many times each pole sample is used beside ``shape_samples`` delete-half shape samples (1: none asked,
-    or as many as the poles': the shapes come with the poles, as a modes file's settings record it)."""
+def _jackknife_plan(n_blocks: int, samples: int, delete_blocks: int | None, shape_samples: object,
+                    differenced_above_hz: float | None, shape_block_rows: int | str, chosen: bool) -> tuple[int, int]:  # fmt: skip
+    """The blocks each sample deletes, and how many times each pole sample is used beside ``shape_samples``
+    delete-half shape samples (1: none asked, or as many as the poles': the shapes come with the poles, as a
+    modes file's settings record it). With ``chosen`` blocks, ``shape_samples`` is taken to the nearest multiple
+    (at least two) of the samples."""
+    try:
+        n_deleted = len(deleted_blocks(n_blocks, delete_blocks, n_samples=samples)[0])
+    except ValueError as exc:
+        raise SignalError(f"delete_blocks: {exc}") from None
     if shape_samples is None or _as_float(shape_samples) in (0, samples):
-        return 1
+        return n_deleted, 1
+    if chosen and _whole_at_least_one(shape_samples):
+        shape_samples = samples * max(2, round(int(shape_samples) / samples))
     if not _whole_at_least_one(shape_samples) or int(shape_samples) % samples or int(shape_samples) <= samples:
         raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} (e.g. {4 * samples}; "
                           f"{samples} or none: the shapes come with the poles), got {shape_samples!r}")  # fmt: skip
@@ -463,7 +480,7 @@ def _shape_sample_repeats(shape_samples: object, samples: int, n_blocks: int, di
     if differenced_above_hz is not None or shape_block_rows != 0:
         raise SignalError("shape_samples is not available with differenced_above_hz or shape_block_rows: those "
                           "passes redraw the samples of the modes they read")  # fmt: skip
-    return int(shape_samples) // samples
+    return n_deleted, int(shape_samples) // samples
 
 
 def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.ndarray) -> list[dict] | None:
@@ -564,21 +581,9 @@ def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: floa
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 
-def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, block_s: float, n_blocks: int) -> None:
+def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, n_blocks: int, chosen: bool) -> None:
+    warn_about_few_blocks(source, n_blocks, chosen)
     f = poles.imag / (2 * np.pi)
-    tau = 1.0 / np.abs(poles.real)
-    slow = np.flatnonzero(block_s < MIN_BLOCK_TIME_CONSTANTS * tau)
-    if slow.size:
-        k = slow[np.argmax(tau[slow])]
-        need = MIN_BLOCK_TIME_CONSTANTS * tau[k]
-        most = int(block_s * n_blocks // need)
-        fix = (f"ask for {most} blocks or fewer (the samples, unless more than one block is deleted)" if most >= 2
-               else f"a record of {2 * need:.3g} s or more would give the fewest blocks a jackknife takes (2); read "
-                    "this one's uncertainty as a lower bound")  # fmt: skip
-        warnings.warn(f"{source}: the samples come from {block_s:.3g} s blocks, shorter than "
-                      f"{MIN_BLOCK_TIME_CONSTANTS:g} time constants of the {f[k]:.4g} Hz mode "
-                      f"({MIN_BLOCK_TIME_CONSTANTS:g} x {tau[k]:.3g} s = {need:.3g} s): its sample spread "
-                      f"underestimates the uncertainty; {fix}", TwinWarning, stacklevel=3)  # fmt: skip
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
                       "identifications without a sample's blocks: its sample spread is too narrow; treat it with care",

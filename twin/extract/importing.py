@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
+import numpy as np  # noqa: F401 (the examples)
 import xarray as xr
 
 from twin import __version__

@@ -129,10 +129,11 @@ def frequency_damping_std(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: np.ndarray,
-             damping_judged: np.ndarray) -> list[dict]:  # fmt: skip
+             damping_judged: np.ndarray, duration_s: float | None = None) -> list[dict]:  # fmt: skip
     """The stable poles :func:`pole_determined` leaves out, for the modes file's ``undetermined_poles``, each
-    said in a warning naming it and the part of it (frequency or damping) that scattered by ``scatter``
-    bandwidths (:func:`pole_scatter`)."""
+    said in a warning naming it, the part of it (frequency or damping) that scattered by ``scatter`` times
+    what it was judged against (:func:`pole_scatter`: its bandwidth, or in a record of ``duration_s`` too
+    short for that, the standard error such a record allows)."""
     f_se, z_se = (x / np.sqrt(sample_poles.shape[-1]) for x in frequency_damping_std(sample_poles))
     out = []
     for p, s, f, z, ratio, whole in zip(poles, sample_poles, f_se, z_se, scatter, damping_judged):
@@ -142,8 +143,12 @@ def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: 
         damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
         part = (f"its damping (standard error {z:.3g} of a damping ratio {u['damping_ratio']:.3g})" if damping_most
                 else f"its frequency (standard error {f:.3g} Hz)")  # fmt: skip
+        rate = abs(p.real)
+        bound = ("the pole's half-power bandwidth" if duration_s is None
+                 or ATTAINABLE_SE_FACTOR * attainable_frequency_se(rate, duration_s) <= rate else
+                 f"{ATTAINABLE_SE_FACTOR:g} x the least standard error a {duration_s:g} s record allows")  # fmt: skip
         warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but {part} "
-                      f"scatters over the samples by {ratio:.2g} times the pole's half-power bandwidth, as a noise "
+                      f"scatters over the samples by {ratio:.2g} times {bound}, as a noise "
                       "pole fitted by surplus states does; if a mode of the structure is there, a longer record (or "
                       "fewer samples: --samples) would show it", TwinWarning, stacklevel=3)  # fmt: skip
         out.append(u)
