@@ -82,18 +82,28 @@ def check_block_length(source: str, duration_s: float, n_samples: int, n_blocks:
                       f"from lag {first_lag}: each block needs {MIN_BLOCK_LAGS * lags / fs_hz:g} s; {fix}")  # fmt: skip
 
 
+def block_count(most: int) -> int:
+    """The blocks the extraction chooses for a record holding at most ``most``: :data:`twin.defaults.SAMPLES`,
+    or ``most`` where the record holds fewer (at least 2, which :func:`check_block_length` then judges).
+
+    >>> block_count(30), block_count(9)
+    (15, 9)
+    """
+    return max(2, min(SAMPLES, int(most)))
+
+
 def adapted_blocks(duration_s: float, most: int, poles: np.ndarray) -> BlockPlan:
     """The blocks for a record of ``duration_s`` [s] holding at most ``most`` blocks, and why, naming the
     slowest of the modes the full record identifies (continuous-time ``poles`` [1/s]) and how much of its
     decay a block holds.
 
-    :data:`twin.defaults.SAMPLES` blocks, or ``most`` where the record holds fewer.
+    The number is :func:`block_count`'s.
 
     >>> plan = adapted_blocks(120.0, 9, np.array([-2.0 + 30j]))
     >>> plan.blocks, plan.reason
     (9, '9 blocks of 13.3 s, the most the record holds for the Hankel matrix (the default is 15); each longer than 3 time constants of the slowest mode (4.775 Hz, 3 x 0.5 s)')
     """
-    n = max(2, min(SAMPLES, most))
+    n = block_count(most)
     block_s = duration_s / n
     why = "(the default number)" if n == SAMPLES else f", the most the record holds for the Hankel matrix (the default is {SAMPLES})"
     poles = np.asarray(poles)

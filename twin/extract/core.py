@@ -24,8 +24,8 @@ from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import SignalError, TwinWarning
-from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, check_block_length,
-                                 most_blocks, warn_about_few_blocks)
+from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, block_count,
+                                 check_block_length, most_blocks, warn_about_few_blocks)
 from twin.extract.quantities import displacement_shapes
 from twin.extract.harmonics import remove_running_harmonics
 from twin.modes.modesfile import write_modes
@@ -317,8 +317,9 @@ def extract(
     i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
     k0 = first_lag_for(fs, fmax) if first_lag is None else int(first_lag)
     lags = hankel_max_lag(i, k0)
+    most = most_blocks(y.shape[0], lags)
     if chosen:
-        n_blocks = samples = max(2, min(n_blocks, most_blocks(y.shape[0], lags)))
+        n_blocks = samples = block_count(most)
     check_block_length(source, rec.duration_s, y.shape[0], n_blocks, lags, fs, i, k0)
     n_deleted, repeats = _jackknife_plan(n_blocks, samples, delete_blocks, shape_samples, differenced_above_hz,
                                          shape_block_rows, chosen)  # fmt: skip
@@ -330,8 +331,8 @@ def extract(
                      first_lag=k0)  # fmt: skip
     plan = None
     if chosen:
-        plan = adapted_blocks(y.shape[0] / fs, n_blocks, np.array([found.diag.pole[c.representative]
-                                                                   for c in found.modes]))  # fmt: skip
+        plan = adapted_blocks(y.shape[0] / fs, most, np.array([found.diag.pole[c.representative]
+                                                              for c in found.modes]))  # fmt: skip
         log.info("jackknife: %s", plan.reason)
     block_len = y.shape[0] // n_blocks
     covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
@@ -406,7 +407,8 @@ def extract(
     ref_channel = np.argmax(np.abs(shapes), axis=1)
     shapes = normalise_at(shapes, ref_channel)
     sample_s = normalise_at(sample_s, ref_channel[:, None])
-    _warn_about_samples(source, poles, missing, n_blocks, chosen)
+    warn_about_few_blocks(source, n_blocks, chosen)
+    _warn_about_samples(source, poles, missing)
 
     out = extracted_modes(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
                           [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
@@ -581,8 +583,7 @@ def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: floa
                       TwinWarning, stacklevel=3)  # fmt: skip
 
 
-def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray, n_blocks: int, chosen: bool) -> None:
-    warn_about_few_blocks(source, n_blocks, chosen)
+def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray) -> None:
     f = poles.imag / (2 * np.pi)
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
         warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "

@@ -105,10 +105,21 @@ def pole_scatter(poles: np.ndarray, sample_poles: np.ndarray, missing: np.ndarra
         real = np.where(damping_judged, real, 0.0)
     se = np.sqrt(real + np.var(sample_poles.imag, axis=-1, ddof=1))
     kept = 1.0 if missing is None else np.clip(1.0 - np.asarray(missing, dtype=float), 1e-12, 1.0)
-    scale = np.maximum(np.abs(poles.real), 1e-300)
-    if duration_s is not None:
-        scale = np.maximum(scale, ATTAINABLE_SE_FACTOR * attainable_frequency_se(scale, duration_s))
-    return se / np.sqrt(J) / kept / scale
+    return se / np.sqrt(J) / kept / scatter_scale(poles.real, duration_s)
+
+
+def scatter_scale(decay_rate: np.ndarray, duration_s: float | None = None) -> np.ndarray:
+    """What :func:`pole_scatter` measures a pole's standard error against [1/s]: its half-power
+    half-bandwidth ``|Re λ|``, or :data:`ATTAINABLE_SE_FACTOR` times the frequency's attainable standard
+    error in a record of ``duration_s`` where that is larger.
+
+    >>> float(scatter_scale(-0.02)), float(scatter_scale(-0.02, 200.0))
+    (0.02, 0.0282842712474619)
+    """
+    scale = np.maximum(np.abs(decay_rate), 1e-300)
+    if duration_s is None:
+        return scale
+    return np.maximum(scale, ATTAINABLE_SE_FACTOR * attainable_frequency_se(scale, duration_s))
 
 
 def attainable_frequency_se(decay_rate: np.ndarray, duration_s: float) -> np.ndarray:
@@ -143,9 +154,7 @@ def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: 
         damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
         part = (f"its damping (standard error {z:.3g} of a damping ratio {u['damping_ratio']:.3g})" if damping_most
                 else f"its frequency (standard error {f:.3g} Hz)")  # fmt: skip
-        rate = abs(p.real)
-        bound = ("the pole's half-power bandwidth" if duration_s is None
-                 or ATTAINABLE_SE_FACTOR * attainable_frequency_se(rate, duration_s) <= rate else
+        bound = ("the pole's half-power bandwidth" if scatter_scale(p.real, duration_s) <= scatter_scale(p.real) else
                  f"{ATTAINABLE_SE_FACTOR:g} x the least standard error a {duration_s:g} s record allows")  # fmt: skip
         warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but {part} "
                       f"scatters over the samples by {ratio:.2g} times {bound}, as a noise "
