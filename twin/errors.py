@@ -43,6 +43,19 @@ class SignalError(TwinError, ValueError):
     """
 
 
+class NoModeError(SignalError):
+    """A record was read and analysed, but no physical mode stood out of it.
+
+    Unlike the other signal errors the input is not wrong: a record too noisy or too short for any of its
+    modes. A program that goes over many records (a benchmark, a campaign) can count it as a record with
+    no mode and go on. ``block_rows`` is the number of block rows the analysis used.
+    """
+
+    def __init__(self, message: str, block_rows: int | None = None) -> None:
+        super().__init__(message)
+        self.block_rows = block_rows
+
+
 class CompareError(TwinError, ValueError):
     """Measured modes that cannot be compared with a model (missing variables, too few samples, unknown channels)."""
 

@@ -220,27 +220,6 @@ def test_decimation_by_a_prime_factor_above_eight(make_record):
     assert np.min(np.abs(m.frequency.values - 1.0)) < 0.01
 
 
-def test_orders_used_leave_out_unconverged_low_orders():
-    """Poles far (robust z > 3) from the cluster's median are not averaged, even at the lowest orders."""
-    from types import SimpleNamespace
-
-    from twin.extract.core import ORDERS_PER_MODE, _orders_used
-
-    orders = np.arange(10, 62, 2)
-    rng = np.random.default_rng(0)
-    pole = -0.15 + 2j * np.pi * (1.0 + 1e-4 * rng.standard_normal(len(orders)))
-    pole[[0, 3]] += 2j * np.pi * 0.008  # orders 10 and 16: 0.8% high, not yet settled
-    diag = SimpleNamespace(pole=pole, order=orders)
-    use = _orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))
-    assert len(use) == ORDERS_PER_MODE and 0 not in use and 3 not in use
-    assert list(diag.order[use]) == [12, 14, 18, 20, 22, 24, 26, 28]  # the lowest settled ones
-    every = _orders_used(diag, SimpleNamespace(members=np.arange(len(orders))), None)  # all settled orders
-    assert len(every) == len(orders) - 2 and 0 not in every and 3 not in every
-    # a cluster whose poles all agree keeps its lowest orders
-    diag = SimpleNamespace(pole=np.full(len(orders), -0.15 + 2j * np.pi), order=orders)
-    assert list(_orders_used(diag, SimpleNamespace(members=np.arange(len(orders))))) == list(range(ORDERS_PER_MODE))
-
-
 def test_the_extraction_runs_on_one_blas_thread(make_record, monkeypatch):
     # many small SVDs and QRs: OpenBLAS's threads cost more than they gain (benchmarks/extract_threads.py);
     # the limit holds inside the SSI passes and is lifted again afterwards
@@ -272,3 +251,16 @@ def test_a_short_record_of_lightly_damped_modes_keeps_every_mode(make_record):
             found = extract(ds, fmax_hz=12.0, samples=samples, progress=False)["frequency"].values
         assert len(found) == len(f), (samples, found)
         np.testing.assert_allclose(np.sort(found), f, rtol=5e-3)
+
+
+def test_a_record_without_modes_is_a_no_mode_error():
+    """White noise alone: the record is read and analysed, and the error says no mode stood out of it (a
+    NoModeError, which programs going over many records can tell from bad input), with the block rows."""
+    from twin.errors import NoModeError
+
+    rng = np.random.default_rng(3)
+    ds = xr.Dataset({"displacement": (("time", "channel"), 1e-6 * rng.standard_normal((20 * 600, 4)))},
+                    coords={"channel": ["a", "b", "c", "d"]}, attrs={"sampling_rate": 20.0})  # fmt: skip
+    with pytest.raises(NoModeError, match="no physical mode found between") as caught:
+        extract(ds, progress=False)
+    assert isinstance(caught.value, SignalError) and caught.value.block_rows >= 1

@@ -23,7 +23,7 @@ import xarray as xr
 from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.design.observe import record_observability, target_summary, unobservable_text
-from twin.errors import SignalError, TwinWarning
+from twin.errors import NoModeError, SignalError, TwinWarning
 from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, block_count,
                                  check_block_length, most_blocks, warn_about_few_blocks)
 from twin.extract.quantities import displacement_shapes
@@ -31,9 +31,10 @@ from twin.extract.harmonics import remove_running_harmonics
 from twin.modes.modesfile import write_modes
 from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations, repeated
 from twin.extract.signals import Record, check_record
-from twin.extract.passes import (DIFFERENCES, SSIPass, differenced, first_lag_for, modes_from_differenced,
+from twin.extract.passes import (DIFFERENCES, differenced, first_lag_for, modes_from_differenced,
                                  shape_lag_rows, shapes_at_longer_lags, ssi_pass)
 from twin.extract.stabilisation import Criteria
+from twin.extract.orders import OUTLIER_MADS, mode_members
 from twin.extract.result import MAX_POLE_SE, extracted_modes, left_out, pole_scatter
 from twin.extract.ssi import hankel_max_lag
 from twin.netcdf import check_writable, load_netcdf
@@ -53,8 +54,6 @@ SAMPLES_PER_PERIOD = 2.5
 DEFAULT_FMIN_FRACTION = 0.01
 #: The record must hold this many periods of the lowest frequency asked for.
 MIN_CYCLES = 100
-#: A cluster's poles farther than this many robust std from its median pole are not used (unconverged orders).
-OUTLIER_MADS = 3.0
 #: What the model-order spread is added to (``extract(order_spread=...)``): the default first.
 ORDER_SPREADS = ("shapes", "all", "none")
 #: Warn when more than this fraction of a mode's jackknife matches fail.
@@ -189,8 +188,8 @@ def extract(
         for a steadier spread from blocks that must stay long.
     orders_per_mode : int or None
         A mode is the average over this many of its lowest settled model
-        orders (default 8; None: all of them, less of SSI's bias and a wider
-        jackknife; ``benchmarks/update_coverage_fmu.py --orders-per-mode 0`` measures it).
+        orders (:mod:`twin.extract.orders`; default 8; None: all of them, less
+        of SSI's bias and a wider jackknife; ``benchmarks/update_coverage_fmu.py --orders-per-mode 0`` measures it).
     differenced_above_hz : float, optional
         Read the modes above this natural frequency [Hz] from a second SSI
         pass over the record differenced twice
@@ -338,10 +337,10 @@ def extract(
     covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
     harmonics = list(removed) + found.harmonics
     if not modes:
-        raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
-                          f"({len(harmonics)} harmonic(s) rejected)")  # fmt: skip
+        raise NoModeError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
+                          f"({len(harmonics)} harmonic(s) rejected)", block_rows=i)  # fmt: skip
 
-    members = _members(found, orders_per_mode)
+    members = mode_members(found, orders_per_mode)
     poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
                                                            delete=delete_blocks, n_samples=samples, first_lag=k0)
     n_samples = samples
@@ -359,8 +358,9 @@ def extract(
         again = ssi_pass(differenced(y), fs, i, n_blocks, max_order, max(fmin_hz, differenced_above_hz), fmax, crit,
                          running_hz, rec.channels, {}, quiet=True, first_lag=max(k0, DIFFERENCES + 1))  # fmt: skip
         first = (members, poles, shapes, sample_p, sample_s, missing, d_p, d_s)
-        read, counterpart = modes_from_differenced(again, _members(again, orders_per_mode), fs, differenced_above_hz,
-                                                   first, progress, delete=delete_blocks, n_samples=samples)  # fmt: skip
+        again_members = mode_members(again, orders_per_mode)
+        read, counterpart = modes_from_differenced(again, again_members, fs, differenced_above_hz, first, progress,
+                                                   delete=delete_blocks, n_samples=samples)  # fmt: skip
         members, poles, shapes, sample_p, sample_s, missing, d_p, d_s = read
         differences[counterpart >= 0] = DIFFERENCES
         modes = [again.modes[j] if j >= 0 else c for c, j in zip(modes, counterpart)]  # for the cluster sizes
@@ -376,9 +376,9 @@ def extract(
     undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep],
                             rec.duration_s)
     if not keep.any():
-        raise SignalError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
+        raise NoModeError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
                           f"({len(undetermined)} stable pole(s) dropped: their samples scatter beyond their "
-                          "bandwidth)")  # fmt: skip
+                          "bandwidth)", block_rows=i)  # fmt: skip
     if undetermined:
         new_index = np.where(keep, np.cumsum(keep) - 1, -1)
         diag = dataclasses.replace(diag, cluster=np.where(diag.cluster >= 0, new_index[diag.cluster], diag.cluster))
@@ -393,8 +393,9 @@ def extract(
                  i_s, slow.sum(), i_s / fs)  # fmt: skip
         again = ssi_pass(y, fs, i_s, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
                          quiet=True, first_lag=k0)  # fmt: skip
-        read = shapes_at_longer_lags(again, fs, _members(again, orders_per_mode), poles[slow], shapes[slow],
-                                     sample_s[slow], d_s[slow], progress, delete=delete_blocks, n_samples=samples)
+        read = shapes_at_longer_lags(again, fs, mode_members(again, orders_per_mode), poles[slow],
+                                     shapes[slow], sample_s[slow], d_s[slow], progress, delete=delete_blocks,
+                                     n_samples=samples)  # fmt: skip
         shapes[slow], sample_s[slow], d_s[slow], matched = read
         shape_rows[np.flatnonzero(slow)[matched]] = i_s
         for f in poles[slow][~matched].imag / (2 * np.pi):
@@ -496,12 +497,6 @@ def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.nda
     return targets
 
 
-def _members(found: SSIPass, n_orders: int | None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Each mode of a pass at the orders it is averaged over (:func:`_orders_used`): (orders, poles, shapes)."""
-    diag = found.diag
-    return [(diag.order[u], diag.pole[u], diag.shape[u]) for u in (_orders_used(diag, c, n_orders) for c in found.modes)]
-
-
 def _as_float(value: object) -> float:
     """``value`` as a float, NaN when it is none (a string, None or an array)."""
     if isinstance(value, (str, bool)):
@@ -540,34 +535,6 @@ def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_le
                           f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "
                           f"(at most {longest})")  # fmt: skip
     return int(asked), np.ones(len(poles), dtype=bool)
-
-
-def _orders_used(diag, cluster, n_orders: int | None = ORDERS_PER_MODE) -> np.ndarray:
-    """The ``n_orders`` (default ORDERS_PER_MODE; None: all) lowest model orders at which a cluster's mode is
-    stable and settled.
-
-    A mode's lowest stable orders are its parsimonious realisations. At orders
-    well above the number of modes, the extra (noise) poles re-arrange from one
-    reduced record to the next and jostle the physical pole more than the
-    data's own variability does, so the jackknife spread comes out too wide
-    (with the delete-one jackknife on a one-mode record: 1.0 times the spread
-    of estimates over independent records at the true order, 1.4 times at
-    four times it, 1.7 at eight).
-
-    The lowest orders may not have converged yet, though: a pole that passes
-    the stability criteria between neighbouring orders can still sit apart
-    from where the mode settles at higher orders (the 1.09 Hz mode of the hydro
-    unit: orders 14-28 up to 0.9% high). Poles farther from the cluster's
-    median pole than OUTLIER_MADS robust standard deviations (1.4826 times
-    the median distance) are left out before the lowest orders are taken.
-    """
-    m = cluster.members
-    p = diag.pole[m]
-    dist = np.abs(p - (np.median(p.real) + 1j * np.median(p.imag)))
-    scale = 1.4826 * np.median(dist)
-    if scale > 0:
-        m = m[dist <= OUTLIER_MADS * scale]
-    return m[np.argsort(diag.order[m], kind="stable")][:n_orders]
 
 
 def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: float | None) -> None:
