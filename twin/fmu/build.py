@@ -45,6 +45,33 @@ def fmi_headers_dir() -> Path:
     return path
 
 
+#: FMPy's copy of fmi2Functions.h always names the functions without a prefix; the standard's definition
+#: (FMI 2.0.x) pastes ``FMI2_FUNCTION_PREFIX`` in front when it is defined, so that FMUs compiled from
+#: source can be linked statically side by side.
+_UNPREFIXED = "#define fmi2FullName(name) name\n"
+_PREFIXED = """#if defined(FMI2_FUNCTION_PREFIX)
+  #define fmi2Paste(a,b)     a ## b
+  #define fmi2PasteB(a,b)    fmi2Paste(a,b)
+  #define fmi2FullName(name) fmi2PasteB(FMI2_FUNCTION_PREFIX, name)
+#else
+  #define fmi2FullName(name) name
+#endif
+"""
+FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+
+
+def fmi2_headers() -> dict[str, bytes]:
+    """The FMI 2.0 headers the runtime is compiled with and an FMU's ``sources/`` ship, by file name:
+    FMPy's, with the function prefix of the standard (``-DFMI2_FUNCTION_PREFIX=<modelIdentifier>_``)."""
+    folder = fmi_headers_dir()
+    out = {name: (folder / name).read_bytes() for name in FMI2_HEADERS}
+    text = out["fmi2Functions.h"].decode("latin-1").replace("\r\n", "\n")
+    if _UNPREFIXED not in text and "FMI2_FUNCTION_PREFIX)" not in text:
+        raise FMUBuildError(f"{folder / 'fmi2Functions.h'}: no definition of fmi2FullName found: reinstall fmpy")
+    out["fmi2Functions.h"] = text.replace(_UNPREFIXED, _PREFIXED, 1).encode("latin-1")
+    return out
+
+
 def platform_folder() -> str:
     """FMI 2.0 binaries folder name for this machine, e.g. ``linux64``."""
     bits = "64" if sys.maxsize > 2**32 else "32"
@@ -86,8 +113,8 @@ def compiled_runtime(rebuild: bool = False) -> Path:
         No compiler, or the compiler failed (its own message is included).
     """
     source = runtime_source()
-    headers = fmi_headers_dir()
-    digest = hashlib.sha256(source.read_bytes() + (headers / "fmi2Functions.h").read_bytes()).hexdigest()[:16]
+    headers = fmi2_headers()
+    digest = hashlib.sha256(source.read_bytes() + b"".join(headers.values())).hexdigest()[:16]
     target = cache_dir() / f"{platform_folder()}-{digest}" / (MODEL_IDENTIFIER + shared_library_suffix())
     if target.is_file() and not rebuild:
         return target
@@ -95,7 +122,9 @@ def compiled_runtime(rebuild: bool = False) -> Path:
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         out = Path(tmp) / target.name
-        cmd = [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(source), f"-I{headers}", "-lm"]
+        for name, text in headers.items():
+            (Path(tmp) / name).write_bytes(text)
+        cmd = [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(source), f"-I{tmp}", "-lm"]
         log.info("compiling the FMU runtime: %s", " ".join(cmd))
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)

@@ -7,10 +7,15 @@ The FMU holds
 * ``resources/twin_lti.bin``: the exact step matrices of the linear system
   (full FEM or truncated modal basis) for the nominal communication step, the
   port map and the GUID;
-* ``binaries/<platform>/twin_lti.<so|dylib|dll>``: the generic runtime,
+* ``binaries/<platform>/<modelIdentifier>.<so|dylib|dll>``: the generic runtime,
   compiled once per platform (:mod:`twin.fmu.build`);
 * ``sources/``: the runtime's C source and the FMI headers, so the FMU can be
-  rebuilt on another platform.
+  rebuilt on another platform (with ``-DFMI2_FUNCTION_PREFIX=<modelIdentifier>_``
+  for static linking beside other FMUs);
+* ``documentation/index.html``: what the FMU is (model, truth, variables and units).
+
+The modelName is the model's (and its truth's) name, the modelIdentifier that
+name as a C identifier. The FMU's state can be got, set and serialized.
 
 The file is written to a temporary name and renamed when complete, so a
 failed export never leaves half an FMU behind.
@@ -21,6 +26,7 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import logging
+import re
 import struct
 import uuid
 import zipfile
@@ -35,11 +41,17 @@ from twin import __version__
 from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
+from twin.fmu.documentation import documentation_html
 from twin.fmu.statespace import StateSpace, check_stable, discretize
 from twin.fmu.truth import model_state_space
 from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
+
+#: The FMU's units: name, SI base-unit exponents, display units (name, factor: shown = factor x value).
+UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
+         ("kg.m", {"kg": "1", "m": "1"}, (("g.mm", 1e6),)), ("rad", {"rad": "1"}, (("deg", 180 / np.pi),)),
+         ("N/sqrt(Hz)", {}, ()))  # fmt: skip
 
 # value references, shared with twin_lti.c
 VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
@@ -117,6 +129,7 @@ def export_fmu(
     unbalance_node: int | None = None,
     turbulence_node: int | None = None,
     description: str | None = None,
+    name: str | None = None,
 ) -> Path:
     """Export the model as an FMI 2.0 co-simulation FMU.
 
@@ -139,6 +152,11 @@ def export_fmu(
     unbalance_node, turbulence_node : int, optional
         Default node of the 1X unbalance (a parameter of the FMU) and node of the
         turbulence force (fixed); defaults: generator region, immersed region.
+    description : str, optional
+        The modelDescription's description (default: model, speed, basis, states).
+    name : str, optional
+        The FMU's modelName (default: the model's name); its modelIdentifier, the name of its
+        binaries, is this name as a C identifier (:func:`model_identifier`).
 
     Returns
     -------
@@ -178,23 +196,26 @@ def export_fmu(
         np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
     ])  # fmt: skip
-    guid = "{" + str(uuid.UUID(hashlib.sha256(body + model.name.encode()).hexdigest()[:32])) + "}"
+    name = model.name if name is None else str(name)
+    identifier = model_identifier(name)
+    guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
     dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node)
     head = b"TWINLTI1" + struct.pack("<7i2d", *dims, step_s, omega)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
-    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description)
+    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier)
     library = build.compiled_runtime()
     plat = build.platform_folder()
-    headers = build.fmi_headers_dir()
+    headers = build.fmi2_headers()
     with atomic_output(path, ".fmu.part") as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
+        z.writestr("documentation/index.html", documentation_html(xml, state_space.attrs, step_s))
         z.writestr("resources/twin_lti.bin", resource)
-        z.write(library, f"binaries/{plat}/{build.MODEL_IDENTIFIER}{build.shared_library_suffix()}")
+        z.write(library, f"binaries/{plat}/{identifier}{build.shared_library_suffix()}")
         z.write(build.runtime_source(), f"sources/{build.MODEL_IDENTIFIER}.c")
-        for h in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
-            z.write(headers / h, f"sources/{h}")
+        for name, text in headers.items():
+            z.writestr(f"sources/{name}", text)
     log.info("wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s)
     return path
 
@@ -207,35 +228,53 @@ def _var(parent, name, vr, causality, variability, description, kind="Real", ini
     ET.SubElement(sv, kind, **{k: str(v) for k, v in attrs.items()})
 
 
-def _model_description(model, ss, ports, guid, step_s, unbalance_node, description) -> bytes:
-    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=model.name, guid=guid,
+def model_identifier(name: str) -> str:
+    """An FMU's modelIdentifier for a model name: a C identifier of at most 64 characters (the name of
+    its binaries and, compiled from source, the prefix of its functions).
+
+    Examples
+    --------
+    >>> model_identifier("hydro_unit truth: magnetic_pull, bearing_change:UGB")
+    'hydro_unit_truth_magnetic_pull_bearing_change_UGB'
+    >>> model_identifier("2-stage pump")
+    'm_2_stage_pump'
+    """
+    ident = re.sub(r"_+", "_", re.sub(r"[^0-9A-Za-z_]", "_", name)).strip("_") or "model"
+    return ("m_" + ident if ident[0].isdigit() else ident)[:64]
+
+
+def _model_description(model, ss, ports, guid, step_s, unbalance_node, description, name, identifier) -> bytes:
+    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=name, guid=guid,
                       description=description or f"{model.name} at {ss.speed_rpm:g} rpm, {ss.basis} basis, "
                                                  f"{ss.n_states} states (twin linear rotor)",
                       generationTool=f"twin {__version__}",
                       generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                       variableNamingConvention="flat", numberOfEventIndicators="0")  # fmt: skip
-    cs = ET.SubElement(root, "CoSimulation", modelIdentifier=build.MODEL_IDENTIFIER,
+    cs = ET.SubElement(root, "CoSimulation", modelIdentifier=identifier,
                        canHandleVariableCommunicationStepSize="false", canInterpolateInputs="false",
                        canBeInstantiatedOnlyOncePerProcess="false", canNotUseMemoryManagementFunctions="true",
-                       canGetAndSetFMUstate="false", canSerializeFMUstate="false",
+                       canGetAndSetFMUstate="true", canSerializeFMUstate="true",
                        providesDirectionalDerivative="false")  # fmt: skip
     files = ET.SubElement(cs, "SourceFiles")
     ET.SubElement(files, "File", name=f"{build.MODEL_IDENTIFIER}.c")
     units = ET.SubElement(root, "UnitDefinitions")
-    for name, base in (("m", {"m": "1"}), ("N", {"kg": "1", "m": "1", "s": "-2"}), ("kg.m", {"kg": "1", "m": "1"}),
-                       ("rad", {"rad": "1"})):  # fmt: skip
-        ET.SubElement(ET.SubElement(units, "Unit", name=name), "BaseUnit", **base)
+    for unit_name, base, display in UNITS:
+        unit = ET.SubElement(units, "Unit", name=unit_name)
+        if base:  # N/sqrt(Hz) has a half power of the second, which FMI 2.0's integer exponents cannot say
+            ET.SubElement(unit, "BaseUnit", **base)
+        for shown, factor in display:
+            ET.SubElement(unit, "DisplayUnit", name=shown, factor=repr(factor))
     ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(1000 * step_s), stepSize=repr(step_s))
     mv = ET.SubElement(root, "ModelVariables")
     _var(mv, "unbalance_me", VR["unbalance_me"], "parameter", "fixed",
          "unbalance mass times eccentricity (1X, forward)", start="0", unit="kg.m", min="0")
     _var(mv, "unbalance_phase", VR["unbalance_phase"], "parameter", "fixed", "phase of the unbalance at t = 0",
-         start="0", unit="rad")
+         start="0", unit="rad", displayUnit="deg")
     _var(mv, "turbulence_asd", VR["turbulence_asd"], "parameter", "fixed",
-         "amplitude spectral density of the white turbulence force on the runner, x and y [N/sqrt(Hz)]",
-         start="0", min="0")
+         "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
+         start="0", unit="N/sqrt(Hz)", min="0")
     _var(mv, "noise_std", VR["noise_std"], "parameter", "fixed", "standard deviation of the sensor noise",
-         start="0", unit="m", min="0")
+         start="0", unit="m", displayUnit="um", min="0")
     _var(mv, "unbalance_node", VR["unbalance_node"], "parameter", "fixed", "node carrying the unbalance",
          kind="Integer", start=str(unbalance_node), min="0", max=str(model.n_nodes - 1))
     _var(mv, "turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence",
@@ -250,7 +289,7 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
         sensor = next((s for s in model.sensors if s.name == channel), None)
         where = f" at {sensor.location} (node {sensor.node})" if sensor else ""
         _var(mv, channel, VR_OUTPUT0 + i, "output", "continuous", f"proximeter displacement {channel}{where}",
-             initial="calculated", unit="m")  # fmt: skip
+             initial="calculated", unit="m", displayUnit="um")  # fmt: skip
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     initial = ET.SubElement(structure, "InitialUnknowns")

@@ -37,6 +37,22 @@ WARMUP_TIME_CONSTANTS = 5.0
 MAX_WARMUP_S = 300.0
 
 
+def fmu_name(model: RotorModel, ss: StateSpace) -> str:
+    """The modelName of the FMU that simulates ``ss``: the model's name, and for a truth its hidden effects.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> ss = SimpleNamespace(attrs={"truth": '{"source": "t.toml", "effects": {"magnetic_pull": {}}}'})
+    >>> fmu_name(SimpleNamespace(name="hydro_unit"), ss)
+    'hydro_unit truth: magnetic_pull'
+    """
+    if "truth" not in ss.attrs:
+        return model.name
+    effects = json.loads(ss.attrs["truth"]).get("effects", {})
+    return f"{model.name} truth: {', '.join(effects) or 'nothing hidden'}"
+
+
 def system_for(model: RotorModel, truth: Truth | None, basis: str, fmax_hz: float | None) -> StateSpace:
     """The state space to simulate: the truth's, or the model's (full or modal basis)."""
     if truth is not None:
@@ -181,7 +197,8 @@ def simulate(
     import fmpy
 
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[])
+        fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[],
+                         name=fmu_name(model, ss))  # fmt: skip
         n_total = n_warm + n_rec
         steps = bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress, mininterval=0.5)
         done = [0]

@@ -11,6 +11,11 @@
  * the built-in 1X unbalance and runner turbulence are known ahead and use a
  * first-order hold. Random numbers: splitmix64 + Box-Muller (reproduced in
  * twin.fmu.excitation for the numpy reference).
+ *
+ * FMU state: fmi2GetFMUstate copies everything a run depends on (time, state vector,
+ * inputs, outputs, parameters, the random generators); fmi2SerializeFMUstate writes
+ * that copy as bytes with a header naming the system's sizes, so a state is restored
+ * bit for bit, in this instance or another of the same FMU.
  */
 #include <math.h>
 #include <stdint.h>
@@ -32,6 +37,7 @@
 #define VR_OUTPUT0 1000
 #define STEP_TOLERANCE 1e-6
 #define TWO_PI 6.283185307179586476925286766559
+#define STATE_MAGIC "TWINSTA1"
 
 typedef struct {
     uint64_t state;
@@ -51,7 +57,7 @@ typedef struct {
     int unb_node, turb_seed, noise_seed;
     double turb_now[2], turb_next[2];
     Rng turb_rng, noise_rng;
-    int initialised;
+    int initialised, unb_node_start, debug_logging;
     fmi2CallbackFunctions cb;
     char name[128];
 } Lti;
@@ -83,8 +89,41 @@ static void rng_seed(Rng *r, int seed) {
 }
 
 /* ---- helpers ------------------------------------------------------------------------ */
+/* The message is passed as the logger's format (its '%' doubled, no arguments): hosts that format it and
+   hosts that print it as it is both show the text. */
 static void logmsg(Lti *s, fmi2Status st, const char *msg) {
-    if (s && s->cb.logger) s->cb.logger(s->cb.componentEnvironment, s->name, st, "twin", "%s", msg);
+    if (!s || !s->cb.logger) return;
+    char fmt[2048];
+    size_t k = 0;
+    for (const char *p = msg; *p && k + 2 < sizeof fmt; p++) {
+        if (*p == '%') fmt[k++] = '%';
+        fmt[k++] = *p;
+    }
+    fmt[k] = 0;
+    s->cb.logger(s->cb.componentEnvironment, s->name, st, "twin", fmt);
+}
+
+/* Log why a call failed and return fmi2Error: every error the FMU returns says what was wrong. */
+static fmi2Status fail(Lti *s, const char *fn, const char *what, long detail) {
+    char msg[512];
+    if (detail >= 0) snprintf(msg, sizeof msg, "%s: %s %ld", fn, what, detail);
+    else snprintf(msg, sizeof msg, "%s: %s", fn, what);
+    logmsg(s, fmi2Error, msg);
+    return fmi2Error;
+}
+
+/* The values fmi2Instantiate leaves and fmi2Reset returns to: the modelDescription's start values. */
+static void to_start_values(Lti *s) {
+    s->initialised = 0;
+    s->t = 0;
+    s->unb_me = s->unb_phase = s->turb_asd = s->noise_std = 0.0;
+    s->unb_node = s->unb_node_start;
+    s->turb_seed = 1;
+    s->noise_seed = 2;
+    memset(s->x, 0, (size_t)s->n * 8);
+    memset(s->y, 0, (size_t)(s->m ? s->m : 1) * 8);
+    memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
+    s->turb_now[0] = s->turb_now[1] = s->turb_next[0] = s->turb_next[1] = 0.0;
 }
 
 static int read_block(FILE *f, void *dst, size_t size, size_t count) {
@@ -160,13 +199,15 @@ const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cat[]) {
-    (void)c; (void)on; (void)n; (void)cat;
+    Lti *s = (Lti *)c;
+    (void)n; (void)cat; /* one category: errors are always logged, the rest only with debug logging on */
+    s->debug_logging = on ? 1 : 0;
     return fmi2OK;
 }
 
 fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
-    (void)visible; (void)logging;
+    (void)visible;
     Lti *s = calloc(1, sizeof(Lti));
     if (!s) return NULL;
     if (functions) s->cb = *functions;
@@ -195,7 +236,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
              read_block(f, hw, 8, 2) && read_block(f, fguid, 1, 64);
     if (ok) {
         s->n = dims[0]; s->p = dims[1]; s->m = dims[2]; s->n_in = dims[3]; s->turb_x = dims[4]; s->turb_y = dims[5];
-        s->unb_node = dims[6]; /* start value of the unbalance_node parameter */
+        s->unb_node_start = dims[6]; /* start value of the unbalance_node parameter */
         s->h = hw[0]; s->omega = hw[1];
         size_t n = s->n, p = s->p, m = s->m;
         s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
@@ -224,7 +265,8 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         free_lti(s);
         return NULL;
     }
-    s->turb_seed = 1; s->noise_seed = 2;
+    s->debug_logging = logging ? 1 : 0;
+    to_start_values(s);
     return s;
 }
 
@@ -258,11 +300,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    Lti *s = (Lti *)c;
-    s->initialised = 0;
-    s->t = 0;
-    memset(s->x, 0, (size_t)s->n * 8);
-    memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
+    to_start_values((Lti *)c);
     return fmi2OK;
 }
 
@@ -275,7 +313,7 @@ static void unbalance(const Lti *s, double t, double *f) {
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     (void)noSetPrior;
     Lti *s = (Lti *)c;
-    if (!s->initialised) return fmi2Error;
+    if (!s->initialised) return fail(s, "fmi2DoStep", "called before fmi2ExitInitializationMode", -1);
     if (fabs(h - s->h) > STEP_TOLERANCE * s->h) {
         char msg[256];
         snprintf(msg, sizeof msg, "communication step %.12g s differs from the exported step %.12g s; export the FMU for this step", h, s->h);
@@ -312,7 +350,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     return fmi2OK;
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) { (void)c; return fmi2Error; }
+fmi2Status fmi2CancelStep(fmi2Component c) {
+    return fail((Lti *)c, "fmi2CancelStep", "steps are synchronous: there is none to cancel", -1);
+}
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     Lti *s = (Lti *)c;
@@ -324,7 +364,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         else if (r == VR_UNBALANCE_PHASE) value[i] = s->unb_phase;
         else if (r == VR_TURBULENCE_ASD) value[i] = s->turb_asd;
         else if (r == VR_NOISE_STD) value[i] = s->noise_std;
-        else return fmi2Error;
+        else return fail(s, "fmi2GetReal", "no Real variable has value reference", (long)r);
     }
     return fmi2OK;
 }
@@ -334,12 +374,14 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (size_t i = 0; i < nvr; i++) {
         fmi2ValueReference r = vr[i];
         if (r >= VR_INPUT0 && r < VR_INPUT0 + (unsigned)s->n_in) s->u[r - VR_INPUT0] = value[i];
-        else if (s->initialised) return fmi2Error; /* parameters are fixed after initialisation */
+        else if (r != VR_UNBALANCE_ME && r != VR_UNBALANCE_PHASE && r != VR_TURBULENCE_ASD && r != VR_NOISE_STD)
+            return fail(s, "fmi2SetReal", "no Real input or parameter has value reference", (long)r);
+        else if (s->initialised) /* fixed parameters */
+            return fail(s, "fmi2SetReal", "parameters are fixed after initialisation; value reference", (long)r);
         else if (r == VR_UNBALANCE_ME) s->unb_me = value[i];
         else if (r == VR_UNBALANCE_PHASE) s->unb_phase = value[i];
         else if (r == VR_TURBULENCE_ASD) s->turb_asd = value[i];
-        else if (r == VR_NOISE_STD) s->noise_std = value[i];
-        else return fmi2Error;
+        else s->noise_std = value[i];
     }
     return fmi2OK;
 }
@@ -350,69 +392,199 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
         if (vr[i] == VR_UNBALANCE_NODE) value[i] = s->unb_node;
         else if (vr[i] == VR_TURBULENCE_SEED) value[i] = s->turb_seed;
         else if (vr[i] == VR_NOISE_SEED) value[i] = s->noise_seed;
-        else return fmi2Error;
+        else return fail(s, "fmi2GetInteger", "no Integer variable has value reference", (long)vr[i]);
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
     Lti *s = (Lti *)c;
-    if (s->initialised) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != VR_UNBALANCE_NODE && vr[i] != VR_TURBULENCE_SEED && vr[i] != VR_NOISE_SEED)
+            return fail(s, "fmi2SetInteger", "no Integer parameter has value reference", (long)vr[i]);
+        if (s->initialised)
+            return fail(s, "fmi2SetInteger", "parameters are fixed after initialisation; value reference", (long)vr[i]);
         if (vr[i] == VR_UNBALANCE_NODE) s->unb_node = value[i];
         else if (vr[i] == VR_TURBULENCE_SEED) s->turb_seed = value[i];
-        else if (vr[i] == VR_NOISE_SEED) s->noise_seed = value[i];
-        else return fmi2Error;
+        else s->noise_seed = value[i];
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
-    (void)c; (void)vr; (void)v;
-    return nvr ? fmi2Error : fmi2OK;
+    (void)v;
+    return nvr ? fail((Lti *)c, "fmi2GetBoolean", "the FMU has no Boolean variables; value reference", (long)vr[0]) : fmi2OK;
 }
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean v[]) {
-    (void)c; (void)vr; (void)v;
-    return nvr ? fmi2Error : fmi2OK;
+    (void)v;
+    return nvr ? fail((Lti *)c, "fmi2SetBoolean", "the FMU has no Boolean variables; value reference", (long)vr[0]) : fmi2OK;
 }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
-    (void)c; (void)vr; (void)v;
-    return nvr ? fmi2Error : fmi2OK;
+    (void)v;
+    return nvr ? fail((Lti *)c, "fmi2GetString", "the FMU has no String variables; value reference", (long)vr[0]) : fmi2OK;
 }
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String v[]) {
-    (void)c; (void)vr; (void)v;
-    return nvr ? fmi2Error : fmi2OK;
+    (void)v;
+    return nvr ? fail((Lti *)c, "fmi2SetString", "the FMU has no String variables; value reference", (long)vr[0]) : fmi2OK;
 }
 
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)c; (void)st; return fmi2Error; }
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate st) { (void)c; (void)st; return fmi2Error; }
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) { (void)c; (void)st; return fmi2Error; }
+/* ---- FMU state ----------------------------------------------------------------------- */
+typedef struct {
+    double t, unb_me, unb_phase, turb_asd, noise_std, turb_now[2], turb_next[2];
+    int unb_node, turb_seed, noise_seed, initialised;
+    Rng turb_rng, noise_rng;
+    double *x, *y, *u;
+} Snapshot;
+
+static void free_snapshot(Snapshot *q) {
+    if (!q) return;
+    free(q->x); free(q->y); free(q->u);
+    free(q);
+}
+
+static void take(const Lti *s, Snapshot *q) {
+    q->t = s->t; q->unb_me = s->unb_me; q->unb_phase = s->unb_phase; q->turb_asd = s->turb_asd;
+    q->noise_std = s->noise_std;
+    memcpy(q->turb_now, s->turb_now, sizeof q->turb_now); memcpy(q->turb_next, s->turb_next, sizeof q->turb_next);
+    q->unb_node = s->unb_node; q->turb_seed = s->turb_seed; q->noise_seed = s->noise_seed;
+    q->initialised = s->initialised; q->turb_rng = s->turb_rng; q->noise_rng = s->noise_rng;
+    memcpy(q->x, s->x, (size_t)s->n * 8);
+    memcpy(q->y, s->y, (size_t)(s->m ? s->m : 1) * 8);
+    memcpy(q->u, s->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
+}
+
+static void give(Lti *s, const Snapshot *q) {
+    s->t = q->t; s->unb_me = q->unb_me; s->unb_phase = q->unb_phase; s->turb_asd = q->turb_asd;
+    s->noise_std = q->noise_std;
+    memcpy(s->turb_now, q->turb_now, sizeof s->turb_now); memcpy(s->turb_next, q->turb_next, sizeof s->turb_next);
+    s->unb_node = q->unb_node; s->turb_seed = q->turb_seed; s->noise_seed = q->noise_seed;
+    s->initialised = q->initialised; s->turb_rng = q->turb_rng; s->noise_rng = q->noise_rng;
+    memcpy(s->x, q->x, (size_t)s->n * 8);
+    memcpy(s->y, q->y, (size_t)(s->m ? s->m : 1) * 8);
+    memcpy(s->u, q->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
+}
+
+static Snapshot *new_snapshot(const Lti *s) {
+    Snapshot *q = calloc(1, sizeof(Snapshot));
+    if (!q) return NULL;
+    q->x = malloc((size_t)s->n * 8);
+    q->y = malloc((size_t)(s->m ? s->m : 1) * 8);
+    q->u = malloc((size_t)(s->n_in ? s->n_in : 1) * 8);
+    if (!q->x || !q->y || !q->u) {
+        free_snapshot(q);
+        return NULL;
+    }
+    return q;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *st) {
+    Lti *s = (Lti *)c;
+    if (!st) return fail(s, "fmi2GetFMUstate", "no place to put the state (NULL pointer)", -1);
+    Snapshot *q = (Snapshot *)*st;
+    if (!q) {
+        q = new_snapshot(s);
+        if (!q) return fail(s, "fmi2GetFMUstate", "out of memory", -1);
+    }
+    take(s, q);
+    *st = q;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate st) {
+    Lti *s = (Lti *)c;
+    if (!st) return fail(s, "fmi2SetFMUstate", "no state given (NULL)", -1);
+    give(s, (const Snapshot *)st);
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) {
+    (void)c;
+    if (st) {
+        free_snapshot((Snapshot *)*st);
+        *st = NULL;
+    }
+    return fmi2OK;
+}
+
+/* Bytes: magic, int32 n, m, n_in, int32 unb_node, seeds, initialised, rng has_spare x2, uint64 rng states x2,
+   doubles t, parameters (4), turbulence (4), rng spares (2), x, y, u. */
+static size_t state_bytes(const Lti *s) {
+    return 8 + 4 * 9 + 8 * 2 + 8 * (1 + 4 + 4 + 2) + 8 * ((size_t)s->n + (size_t)s->m + (size_t)s->n_in);
+}
+
+static void put(fmi2Byte **p, const void *v, size_t size) { memcpy(*p, v, size); *p += size; }
+static void get(const fmi2Byte **p, void *v, size_t size) { memcpy(v, *p, size); *p += size; }
+
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate st, size_t *n) {
-    (void)c; (void)st; (void)n;
-    return fmi2Error;
+    (void)st;
+    *n = state_bytes((Lti *)c);
+    return fmi2OK;
 }
+
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[], size_t n) {
-    (void)c; (void)st; (void)b; (void)n;
-    return fmi2Error;
+    Lti *s = (Lti *)c;
+    const Snapshot *q = (const Snapshot *)st;
+    if (!q) return fail(s, "fmi2SerializeFMUstate", "no state given (NULL)", -1);
+    if (n < state_bytes(s)) return fail(s, "fmi2SerializeFMUstate", "buffer too small; bytes needed:", (long)state_bytes(s));
+    fmi2Byte *p = b;
+    int32_t ints[9] = {s->n, s->m, s->n_in, q->unb_node, q->turb_seed, q->noise_seed, q->initialised,
+                       q->turb_rng.has_spare, q->noise_rng.has_spare};
+    double d[11] = {q->t, q->unb_me, q->unb_phase, q->turb_asd, q->noise_std, q->turb_now[0], q->turb_now[1],
+                    q->turb_next[0], q->turb_next[1], q->turb_rng.spare, q->noise_rng.spare};
+    put(&p, STATE_MAGIC, 8);
+    put(&p, ints, sizeof ints);
+    put(&p, &q->turb_rng.state, 8);
+    put(&p, &q->noise_rng.state, 8);
+    put(&p, d, sizeof d);
+    put(&p, q->x, (size_t)s->n * 8);
+    put(&p, q->y, (size_t)s->m * 8);
+    put(&p, q->u, (size_t)s->n_in * 8);
+    return fmi2OK;
 }
+
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *st) {
-    (void)c; (void)b; (void)n; (void)st;
-    return fmi2Error;
+    Lti *s = (Lti *)c;
+    if (!st) return fail(s, "fmi2DeSerializeFMUstate", "no place to put the state (NULL pointer)", -1);
+    if (n != state_bytes(s) || memcmp(b, STATE_MAGIC, 8) != 0)
+        return fail(s, "fmi2DeSerializeFMUstate", "not a state of this FMU; bytes given:", (long)n);
+    const fmi2Byte *p = b + 8;
+    int32_t ints[9];
+    double d[11];
+    get(&p, ints, sizeof ints);
+    if (ints[0] != s->n || ints[1] != s->m || ints[2] != s->n_in)
+        return fail(s, "fmi2DeSerializeFMUstate", "a state of another system; its state size:", (long)ints[0]);
+    Snapshot *q = new_snapshot(s);
+    if (!q) return fail(s, "fmi2DeSerializeFMUstate", "out of memory", -1);
+    q->unb_node = ints[3]; q->turb_seed = ints[4]; q->noise_seed = ints[5]; q->initialised = ints[6];
+    q->turb_rng.has_spare = ints[7]; q->noise_rng.has_spare = ints[8];
+    get(&p, &q->turb_rng.state, 8);
+    get(&p, &q->noise_rng.state, 8);
+    get(&p, d, sizeof d);
+    q->t = d[0]; q->unb_me = d[1]; q->unb_phase = d[2]; q->turb_asd = d[3]; q->noise_std = d[4];
+    q->turb_now[0] = d[5]; q->turb_now[1] = d[6]; q->turb_next[0] = d[7]; q->turb_next[1] = d[8];
+    q->turb_rng.spare = d[9]; q->noise_rng.spare = d[10];
+    get(&p, q->x, (size_t)s->n * 8);
+    get(&p, q->y, (size_t)s->m * 8);
+    get(&p, q->u, (size_t)s->n_in * 8);
+    if (*st) free_snapshot((Snapshot *)*st);
+    *st = q;
+    return fmi2OK;
 }
+
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
                                         const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real dz[]) {
-    (void)c; (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
-    return fmi2Error;
+    (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
+    return fail((Lti *)c, "fmi2GetDirectionalDerivative", "not provided by this FMU", -1);
 }
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
-    (void)c; (void)vr; (void)nvr; (void)order; (void)value;
-    return fmi2Error;
+    (void)vr; (void)nvr; (void)order; (void)value;
+    return fail((Lti *)c, "fmi2SetRealInputDerivatives", "inputs are held over a step; no derivatives", -1);
 }
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[]) {
-    (void)c; (void)vr; (void)nvr; (void)order; (void)value;
-    return fmi2Error;
+    (void)vr; (void)nvr; (void)order; (void)value;
+    return fail((Lti *)c, "fmi2GetRealOutputDerivatives", "not provided by this FMU", -1);
 }
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {

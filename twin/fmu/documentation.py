@@ -1,0 +1,61 @@
+"""``documentation/index.html`` of an exported FMU: what the FMU is, in a page a user of an FMI tool opens.
+
+It names the model and, for a simulation of a truth, the effects hidden in it; the system (basis, states,
+speed, communication step); and every variable with its causality, unit, start value and description,
+read back from the modelDescription the export wrote, so the page cannot disagree with it.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from xml.etree import ElementTree as ET
+
+from twin import __version__
+
+
+def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> str:
+    """The page for an FMU from its ``modelDescription.xml`` and its system's attrs (``truth``, if any).
+
+    Examples
+    --------
+    >>> xml = (b'<fmiModelDescription modelName="m" description="d"><ModelVariables>'
+    ...        b'<ScalarVariable name="y" causality="output" description="out"><Real unit="m"/></ScalarVariable>'
+    ...        b'</ModelVariables></fmiModelDescription>')
+    >>> page = documentation_html(xml, {}, 0.01)
+    >>> "<td>y</td><td>output</td><td>m</td>" in page
+    True
+    """
+    root = ET.fromstring(model_description)
+    name, description = root.get("modelName", ""), root.get("description", "")
+    rows = []
+    for sv in root.iter("ScalarVariable"):
+        kind = next(iter(sv), None)
+        unit = kind.get("unit", "") if kind is not None else ""
+        start = kind.get("start", "") if kind is not None else ""
+        cells = (sv.get("name", ""), sv.get("causality", ""), unit, start, sv.get("description", ""))
+        rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+    truth = ""
+    if "truth" in attrs:
+        effects = json.loads(attrs["truth"]).get("effects", {})
+        items = "".join(f"<li><code>{html.escape(label)}</code>: {html.escape(json.dumps(values))}</li>"
+                        for label, values in effects.items())  # fmt: skip
+        truth = ("<h2>Truth</h2><p>This FMU simulates the model with hidden effects (a truth), for synthetic "
+                 f"measurements:</p><ul>{items or '<li>nothing hidden</li>'}</ul>")
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}</title></head>
+<body>
+<h1>{html.escape(name)}</h1>
+<p>{html.escape(description)}</p>
+<p>A linear rotor model exported by twin {html.escape(__version__)} as an FMI 2.0 co-simulation FMU. Each
+communication step of {step_s:.12g} s is integrated exactly (the matrix exponential of the system); the
+outputs are proximeter displacements. Forces: the external inputs are held over a step; the built-in
+1X unbalance and the runner's white turbulence force are parameters, set before initialisation.</p>
+{truth}
+<h2>Variables</h2>
+<table border="1" cellspacing="0" cellpadding="3">
+<tr><th>name</th><th>causality</th><th>unit</th><th>start</th><th>description</th></tr>
+{chr(10).join(rows)}
+</table>
+</body></html>
+"""
