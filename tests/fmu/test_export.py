@@ -68,7 +68,8 @@ def test_fmu_equals_the_numpy_reference(unit_fmu, hydro_unit):
 def test_sensor_noise_and_unbalance_node(unit_fmu, hydro_unit):
     n = 300
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4})  # fmt: skip
+                            start_values={"unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4,
+                                          "turbulence_asd": 0.0})  # fmt: skip
     ss = full_state_space(hydro_unit)
     ref = _reference(ss, n, me=10.0, node=28) + sensor_noise(n, 8, 2e-6, 4)
     y = np.column_stack([res[c] for c in ss.outputs])
@@ -80,7 +81,7 @@ def test_modal_basis_fmu(tmp_path, hydro_unit):
     assert validate_fmu(str(fmu)) == []
     n = 800
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"turbulence_asd": 1e4})
+                            start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0})
     ss = truncated_state_space(full_state_space(hydro_unit), 100.0)
     ref = _reference(ss, n, asd=1e4)
     y = np.column_stack([res[c] for c in ss.outputs])
@@ -116,7 +117,7 @@ def test_export_errors_leave_no_file(tmp_path, hydro_unit):
 def test_unbalance_defaults_to_the_generator_node(unit_fmu, hydro_unit):
     n = 200
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 10.0})  # fmt: skip
+                            start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0})  # fmt: skip
     ref = _reference(full_state_space(hydro_unit), n, me=10.0, node=hydro_unit.regions["generator"][0])
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
@@ -129,3 +130,21 @@ def test_resources_in_a_folder_with_spaces_and_percent_signs(unit_fmu, tmp_path)
     res = fmpy.simulate_fmu(str(folder), stop_time=10 * H, step_size=H, output_interval=H,
                             start_values={"unbalance_me": 1.0})  # fmt: skip
     assert len(res) == 11 and np.abs(res["GEN_x"]).max() > 0
+
+
+def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
+    """Without start values the FMU runs with twin's default unbalance and turbulence: the outputs move,
+    and equal the reference with those values."""
+    from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+
+    md = fmpy.read_model_description(str(unit_fmu))
+    stop = float(md.defaultExperiment.stopTime)
+    assert stop >= 10.0
+    res = fmpy.simulate_fmu(str(unit_fmu), output_interval=H)  # the default experiment, as a host runs it
+    n = len(res)
+    assert abs(res["time"][-1] - stop) < H / 2
+    ref = _reference(full_state_space(hydro_unit), n, me=DEFAULT_UNBALANCE_ME, asd=DEFAULT_TURBULENCE_ASD,
+                     node=hydro_unit.regions["generator"][0])  # fmt: skip
+    y = np.column_stack([res[c] for c in hydro_unit.channels])
+    assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
+    assert np.all(np.std(y[n // 2:], axis=0) > 1e-7)  # every channel moves by more than 0.1 um

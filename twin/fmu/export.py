@@ -38,6 +38,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from twin import __version__
+from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
 from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
@@ -57,6 +58,12 @@ UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("N", {"kg": "1", "m": "
 VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
       "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7}  # fmt: skip
 VR_INPUT0, VR_OUTPUT0 = 100, 1000
+#: Start values of the real parameters (modelDescription and runtime, where fmi2Reset returns them): the
+#: default experiment shows the unit running with twin's default unbalance and turbulence.
+START = {"unbalance_me": DEFAULT_UNBALANCE_ME, "unbalance_phase": 0.0, "turbulence_asd": DEFAULT_TURBULENCE_ASD,
+         "noise_std": 0.0}  # fmt: skip
+#: Length of the default experiment [s].
+DEFAULT_STOP_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -201,7 +208,8 @@ def export_fmu(
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
     dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node)
-    head = b"TWINLTI1" + struct.pack("<7i2d", *dims, step_s, omega)
+    starts = [START[k] for k in ("unbalance_me", "unbalance_phase", "turbulence_asd", "noise_std")]
+    head = b"TWINLTI2" + struct.pack("<7i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
     xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier)
@@ -264,17 +272,18 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
             ET.SubElement(unit, "BaseUnit", **base)
         for shown, factor in display:
             ET.SubElement(unit, "DisplayUnit", name=shown, factor=repr(factor))
-    ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(1000 * step_s), stepSize=repr(step_s))
+    ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(DEFAULT_STOP_S), stepSize=repr(step_s))
     mv = ET.SubElement(root, "ModelVariables")
     _var(mv, "unbalance_me", VR["unbalance_me"], "parameter", "fixed",
-         "unbalance mass times eccentricity (1X, forward)", start="0", unit="kg.m", min="0")
+         "unbalance mass times eccentricity (1X, forward)", start=repr(START["unbalance_me"]), unit="kg.m",
+         min="0")
     _var(mv, "unbalance_phase", VR["unbalance_phase"], "parameter", "fixed", "phase of the unbalance at t = 0",
-         start="0", unit="rad", displayUnit="deg")
+         start=repr(START["unbalance_phase"]), unit="rad", displayUnit="deg")
     _var(mv, "turbulence_asd", VR["turbulence_asd"], "parameter", "fixed",
          "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
-         start="0", unit="N/sqrt(Hz)", min="0")
+         start=repr(START["turbulence_asd"]), unit="N/sqrt(Hz)", min="0")
     _var(mv, "noise_std", VR["noise_std"], "parameter", "fixed", "standard deviation of the sensor noise",
-         start="0", unit="m", displayUnit="um", min="0")
+         start=repr(START["noise_std"]), unit="m", displayUnit="um", min="0")
     _var(mv, "unbalance_node", VR["unbalance_node"], "parameter", "fixed", "node carrying the unbalance",
          kind="Integer", start=str(unbalance_node), min="0", max=str(model.n_nodes - 1))
     _var(mv, "turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence",

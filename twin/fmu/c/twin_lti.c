@@ -25,7 +25,7 @@
 
 #include "fmi2Functions.h"
 
-#define MAGIC "TWINLTI1"
+#define MAGIC "TWINLTI2"
 #define VR_UNBALANCE_ME 1
 #define VR_UNBALANCE_PHASE 2
 #define VR_TURBULENCE_ASD 3
@@ -54,6 +54,7 @@ typedef struct {
     /* run state */
     double *x, *xn, *y, *u;
     double t, unb_me, unb_phase, turb_asd, noise_std;
+    double start[4]; /* start values of unbalance_me, unbalance_phase, turbulence_asd, noise_std */
     int unb_node, turb_seed, noise_seed;
     double turb_now[2], turb_next[2];
     Rng turb_rng, noise_rng;
@@ -116,7 +117,10 @@ static fmi2Status fail(Lti *s, const char *fn, const char *what, long detail) {
 static void to_start_values(Lti *s) {
     s->initialised = 0;
     s->t = 0;
-    s->unb_me = s->unb_phase = s->turb_asd = s->noise_std = 0.0;
+    s->unb_me = s->start[0];
+    s->unb_phase = s->start[1];
+    s->turb_asd = s->start[2];
+    s->noise_std = s->start[3];
     s->unb_node = s->unb_node_start;
     s->turb_seed = 1;
     s->noise_seed = 2;
@@ -231,13 +235,14 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     }
     char magic[8], fguid[64];
     int32_t dims[7];
-    double hw[2];
+    double hw[6];
     int ok = read_block(f, magic, 1, 8) && memcmp(magic, MAGIC, 8) == 0 && read_block(f, dims, 4, 7) &&
-             read_block(f, hw, 8, 2) && read_block(f, fguid, 1, 64);
+             read_block(f, hw, 8, 6) && read_block(f, fguid, 1, 64);
     if (ok) {
         s->n = dims[0]; s->p = dims[1]; s->m = dims[2]; s->n_in = dims[3]; s->turb_x = dims[4]; s->turb_y = dims[5];
         s->unb_node_start = dims[6]; /* start value of the unbalance_node parameter */
         s->h = hw[0]; s->omega = hw[1];
+        for (int k = 0; k < 4; k++) s->start[k] = hw[2 + k];
         size_t n = s->n, p = s->p, m = s->m;
         s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
         s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
