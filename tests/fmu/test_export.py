@@ -9,7 +9,9 @@ from fmpy.validation import validate_fmu
 
 from twin import ModelError, TwinError
 from twin.fmu import discretize, export_fmu, full_state_space, simulate_reference, truncated_state_space
-from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_force
+from twin.fem.model import RPM_TO_RAD_S
+from twin.fmu.excitation import excitation_forces, gaussian_stream, sensor_noise, turbulence_force
+from twin.fmu.steady import STEADY_STREAM, steady_start, steady_state
 
 H = 1.0 / 256.0
 
@@ -19,14 +21,24 @@ def unit_fmu(tmp_path_factory, hydro_unit):
     return export_fmu(hydro_unit, tmp_path_factory.mktemp("fmu") / "unit.fmu", step_s=H, inputs=["runner.x", "GEN.y"])
 
 
-def _reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None):
-    """Exact recursion with the FMU's excitation: external inputs ZOH, unbalance and turbulence FOH."""
-    t = np.arange(n) * H
+def _reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None, steady=False, t0=0.0):
+    """Exact recursion with the FMU's excitation: external inputs ZOH, unbalance and turbulence FOH; from
+    rest, or (``steady``) from the FMU's steady start (twin.fmu.steady)."""
+    t = t0 + np.arange(n) * H
     zoh = np.zeros((n, len(ss.ports)))
-    foh = excitation_forces(ss, t, node, me, 28, turbulence_force(n, asd, seed, H), phase_rad=phase)
+    turbulence = turbulence_force(n, asd, seed, H)
+    foh = excitation_forces(ss, t, node, me, 28, turbulence, phase_rad=phase)
     for port, values in (inputs or {}).items():
         zoh[:, ss.port_index(port)] += values
-    return simulate_reference(discretize(ss, H), ss.C, zoh=zoh, foh=foh)
+    disc = discretize(ss, H)
+    x0 = None
+    if steady:
+        omega = ss.speed_rpm * RPM_TO_RAD_S
+        g = gaussian_stream((seed & (2**64 - 1)) ^ STEADY_STREAM, disc.phi.shape[0])
+        x0 = steady_state(steady_start(disc, omega, ss.node_ports(28)), disc, t0_s=t0, omega_rad_s=omega,
+                          me_kgm=me, phase_rad=phase, unbalance_ports=ss.node_ports(node), turbulence_asd=asd, g=g,
+                          turbulence_ports=ss.node_ports(28) if asd > 0 else [], f0=turbulence[0])  # fmt: skip
+    return simulate_reference(disc, ss.C, zoh=zoh, foh=foh, x0=x0)
 
 
 def test_fmu_is_valid_and_self_contained(unit_fmu):
@@ -55,7 +67,7 @@ def test_fmu_equals_the_numpy_reference(unit_fmu, hydro_unit):
     u["F_runner_x"] = 2e4 * np.sin(2 * np.pi * 3.3 * t)
     u["F_GEN_y"] = 1e4 * (t > 1.0)
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=t[-1], step_size=H, output_interval=H, input=u,
-                            start_values={"unbalance_me": 40.0, "unbalance_phase": 0.3, "turbulence_asd": 5e3,
+                            start_values={"steady_start": False, "unbalance_me": 40.0, "unbalance_phase": 0.3, "turbulence_asd": 5e3,
                                           "turbulence_seed": 9})  # fmt: skip
     ss = full_state_space(hydro_unit)
     # external inputs are held over each step (ZOH); the built-in excitation uses FOH
@@ -68,7 +80,7 @@ def test_fmu_equals_the_numpy_reference(unit_fmu, hydro_unit):
 def test_sensor_noise_and_unbalance_node(unit_fmu, hydro_unit):
     n = 300
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4,
+                            start_values={"steady_start": False, "unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4,
                                           "turbulence_asd": 0.0})  # fmt: skip
     ss = full_state_space(hydro_unit)
     ref = _reference(ss, n, me=10.0, node=28) + sensor_noise(n, 8, 2e-6, 4)
@@ -81,7 +93,7 @@ def test_modal_basis_fmu(tmp_path, hydro_unit):
     assert validate_fmu(str(fmu)) == []
     n = 800
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0})
+                            start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0, "steady_start": False})
     ss = truncated_state_space(full_state_space(hydro_unit), 100.0)
     ref = _reference(ss, n, asd=1e4)
     y = np.column_stack([res[c] for c in ss.outputs])
@@ -117,7 +129,7 @@ def test_export_errors_leave_no_file(tmp_path, hydro_unit):
 def test_unbalance_defaults_to_the_generator_node(unit_fmu, hydro_unit):
     n = 200
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0})  # fmt: skip
+                            start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0, "steady_start": False})  # fmt: skip
     ref = _reference(full_state_space(hydro_unit), n, me=10.0, node=hydro_unit.regions["generator"][0])
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
@@ -144,7 +156,7 @@ def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
     n = len(res)
     assert abs(res["time"][-1] - stop) < H / 2
     ref = _reference(full_state_space(hydro_unit), n, me=DEFAULT_UNBALANCE_ME, asd=DEFAULT_TURBULENCE_ASD,
-                     node=hydro_unit.regions["generator"][0])  # fmt: skip
+                     node=hydro_unit.regions["generator"][0], steady=True)  # fmt: skip
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
     assert np.all(np.std(y[n // 2:], axis=0) > 1e-7)  # every channel moves by more than 0.1 um

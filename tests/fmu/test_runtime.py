@@ -37,7 +37,8 @@ class Instance:
         s.setupExperiment(startTime=0.0)
         s.enterInitializationMode()
         for name, value in values.items():
-            (s.setInteger if isinstance(value, int) else s.setReal)([self.vr[name]], [value])
+            kind = s.setBoolean if isinstance(value, bool) else s.setInteger if isinstance(value, int) else s.setReal
+            kind([self.vr[name]], [value])
         s.exitInitializationMode()
 
     def run(self, t0, steps):
@@ -86,13 +87,15 @@ def test_a_serialized_state_restores_another_instance(fmu):
 def test_reset_returns_to_the_start_values(fmu):
     a = Instance(fmu)
     start = {v.name: v.start for v in a.md.modelVariables if v.causality == "parameter"}
-    a.start(**EXCITED, unbalance_node=28)
+    a.start(**EXCITED, unbalance_node=28, steady_start=False)
     first = a.run(0.0, 20)
     a.slave.reset()
-    got = {v.name: (a.slave.getInteger if v.type == "Integer" else a.slave.getReal)([v.valueReference])[0]
-           for v in a.md.modelVariables if v.causality == "parameter"}  # fmt: skip
-    assert got == {k: float(v) if "." in v or "e" in v else int(v) for k, v in start.items()}
-    a.start(**EXCITED, unbalance_node=28)
+    get = {"Integer": a.slave.getInteger, "Real": a.slave.getReal, "Boolean": a.slave.getBoolean}
+    types = {v.name: v.type for v in a.md.modelVariables}
+    got = {v.name: get[v.type]([v.valueReference])[0] for v in a.md.modelVariables if v.causality == "parameter"}
+    parse = {"Integer": int, "Real": float, "Boolean": lambda text: text == "true"}
+    assert got == {k: parse[types[k]](v) for k, v in start.items()}
+    a.start(**EXCITED, unbalance_node=28, steady_start=False)
     np.testing.assert_array_equal(a.run(0.0, 20), first)  # the run after a reset repeats the first
 
 

@@ -44,6 +44,7 @@ from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
 from twin.fmu.documentation import documentation_html
 from twin.fmu.statespace import StateSpace, check_stable, discretize
+from twin.fmu.steady import steady_start
 from twin.fmu.truth import model_state_space
 from twin.netcdf import atomic_output
 
@@ -56,7 +57,7 @@ UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("N", {"kg": "1", "m": "
 
 # value references, shared with twin_lti.c
 VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
-      "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7}  # fmt: skip
+      "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7, "steady_start": 8}  # fmt: skip
 VR_INPUT0, VR_OUTPUT0 = 100, 1000
 #: Start values of the real parameters (modelDescription and runtime, where fmi2Reset returns them): the
 #: default experiment shows the unit running with twin's default unbalance and turbulence.
@@ -196,12 +197,16 @@ def export_fmu(
     turb = [-1, -1] if turbulence_node is None else state_space.node_ports(turbulence_node)
     in_ports = [state_space.port_index(p.port) for p in ports]
     omega = state_space.speed_rpm * RPM_TO_RAD_S
+    steady = steady_start(disc, omega, [p for p in turb if p >= 0])
     body = b"".join([
         np.asarray(in_ports, dtype="<i4").tobytes(),
         np.ascontiguousarray(disc.phi, dtype="<f8").tobytes(),
         np.ascontiguousarray(disc.gamma0.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
+        np.ascontiguousarray(steady.factor, dtype="<f8").tobytes(),
+        np.ascontiguousarray(steady.response.T.real, dtype="<f8").tobytes(),
+        np.ascontiguousarray(steady.response.T.imag, dtype="<f8").tobytes(),
     ])  # fmt: skip
     name = model.name if name is None else str(name)
     identifier = model_identifier(name)
@@ -209,7 +214,7 @@ def export_fmu(
     n, p = state_space.B.shape
     dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node)
     starts = [START[k] for k in ("unbalance_me", "unbalance_phase", "turbulence_asd", "noise_std")]
-    head = b"TWINLTI2" + struct.pack("<7i6d", *dims, step_s, omega, *starts)
+    head = b"TWINLTI3" + struct.pack("<7i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
     xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier)
@@ -289,7 +294,10 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
     _var(mv, "turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence",
          kind="Integer", start="1")
     _var(mv, "noise_seed", VR["noise_seed"], "parameter", "fixed", "seed of the sensor noise",
-         kind="Integer", start="2")  # fmt: skip
+         kind="Integer", start="2")
+    _var(mv, "steady_start", VR["steady_start"], "parameter", "fixed",
+         "start in the stationary response to the built-in excitation (else from rest)", kind="Boolean",
+         start="true")  # fmt: skip
     for j, port in enumerate(ports):
         _var(mv, port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a step)",
              start="0", unit="N")  # fmt: skip

@@ -193,6 +193,7 @@ def simulate(
     start_values = {
         "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,
         "noise_std": noise_std, "turbulence_seed": int(seed), "noise_seed": int(seed) + 7919,
+        "steady_start": False,  # from rest, through the warm-up
     }  # fmt: skip
     import fmpy
 

@@ -25,7 +25,7 @@
 
 #include "fmi2Functions.h"
 
-#define MAGIC "TWINLTI2"
+#define MAGIC "TWINLTI3"
 #define VR_UNBALANCE_ME 1
 #define VR_UNBALANCE_PHASE 2
 #define VR_TURBULENCE_ASD 3
@@ -33,6 +33,9 @@
 #define VR_UNBALANCE_NODE 5
 #define VR_TURBULENCE_SEED 6
 #define VR_NOISE_SEED 7
+#define VR_STEADY_START 8
+/* the initial state's draws: a stream of their own, so the turbulence forces do not depend on them */
+#define STEADY_STREAM 0xD1B54A32D192ED03ULL
 #define VR_INPUT0 100
 #define VR_OUTPUT0 1000
 #define STEP_TOLERANCE 1e-6
@@ -51,11 +54,12 @@ typedef struct {
     double h, omega;
     int *in_port;
     double *phi, *g0t, *g1t, *c; /* g0t, g1t: p rows of n (transposed) */
+    double *steady_f, *resp_re, *resp_im; /* steady start: n x n factor; p rows of n (transposed) */
     /* run state */
     double *x, *xn, *y, *u;
     double t, unb_me, unb_phase, turb_asd, noise_std;
     double start[4]; /* start values of unbalance_me, unbalance_phase, turbulence_asd, noise_std */
-    int unb_node, turb_seed, noise_seed;
+    int unb_node, turb_seed, noise_seed, steady;
     double turb_now[2], turb_next[2];
     Rng turb_rng, noise_rng;
     int initialised, unb_node_start, debug_logging;
@@ -124,6 +128,7 @@ static void to_start_values(Lti *s) {
     s->unb_node = s->unb_node_start;
     s->turb_seed = 1;
     s->noise_seed = 2;
+    s->steady = 1;
     memset(s->x, 0, (size_t)s->n * 8);
     memset(s->y, 0, (size_t)(s->m ? s->m : 1) * 8);
     memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
@@ -194,6 +199,7 @@ static void draw_turbulence(Lti *s, double *f) {
 static void free_lti(Lti *s) {
     if (!s) return;
     free(s->in_port); free(s->phi); free(s->g0t); free(s->g1t); free(s->c);
+    free(s->steady_f); free(s->resp_re); free(s->resp_im);
     free(s->x); free(s->xn); free(s->y); free(s->u);
     free(s);
 }
@@ -247,11 +253,14 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
         s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
         s->c = malloc(m * n * 8);
+        s->steady_f = malloc(n * n * 8); s->resp_re = malloc(p * n * 8); s->resp_im = malloc(p * n * 8);
         s->x = calloc(n, 8); s->xn = calloc(n, 8); s->y = calloc(m ? m : 1, 8); s->u = calloc(s->n_in ? s->n_in : 1, 8);
         int32_t *tmp = calloc(s->n_in ? s->n_in : 1, 4);
         ok = s->phi && s->g0t && s->g1t && s->c && s->x && s->xn && s->y && s->u && tmp &&
              read_block(f, tmp, 4, s->n_in) && read_block(f, s->phi, 8, n * n) && read_block(f, s->g0t, 8, p * n) &&
-             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n);
+             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n) && s->steady_f && s->resp_re &&
+             s->resp_im && read_block(f, s->steady_f, 8, n * n) && read_block(f, s->resp_re, 8, p * n) &&
+             read_block(f, s->resp_im, 8, p * n);
         for (int i = 0; ok && i < s->n_in; i++) {
             s->in_port[i] = tmp[i];
             if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
@@ -286,6 +295,33 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined, fmi2Real
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
 
+/* The stationary state at the start time (see twin.fmu.steady): the unbalance's periodic state, the
+   turbulence response drawn from its stationary law, and the first-order hold's share of the first force. */
+static void steady_state(Lti *s) {
+    int n = s->n;
+    if (s->unb_me != 0.0) {
+        double a = s->unb_me * s->omega * s->omega, ph = s->unb_phase + s->omega * s->t;
+        double cr = a * cos(ph), ci = a * sin(ph);
+        size_t cx = (size_t)(2 * s->unb_node) * n, cy = cx + n;
+        for (int i = 0; i < n; i++) /* Re(R_x c) + Re(R_y (-i c)) */
+            s->x[i] += s->resp_re[cx + i] * cr - s->resp_im[cx + i] * ci + s->resp_re[cy + i] * ci +
+                       s->resp_im[cy + i] * cr;
+    }
+    if (s->turb_x >= 0 && s->turb_asd > 0) {
+        Rng r = {(uint64_t)(int64_t)s->turb_seed ^ STEADY_STREAM, 0, 0.0};
+        double *g = s->xn; /* scratch */
+        for (int i = 0; i < n; i++) g[i] = s->turb_asd * gauss(&r);
+        for (int i = 0; i < n; i++) {
+            const double *row = s->steady_f + (size_t)i * n;
+            double acc = 0.0;
+            for (int j = 0; j < n; j++) acc += row[j] * g[j];
+            s->x[i] += acc;
+        }
+        axpy(s->turb_now[0], s->g1t + (size_t)s->turb_x * n, s->x, n);
+        axpy(s->turb_now[1], s->g1t + (size_t)s->turb_y * n, s->x, n);
+    }
+}
+
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Lti *s = (Lti *)c;
     if (s->unb_node < 0 || 2 * s->unb_node + 1 >= s->p) {
@@ -297,6 +333,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     memset(s->x, 0, (size_t)s->n * 8);
     s->turb_now[0] = s->turb_now[1] = 0.0;
     if (s->turb_x >= 0 && s->turb_asd > 0) draw_turbulence(s, s->turb_now);
+    if (s->steady) steady_state(s);
     update_outputs(s);
     s->initialised = 1;
     return fmi2OK;
@@ -417,12 +454,23 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean v[]) {
-    (void)v;
-    return nvr ? fail((Lti *)c, "fmi2GetBoolean", "the FMU has no Boolean variables; value reference", (long)vr[0]) : fmi2OK;
+    Lti *s = (Lti *)c;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] == VR_STEADY_START) v[i] = s->steady ? fmi2True : fmi2False;
+        else return fail(s, "fmi2GetBoolean", "no Boolean variable has value reference", (long)vr[i]);
+    }
+    return fmi2OK;
 }
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean v[]) {
-    (void)v;
-    return nvr ? fail((Lti *)c, "fmi2SetBoolean", "the FMU has no Boolean variables; value reference", (long)vr[0]) : fmi2OK;
+    Lti *s = (Lti *)c;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != VR_STEADY_START)
+            return fail(s, "fmi2SetBoolean", "no Boolean parameter has value reference", (long)vr[i]);
+        if (s->initialised)
+            return fail(s, "fmi2SetBoolean", "parameters are fixed after initialisation; value reference", (long)vr[i]);
+        s->steady = v[i] ? 1 : 0;
+    }
+    return fmi2OK;
 }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String v[]) {
     (void)v;
@@ -436,7 +484,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 /* ---- FMU state ----------------------------------------------------------------------- */
 typedef struct {
     double t, unb_me, unb_phase, turb_asd, noise_std, turb_now[2], turb_next[2];
-    int unb_node, turb_seed, noise_seed, initialised;
+    int unb_node, turb_seed, noise_seed, initialised, steady;
     Rng turb_rng, noise_rng;
     double *x, *y, *u;
 } Snapshot;
@@ -453,6 +501,7 @@ static void take(const Lti *s, Snapshot *q) {
     memcpy(q->turb_now, s->turb_now, sizeof q->turb_now); memcpy(q->turb_next, s->turb_next, sizeof q->turb_next);
     q->unb_node = s->unb_node; q->turb_seed = s->turb_seed; q->noise_seed = s->noise_seed;
     q->initialised = s->initialised; q->turb_rng = s->turb_rng; q->noise_rng = s->noise_rng;
+    q->steady = s->steady;
     memcpy(q->x, s->x, (size_t)s->n * 8);
     memcpy(q->y, s->y, (size_t)(s->m ? s->m : 1) * 8);
     memcpy(q->u, s->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
@@ -464,6 +513,7 @@ static void give(Lti *s, const Snapshot *q) {
     memcpy(s->turb_now, q->turb_now, sizeof s->turb_now); memcpy(s->turb_next, q->turb_next, sizeof s->turb_next);
     s->unb_node = q->unb_node; s->turb_seed = q->turb_seed; s->noise_seed = q->noise_seed;
     s->initialised = q->initialised; s->turb_rng = q->turb_rng; s->noise_rng = q->noise_rng;
+    s->steady = q->steady;
     memcpy(s->x, q->x, (size_t)s->n * 8);
     memcpy(s->y, q->y, (size_t)(s->m ? s->m : 1) * 8);
     memcpy(s->u, q->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
@@ -511,10 +561,10 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) {
     return fmi2OK;
 }
 
-/* Bytes: magic, int32 n, m, n_in, int32 unb_node, seeds, initialised, rng has_spare x2, uint64 rng states x2,
+/* Bytes: magic, int32 n, m, n_in, unb_node, seeds, initialised, rng has_spare x2, steady, uint64 rng states x2,
    doubles t, parameters (4), turbulence (4), rng spares (2), x, y, u. */
 static size_t state_bytes(const Lti *s) {
-    return 8 + 4 * 9 + 8 * 2 + 8 * (1 + 4 + 4 + 2) + 8 * ((size_t)s->n + (size_t)s->m + (size_t)s->n_in);
+    return 8 + 4 * 10 + 8 * 2 + 8 * (1 + 4 + 4 + 2) + 8 * ((size_t)s->n + (size_t)s->m + (size_t)s->n_in);
 }
 
 static void put(fmi2Byte **p, const void *v, size_t size) { memcpy(*p, v, size); *p += size; }
@@ -532,8 +582,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[],
     if (!q) return fail(s, "fmi2SerializeFMUstate", "no state given (NULL)", -1);
     if (n < state_bytes(s)) return fail(s, "fmi2SerializeFMUstate", "buffer too small; bytes needed:", (long)state_bytes(s));
     fmi2Byte *p = b;
-    int32_t ints[9] = {s->n, s->m, s->n_in, q->unb_node, q->turb_seed, q->noise_seed, q->initialised,
-                       q->turb_rng.has_spare, q->noise_rng.has_spare};
+    int32_t ints[10] = {s->n, s->m, s->n_in, q->unb_node, q->turb_seed, q->noise_seed, q->initialised,
+                        q->turb_rng.has_spare, q->noise_rng.has_spare, q->steady};
     double d[11] = {q->t, q->unb_me, q->unb_phase, q->turb_asd, q->noise_std, q->turb_now[0], q->turb_now[1],
                     q->turb_next[0], q->turb_next[1], q->turb_rng.spare, q->noise_rng.spare};
     put(&p, STATE_MAGIC, 8);
@@ -553,7 +603,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
     if (n != state_bytes(s) || memcmp(b, STATE_MAGIC, 8) != 0)
         return fail(s, "fmi2DeSerializeFMUstate", "not a state of this FMU; bytes given:", (long)n);
     const fmi2Byte *p = b + 8;
-    int32_t ints[9];
+    int32_t ints[10];
     double d[11];
     get(&p, ints, sizeof ints);
     if (ints[0] != s->n || ints[1] != s->m || ints[2] != s->n_in)
@@ -561,7 +611,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
     Snapshot *q = new_snapshot(s);
     if (!q) return fail(s, "fmi2DeSerializeFMUstate", "out of memory", -1);
     q->unb_node = ints[3]; q->turb_seed = ints[4]; q->noise_seed = ints[5]; q->initialised = ints[6];
-    q->turb_rng.has_spare = ints[7]; q->noise_rng.has_spare = ints[8];
+    q->turb_rng.has_spare = ints[7]; q->noise_rng.has_spare = ints[8]; q->steady = ints[9];
     get(&p, &q->turb_rng.state, 8);
     get(&p, &q->noise_rng.state, 8);
     get(&p, d, sizeof d);
