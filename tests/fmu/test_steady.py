@@ -36,3 +36,17 @@ def test_the_first_seconds_have_the_stationary_variance(tmp_path, hydro_unit):
     assert np.all(np.abs(ratio[True] - 1) < 0.4), ratio[True]
     assert abs(np.mean(ratio[True]) - 1) < 0.15, ratio[True]
     assert np.mean(ratio[False]) < 0.6, ratio[False]  # from rest the response has not built up in 1 s
+
+
+def test_an_fmu_exported_without_a_steady_start_starts_from_rest(tmp_path, hydro_unit):
+    fmu = export_fmu(hydro_unit, tmp_path / "rest.fmu", basis="modal", fmax_hz=60.0, steady_start=False)
+    md = fmpy.read_model_description(str(fmu))
+    assert next(v for v in md.modelVariables if v.name == "steady_start").start == "false"
+    res = fmpy.simulate_fmu(str(fmu), stop_time=0.1, step_size=H, output_interval=H)
+    assert np.all(np.column_stack([res[c] for c in res.dtype.names[1:]])[0] == 0.0)  # at rest at t = 0
+    try:
+        fmpy.simulate_fmu(str(fmu), stop_time=0.1, step_size=H, start_values={"steady_start": True})
+    except Exception as exc:  # noqa: BLE001 (FMPy's own exception type)
+        assert "fmi2SetBoolean" in str(exc)
+    else:
+        raise AssertionError("steady_start = true was accepted by an FMU without its matrices")

@@ -44,7 +44,7 @@ from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
 from twin.fmu.documentation import documentation_html
 from twin.fmu.statespace import StateSpace, check_stable, discretize
-from twin.fmu.steady import steady_start
+from twin.fmu.steady import steady_start as stationary_start
 from twin.fmu.truth import model_state_space
 from twin.netcdf import atomic_output
 
@@ -138,6 +138,7 @@ def export_fmu(
     turbulence_node: int | None = None,
     description: str | None = None,
     name: str | None = None,
+    steady_start: bool = True,
 ) -> Path:
     """Export the model as an FMI 2.0 co-simulation FMU.
 
@@ -165,6 +166,10 @@ def export_fmu(
     name : str, optional
         The FMU's modelName (default: the model's name); its modelIdentifier, the name of its
         binaries, is this name as a C identifier (:func:`model_identifier`).
+    steady_start : bool
+        Ship the matrices of the steady start (:mod:`twin.fmu.steady`; a discrete Lyapunov solution,
+        under a second for the full hydro unit) and start steady by default; False: the FMU starts from
+        rest only (its ``steady_start`` parameter is false and cannot be set).
 
     Returns
     -------
@@ -197,27 +202,28 @@ def export_fmu(
     turb = [-1, -1] if turbulence_node is None else state_space.node_ports(turbulence_node)
     in_ports = [state_space.port_index(p.port) for p in ports]
     omega = state_space.speed_rpm * RPM_TO_RAD_S
-    steady = steady_start(disc, omega, [p for p in turb if p >= 0])
+    steady = stationary_start(disc, omega, [p for p in turb if p >= 0]) if steady_start else None
     body = b"".join([
         np.asarray(in_ports, dtype="<i4").tobytes(),
         np.ascontiguousarray(disc.phi, dtype="<f8").tobytes(),
         np.ascontiguousarray(disc.gamma0.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
         np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
-        np.ascontiguousarray(steady.factor, dtype="<f8").tobytes(),
-        np.ascontiguousarray(steady.response.T.real, dtype="<f8").tobytes(),
-        np.ascontiguousarray(steady.response.T.imag, dtype="<f8").tobytes(),
+        *([] if steady is None else [np.ascontiguousarray(steady.factor, dtype="<f8").tobytes(),
+                                     np.ascontiguousarray(steady.response.T.real, dtype="<f8").tobytes(),
+                                     np.ascontiguousarray(steady.response.T.imag, dtype="<f8").tobytes()]),
     ])  # fmt: skip
     name = model.name if name is None else str(name)
     identifier = model_identifier(name)
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
-    dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node)
+    dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node, int(steady is not None))
     starts = [START[k] for k in ("unbalance_me", "unbalance_phase", "turbulence_asd", "noise_std")]
-    head = b"TWINLTI3" + struct.pack("<7i6d", *dims, step_s, omega, *starts)
+    head = b"TWINLTI4" + struct.pack("<8i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
-    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier)
+    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier,
+                             steady is not None)  # fmt: skip
     library = build.compiled_runtime()
     plat = build.platform_folder()
     headers = build.fmi2_headers()
@@ -256,7 +262,8 @@ def model_identifier(name: str) -> str:
     return ("m_" + ident if ident[0].isdigit() else ident)[:64]
 
 
-def _model_description(model, ss, ports, guid, step_s, unbalance_node, description, name, identifier) -> bytes:
+def _model_description(model, ss, ports, guid, step_s, unbalance_node, description, name, identifier,
+                       steady: bool) -> bytes:  # fmt: skip
     root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=name, guid=guid,
                       description=description or f"{model.name} at {ss.speed_rpm:g} rpm, {ss.basis} basis, "
                                                  f"{ss.n_states} states (twin linear rotor)",
@@ -296,8 +303,9 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
     _var(mv, "noise_seed", VR["noise_seed"], "parameter", "fixed", "seed of the sensor noise",
          kind="Integer", start="2")
     _var(mv, "steady_start", VR["steady_start"], "parameter", "fixed",
-         "start in the stationary response to the built-in excitation (else from rest)", kind="Boolean",
-         start="true")  # fmt: skip
+         "start in the stationary response to the built-in excitation (else from rest)"
+         + ("" if steady else "; this FMU was exported without it"), kind="Boolean",
+         start="true" if steady else "false")  # fmt: skip
     for j, port in enumerate(ports):
         _var(mv, port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a step)",
              start="0", unit="N")  # fmt: skip

@@ -25,7 +25,7 @@
 
 #include "fmi2Functions.h"
 
-#define MAGIC "TWINLTI3"
+#define MAGIC "TWINLTI4"
 #define VR_UNBALANCE_ME 1
 #define VR_UNBALANCE_PHASE 2
 #define VR_TURBULENCE_ASD 3
@@ -59,7 +59,7 @@ typedef struct {
     double *x, *xn, *y, *u;
     double t, unb_me, unb_phase, turb_asd, noise_std;
     double start[4]; /* start values of unbalance_me, unbalance_phase, turbulence_asd, noise_std */
-    int unb_node, turb_seed, noise_seed, steady;
+    int unb_node, turb_seed, noise_seed, steady, has_steady;
     double turb_now[2], turb_next[2];
     Rng turb_rng, noise_rng;
     int initialised, unb_node_start, debug_logging;
@@ -128,7 +128,7 @@ static void to_start_values(Lti *s) {
     s->unb_node = s->unb_node_start;
     s->turb_seed = 1;
     s->noise_seed = 2;
-    s->steady = 1;
+    s->steady = s->has_steady;
     memset(s->x, 0, (size_t)s->n * 8);
     memset(s->y, 0, (size_t)(s->m ? s->m : 1) * 8);
     memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
@@ -240,27 +240,37 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         return NULL;
     }
     char magic[8], fguid[64];
-    int32_t dims[7];
+    int32_t dims[8];
     double hw[6];
-    int ok = read_block(f, magic, 1, 8) && memcmp(magic, MAGIC, 8) == 0 && read_block(f, dims, 4, 7) &&
-             read_block(f, hw, 8, 6) && read_block(f, fguid, 1, 64);
+    int ok = read_block(f, magic, 1, 8);
+    if (ok && memcmp(magic, MAGIC, 8) != 0) {
+        fclose(f);
+        logmsg(s, fmi2Error, "resource file twin_lti.bin has another format than this runtime's (" MAGIC
+                             "): the FMU mixes files of two twin versions; export it again");
+        free_lti(s);
+        return NULL;
+    }
+    ok = ok && read_block(f, dims, 4, 8) && read_block(f, hw, 8, 6) && read_block(f, fguid, 1, 64);
     if (ok) {
         s->n = dims[0]; s->p = dims[1]; s->m = dims[2]; s->n_in = dims[3]; s->turb_x = dims[4]; s->turb_y = dims[5];
         s->unb_node_start = dims[6]; /* start value of the unbalance_node parameter */
+        s->has_steady = dims[7];
         s->h = hw[0]; s->omega = hw[1];
         for (int k = 0; k < 4; k++) s->start[k] = hw[2 + k];
         size_t n = s->n, p = s->p, m = s->m;
         s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
         s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
         s->c = malloc(m * n * 8);
-        s->steady_f = malloc(n * n * 8); s->resp_re = malloc(p * n * 8); s->resp_im = malloc(p * n * 8);
+        size_t ns = s->has_steady ? n : 0; /* the steady start's matrices, when exported */
+        s->steady_f = malloc(ns * n * 8 + 8); s->resp_re = malloc(ns ? p * n * 8 : 8);
+        s->resp_im = malloc(ns ? p * n * 8 : 8);
         s->x = calloc(n, 8); s->xn = calloc(n, 8); s->y = calloc(m ? m : 1, 8); s->u = calloc(s->n_in ? s->n_in : 1, 8);
         int32_t *tmp = calloc(s->n_in ? s->n_in : 1, 4);
         ok = s->phi && s->g0t && s->g1t && s->c && s->x && s->xn && s->y && s->u && tmp &&
              read_block(f, tmp, 4, s->n_in) && read_block(f, s->phi, 8, n * n) && read_block(f, s->g0t, 8, p * n) &&
              read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n) && s->steady_f && s->resp_re &&
-             s->resp_im && read_block(f, s->steady_f, 8, n * n) && read_block(f, s->resp_re, 8, p * n) &&
-             read_block(f, s->resp_im, 8, p * n);
+             s->resp_im && (!ns || (read_block(f, s->steady_f, 8, n * n) && read_block(f, s->resp_re, 8, p * n) &&
+                                     read_block(f, s->resp_im, 8, p * n)));
         for (int i = 0; ok && i < s->n_in; i++) {
             s->in_port[i] = tmp[i];
             if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
@@ -468,6 +478,8 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
             return fail(s, "fmi2SetBoolean", "no Boolean parameter has value reference", (long)vr[i]);
         if (s->initialised)
             return fail(s, "fmi2SetBoolean", "parameters are fixed after initialisation; value reference", (long)vr[i]);
+        if (v[i] && !s->has_steady)
+            return fail(s, "fmi2SetBoolean", "steady_start: this FMU was exported without a steady start", -1);
         s->steady = v[i] ? 1 : 0;
     }
     return fmi2OK;
