@@ -69,7 +69,7 @@ def fmu_runs(fmu: Path, n: int, h: float) -> tuple[float, float, np.ndarray]:
 
     start = time.perf_counter()
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * h, step_size=h, output_interval=h,
-                            start_values={"turbulence_asd": ASD, "unbalance_me": ME})  # fmt: skip
+                            start_values={"turbulence_asd": ASD, "unbalance_me": ME, "steady_start": False})  # fmt: skip
     total = time.perf_counter() - start
     y = np.column_stack([res[name] for name in res.dtype.names[1:]])
 
@@ -78,6 +78,7 @@ def fmu_runs(fmu: Path, n: int, h: float) -> tuple[float, float, np.ndarray]:
     slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier)
     slave.instantiate()
     slave.setReal([3, 1], [ASD, ME])
+    slave.setBoolean([8], [False])  # from rest, as the numpy reference
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     slave.exitInitializationMode()
