@@ -6,7 +6,8 @@ The FMU holds
   sensor channels), parameters of the built-in excitation;
 * ``resources/twin_lti.bin``: the exact step matrices of the linear system
   (full FEM or truncated modal basis) for the nominal communication step, the
-  port map and the GUID;
+  port map, the GUID, the real parameters' start values and the steady start's
+  matrices (:mod:`twin.fmu.steady`);
 * ``binaries/<platform>/<modelIdentifier>.<so|dylib|dll>``: the generic runtime,
   compiled once per platform (:mod:`twin.fmu.build`);
 * ``sources/``: the runtime's C source and the FMI headers, so the FMU can be

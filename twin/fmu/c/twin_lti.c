@@ -12,6 +12,9 @@
  * first-order hold. Random numbers: splitmix64 + Box-Muller (reproduced in
  * twin.fmu.excitation for the numpy reference).
  *
+ * Steady start (parameter steady_start): at initialisation the state is the unbalance's periodic
+ * state plus a draw from the turbulence response's stationary covariance (see twin.fmu.steady).
+ *
  * FMU state: fmi2GetFMUstate copies everything a run depends on (time, state vector,
  * inputs, outputs, parameters, the random generators); fmi2SerializeFMUstate writes
  * that copy as bytes with a header naming the system's sizes, so a state is restored
