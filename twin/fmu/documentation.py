@@ -12,6 +12,7 @@ import json
 from xml.etree import ElementTree as ET
 
 from twin import __version__
+from twin.fmu.truth import hidden_effects
 
 
 def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> str:
@@ -36,8 +37,8 @@ def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> 
         cells = (sv.get("name", ""), sv.get("causality", ""), unit, start, sv.get("description", ""))
         rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
     truth = ""
-    if "truth" in attrs:
-        effects = json.loads(attrs["truth"]).get("effects", {})
+    effects = hidden_effects(attrs)
+    if effects is not None:
         items = "".join(f"<li><code>{html.escape(label)}</code>: {html.escape(json.dumps(values))}</li>"
                         for label, values in effects.items())  # fmt: skip
         truth = ("<h2>Truth</h2><p>This FMU simulates the model with hidden effects (a truth), for synthetic "

@@ -25,7 +25,7 @@ from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
 from twin.fmu.statespace import StateSpace, check_stable, discretize
-from twin.fmu.truth import MAX_TARGET_DAMPING, model_state_space, truth_state_space
+from twin.fmu.truth import MAX_TARGET_DAMPING, hidden_effects, model_state_space, truth_state_space
 from twin.modes.analysis import damping_ratio
 from twin.netcdf import check_writable, write_netcdf
 from twin.progress import bar
@@ -47,9 +47,9 @@ def fmu_name(model: RotorModel, ss: StateSpace) -> str:
     >>> fmu_name(SimpleNamespace(name="hydro_unit"), ss)
     'hydro_unit truth: magnetic_pull'
     """
-    if "truth" not in ss.attrs:
+    effects = hidden_effects(ss.attrs)
+    if effects is None:
         return model.name
-    effects = json.loads(ss.attrs["truth"]).get("effects", {})
     return f"{model.name} truth: {', '.join(effects) or 'nothing hidden'}"
 
 

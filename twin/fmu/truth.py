@@ -56,6 +56,22 @@ def target_mode_indices(poles: np.ndarray, n: int | None = None) -> np.ndarray:
     return light if n is None else light[:n]
 
 
+def hidden_effects(attrs: dict) -> dict[str, dict] | None:
+    """The effects a truth system's ``attrs["truth"]`` (:func:`truth_state_space`) hides, by label with their
+    fields; None for a system without a truth.
+
+    Examples
+    --------
+    >>> hidden_effects({"truth": '{"source": "t.toml", "effects": {"magnetic_pull": {"stiffness": -5e7}}}'})
+    {'magnetic_pull': {'stiffness': -50000000.0}}
+    >>> hidden_effects({}) is None
+    True
+    """
+    if "truth" not in attrs:
+        return None
+    return dict(json.loads(attrs["truth"]).get("effects", {}))
+
+
 def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
     """The model with the truth's mode-independent effects switched on (its per-mode one is not one FEM)."""
     present = {effect_label(e) for e in model.effects}

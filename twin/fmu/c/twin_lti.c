@@ -65,7 +65,7 @@ typedef struct {
     int unb_node, turb_seed, noise_seed, steady, has_steady;
     double turb_now[2], turb_next[2];
     Rng turb_rng, noise_rng;
-    int initialised, unb_node_start, debug_logging;
+    int initialised, unb_node_start;
     fmi2CallbackFunctions cb;
     char name[128];
 } Lti;
@@ -212,15 +212,13 @@ const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cat[]) {
-    Lti *s = (Lti *)c;
-    (void)n; (void)cat; /* one category: errors are always logged, the rest only with debug logging on */
-    s->debug_logging = on ? 1 : 0;
+    (void)c; (void)on; (void)n; (void)cat; /* the FMU logs errors only, and always: nothing to switch */
     return fmi2OK;
 }
 
 fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
-    (void)visible;
+    (void)visible; (void)logging;
     Lti *s = calloc(1, sizeof(Lti));
     if (!s) return NULL;
     if (functions) s->cb = *functions;
@@ -292,7 +290,6 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         free_lti(s);
         return NULL;
     }
-    s->debug_logging = logging ? 1 : 0;
     to_start_values(s);
     return s;
 }
@@ -510,28 +507,31 @@ static void free_snapshot(Snapshot *q) {
     free(q);
 }
 
-static void take(const Lti *s, Snapshot *q) {
-    q->t = s->t; q->unb_me = s->unb_me; q->unb_phase = s->unb_phase; q->turb_asd = s->turb_asd;
-    q->noise_std = s->noise_std;
-    memcpy(q->turb_now, s->turb_now, sizeof q->turb_now); memcpy(q->turb_next, s->turb_next, sizeof q->turb_next);
-    q->unb_node = s->unb_node; q->turb_seed = s->turb_seed; q->noise_seed = s->noise_seed;
-    q->initialised = s->initialised; q->turb_rng = s->turb_rng; q->noise_rng = s->noise_rng;
-    q->steady = s->steady;
-    memcpy(q->x, s->x, (size_t)s->n * 8);
-    memcpy(q->y, s->y, (size_t)(s->m ? s->m : 1) * 8);
-    memcpy(q->u, s->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
+/* The run state's fields, of the same name and type in Lti and Snapshot: one list for both directions. */
+#define RUN_STATE(X) X(t) X(unb_me) X(unb_phase) X(turb_asd) X(noise_std) X(turb_now) X(turb_next) \
+    X(unb_node) X(turb_seed) X(noise_seed) X(initialised) X(steady) X(turb_rng) X(noise_rng)
+#define COPY_FIELD(f)                                                                        \
+    {                                                                                        \
+        _Static_assert(sizeof dst->f == sizeof src->f, "run-state field " #f " differs in size"); \
+        memcpy(&dst->f, &src->f, sizeof dst->f);                                             \
+    }
+
+/* Copy the state vector, outputs and inputs (sizes of the system s). */
+static void copy_vectors(const Lti *s, double *x, double *y, double *u, const double *fx, const double *fy,
+                         const double *fu) {
+    memcpy(x, fx, (size_t)s->n * 8);
+    memcpy(y, fy, (size_t)(s->m ? s->m : 1) * 8);
+    memcpy(u, fu, (size_t)(s->n_in ? s->n_in : 1) * 8);
 }
 
-static void give(Lti *s, const Snapshot *q) {
-    s->t = q->t; s->unb_me = q->unb_me; s->unb_phase = q->unb_phase; s->turb_asd = q->turb_asd;
-    s->noise_std = q->noise_std;
-    memcpy(s->turb_now, q->turb_now, sizeof s->turb_now); memcpy(s->turb_next, q->turb_next, sizeof s->turb_next);
-    s->unb_node = q->unb_node; s->turb_seed = q->turb_seed; s->noise_seed = q->noise_seed;
-    s->initialised = q->initialised; s->turb_rng = q->turb_rng; s->noise_rng = q->noise_rng;
-    s->steady = q->steady;
-    memcpy(s->x, q->x, (size_t)s->n * 8);
-    memcpy(s->y, q->y, (size_t)(s->m ? s->m : 1) * 8);
-    memcpy(s->u, q->u, (size_t)(s->n_in ? s->n_in : 1) * 8);
+static void take(const Lti *src, Snapshot *dst) {
+    RUN_STATE(COPY_FIELD)
+    copy_vectors(src, dst->x, dst->y, dst->u, src->x, src->y, src->u);
+}
+
+static void give(Lti *dst, const Snapshot *src) {
+    RUN_STATE(COPY_FIELD)
+    copy_vectors(dst, dst->x, dst->y, dst->u, src->x, src->y, src->u);
 }
 
 static Snapshot *new_snapshot(const Lti *s) {
