@@ -8,37 +8,16 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from twin import ModelError, TwinError
-from twin.fmu import discretize, export_fmu, full_state_space, simulate_reference, truncated_state_space
-from twin.fem.model import RPM_TO_RAD_S
-from twin.fmu.excitation import excitation_forces, gaussian_stream, sensor_noise, turbulence_force
-from twin.fmu.steady import STEADY_STREAM, steady_start, steady_state
+from twin.fmu import export_fmu, full_state_space, truncated_state_space
+from twin.fmu.modal import modal_form, simulate_modal
+from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_force
+from tests.fmu.reference import H, fmu_reference
 
-H = 1.0 / 256.0
 
 
 @pytest.fixture(scope="module")
 def unit_fmu(tmp_path_factory, hydro_unit):
     return export_fmu(hydro_unit, tmp_path_factory.mktemp("fmu") / "unit.fmu", step_s=H, inputs=["runner.x", "GEN.y"])
-
-
-def _reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None, steady=False, t0=0.0):
-    """Exact recursion with the FMU's excitation: external inputs ZOH, unbalance and turbulence FOH; from
-    rest, or (``steady``) from the FMU's steady start (twin.fmu.steady)."""
-    t = t0 + np.arange(n) * H
-    zoh = np.zeros((n, len(ss.ports)))
-    turbulence = turbulence_force(n, asd, seed, H)
-    foh = excitation_forces(ss, t, node, me, 28, turbulence, phase_rad=phase)
-    for port, values in (inputs or {}).items():
-        zoh[:, ss.port_index(port)] += values
-    disc = discretize(ss, H)
-    x0 = None
-    if steady:
-        omega = ss.speed_rpm * RPM_TO_RAD_S
-        g = gaussian_stream((seed & (2**64 - 1)) ^ STEADY_STREAM, disc.phi.shape[0])
-        x0 = steady_state(steady_start(disc, omega, ss.node_ports(28)), disc, t0_s=t0, omega_rad_s=omega,
-                          me_kgm=me, phase_rad=phase, unbalance_ports=ss.node_ports(node), turbulence_asd=asd, g=g,
-                          turbulence_ports=ss.node_ports(28) if asd > 0 else [], f0=turbulence[0])  # fmt: skip
-    return simulate_reference(disc, ss.C, zoh=zoh, foh=foh, x0=x0)
 
 
 def test_fmu_is_valid_and_self_contained(unit_fmu):
@@ -59,7 +38,7 @@ def test_fmu_is_valid_and_self_contained(unit_fmu):
     assert md.coSimulation is not None and md.defaultExperiment.stepSize == repr(H)
 
 
-def test_fmu_equals_the_numpy_reference(unit_fmu, hydro_unit):
+def test_fmu_equals_the_numpyfmu_reference(unit_fmu, hydro_unit):
     n = 1500
     t = np.arange(n) * H
     u = np.zeros(n, dtype=[("time", float), ("F_runner_x", float), ("F_GEN_y", float)])
@@ -71,7 +50,7 @@ def test_fmu_equals_the_numpy_reference(unit_fmu, hydro_unit):
                                           "turbulence_seed": 9})  # fmt: skip
     ss = full_state_space(hydro_unit)
     # external inputs are held over each step (ZOH); the built-in excitation uses FOH
-    ref = _reference(ss, n, me=40.0, phase=0.3, asd=5e3, seed=9, inputs={"28.x": u["F_runner_x"], "8.y": u["F_GEN_y"]})
+    ref = fmu_reference(ss, n, me=40.0, phase=0.3, asd=5e3, seed=9, inputs={"28.x": u["F_runner_x"], "8.y": u["F_GEN_y"]})
     y = np.column_stack([res[c] for c in ss.outputs])
     np.testing.assert_allclose(res["time"], t, rtol=1e-12, atol=1e-12)
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
@@ -83,7 +62,7 @@ def test_sensor_noise_and_unbalance_node(unit_fmu, hydro_unit):
                             start_values={"steady_start": False, "unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4,
                                           "turbulence_asd": 0.0})  # fmt: skip
     ss = full_state_space(hydro_unit)
-    ref = _reference(ss, n, me=10.0, node=28) + sensor_noise(n, 8, 2e-6, 4)
+    ref = fmu_reference(ss, n, me=10.0, node=28) + sensor_noise(n, 8, 2e-6, 4)
     y = np.column_stack([res[c] for c in ss.outputs])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
 
@@ -95,14 +74,42 @@ def test_modal_basis_fmu(tmp_path, hydro_unit):
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
                             start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0, "steady_start": False})
     ss = truncated_state_space(full_state_space(hydro_unit), 100.0)
-    ref = _reference(ss, n, asd=1e4)
+    ref = fmu_reference(ss, n, asd=1e4)
     y = np.column_stack([res[c] for c in ss.outputs])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
 
 
-def test_wrong_communication_step_is_refused(unit_fmu):
-    with pytest.raises(Exception, match="fmi2DoStep"):
-        fmpy.simulate_fmu(str(unit_fmu), stop_time=0.1, step_size=H / 2, output_interval=H / 2)
+def _run(fmu, step, stop, **start):
+    res = fmpy.simulate_fmu(str(fmu), stop_time=stop, step_size=step, output_interval=step,
+                            start_values={"steady_start": False, **start})  # fmt: skip
+    return np.column_stack([res[name] for name in res.dtype.names[1:]])
+
+
+EXCITATION = {"unbalance_me": 40.0, "unbalance_phase": 0.3, "turbulence_asd": 5e3, "turbulence_seed": 9}
+
+
+def test_the_fmu_equals_its_modal_reference_to_1e_12_of_the_rms(unit_fmu, hydro_unit):
+    """The runtime steps the modal form (twin.fmu.modal) exactly as its numpy reference does."""
+    n = 2000
+    y = _run(unit_fmu, H, (n - 1) * H, **EXCITATION)
+    ss = full_state_space(hydro_unit)
+    f = excitation_forces(ss, np.arange(n) * H, 8, 40.0, 28, turbulence_force(n, 5e3, 9, H), phase_rad=0.3)
+    ref = simulate_modal(modal_form(ss), H, f)
+    rms = np.sqrt(np.mean(ref**2, axis=0))
+    assert np.max(np.abs(y - ref) / rms) < 1e-12
+
+
+@pytest.mark.parametrize(("step", "common"), [(H / 2, H), (3 * H, 3 * H), (1e-3, 0.125)])
+def test_any_communication_step_follows_the_same_trajectory(unit_fmu, step, common):
+    """The built-in excitation lives on the exported step's grid and a step is exact whatever its length,
+    so the outputs at common times do not depend on the steps taken (1e-3 s ends on the grid every 1/8 s)."""
+    stop = 48 * 0.125
+    y_h = _run(unit_fmu, H, stop, **EXCITATION)
+    y_s = _run(unit_fmu, step, stop, **EXCITATION)
+    common = np.arange(0.0, stop + 1e-9, common)
+    a, b = y_h[np.round(common / H).astype(int)], y_s[np.round(common / step).astype(int)]
+    rms = np.sqrt(np.mean(y_h**2, axis=0))
+    assert np.max(np.abs(a - b) / rms) < 1e-12
 
 
 def test_re_export_needs_no_compiler(tmp_path, monkeypatch, hydro_unit, unit_fmu):
@@ -130,7 +137,7 @@ def test_unbalance_defaults_to_the_generator_node(unit_fmu, hydro_unit):
     n = 200
     res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
                             start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0, "steady_start": False})  # fmt: skip
-    ref = _reference(full_state_space(hydro_unit), n, me=10.0, node=hydro_unit.regions["generator"][0])
+    ref = fmu_reference(full_state_space(hydro_unit), n, me=10.0, node=hydro_unit.regions["generator"][0])
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
 
@@ -155,7 +162,7 @@ def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
     res = fmpy.simulate_fmu(str(unit_fmu), output_interval=H)  # the default experiment, as a host runs it
     n = len(res)
     assert abs(res["time"][-1] - stop) < H / 2
-    ref = _reference(full_state_space(hydro_unit), n, me=DEFAULT_UNBALANCE_ME, asd=DEFAULT_TURBULENCE_ASD,
+    ref = fmu_reference(full_state_space(hydro_unit), n, me=DEFAULT_UNBALANCE_ME, asd=DEFAULT_TURBULENCE_ASD,
                      node=hydro_unit.regions["generator"][0], steady=True)  # fmt: skip
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()

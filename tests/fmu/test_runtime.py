@@ -106,7 +106,7 @@ def test_every_error_says_why(fmu):
     a.start()
     calls = [lambda: a.slave.getReal([999]), lambda: a.slave.setReal([a.vr["unbalance_me"]], [1.0]),
              lambda: a.slave.setInteger([a.vr["noise_seed"]], [3]), lambda: a.slave.getInteger([4242]),
-             lambda: a.slave.getBoolean([1]), lambda: a.slave.doStep(0.0, H / 2)]  # fmt: skip
+             lambda: a.slave.getBoolean([1]), lambda: a.slave.doStep(0.0, -H)]  # fmt: skip
     for call in calls:
         with pytest.raises(Exception):
             call()

@@ -14,6 +14,7 @@ from twin.fem.effects import MagneticPull
 from twin.fmu import discretize, full_state_space, simulate_reference
 from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_force
 from twin.fmu.simulate import simulate
+from tests.fmu.reference import fmu_reference
 
 
 def test_signals_equal_the_numpy_reference_after_the_warm_up(hydro_unit):
@@ -96,3 +97,14 @@ def test_one_hour_with_the_paper_truth_has_the_predicted_variance(tmp_path, hydr
     ss = truth_state_space(hydro_unit, paper_truth())
     expected = output_rms(ss, 1 / 256.0, 3000.0, [ss.port_index("28.x"), ss.port_index("28.y")])
     np.testing.assert_allclose(x.std(axis=0), expected, rtol=0.15)
+
+
+def test_a_record_is_stationary_from_its_first_sample_without_warm_up(hydro_unit):
+    """By default the FMU starts steady (its steady start): the record is the reference run from that state."""
+    fs, n = 256.0, 256
+    ds = simulate(hydro_unit, duration_s=n / fs, fs_hz=fs, seed=5, progress=False)
+    settings = json.loads(ds.attrs["settings"])
+    assert settings["warmup_s"] == 0 and settings["steady_start"] is True
+    ref = fmu_reference(full_state_space(hydro_unit), n, me=100.0, asd=3000.0, seed=5, steady=True)
+    ref += sensor_noise(n, 8, settings["noise_std_m"], 5 + 7919)
+    np.testing.assert_allclose(ds.displacement.values, ref, rtol=0, atol=1e-9 * np.abs(ref).max())

@@ -112,25 +112,33 @@ def compiled_runtime(rebuild: bool = False) -> Path:
     FMUBuildError
         No compiler, or the compiler failed (its own message is included).
     """
-    source = runtime_source()
-    headers = fmi2_headers()
+    return _compiled(runtime_source(), fmi2_headers(), MODEL_IDENTIFIER, "the FMU runtime", rebuild)
+
+
+def compiled_recorder(rebuild: bool = False) -> Path:
+    """Path of the compiled recording loop of :mod:`twin.fmu.run` (``c/record.c``), compiling it if needed."""
+    source = Path(str(resources.files("twin.fmu") / "c" / "record.c"))
+    return _compiled(source, {}, "twin_record", "the FMU recording loop", rebuild)
+
+
+def _compiled(source: Path, headers: dict[str, bytes], name: str, what: str, rebuild: bool) -> Path:
     digest = hashlib.sha256(source.read_bytes() + b"".join(headers.values())).hexdigest()[:16]
-    target = cache_dir() / f"{platform_folder()}-{digest}" / (MODEL_IDENTIFIER + shared_library_suffix())
+    target = cache_dir() / f"{platform_folder()}-{digest}" / (name + shared_library_suffix())
     if target.is_file() and not rebuild:
         return target
     compiler = find_compiler()
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         out = Path(tmp) / target.name
-        for name, text in headers.items():
-            (Path(tmp) / name).write_bytes(text)
+        for header, text in headers.items():
+            (Path(tmp) / header).write_bytes(text)
         cmd = [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(source), f"-I{tmp}", "-lm"]
-        log.info("compiling the FMU runtime: %s", " ".join(cmd))
+        log.info("compiling %s: %s", what, " ".join(cmd))
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
         except OSError as exc:
             raise FMUBuildError(f"could not run the C compiler {compiler}: {exc}") from None
         if proc.returncode != 0:
-            raise FMUBuildError(f"compiling the FMU runtime with {compiler} failed:\n{proc.stderr.strip()}")
+            raise FMUBuildError(f"compiling {what} with {compiler} failed:\n{proc.stderr.strip()}")
         os.replace(out, target)  # atomic: a concurrent build never sees half a library
     return target

@@ -44,6 +44,7 @@ from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
 from twin.fmu.documentation import documentation_html
+from twin.fmu.modal import modal_form
 from twin.fmu.statespace import StateSpace, check_stable, discretize
 from twin.fmu.steady import steady_start as stationary_start
 from twin.fmu.truth import model_state_space
@@ -64,6 +65,8 @@ VR_INPUT0, VR_OUTPUT0 = 100, 1000
 #: default experiment shows the unit running with twin's default unbalance and turbulence.
 START = {"unbalance_me": DEFAULT_UNBALANCE_ME, "unbalance_phase": 0.0, "turbulence_asd": DEFAULT_TURBULENCE_ASD,
          "noise_std": 0.0}  # fmt: skip
+#: The resource file's format, shared with twin_lti.c (MAGIC).
+RESOURCE_MAGIC = b"TWINLTI5"
 #: Length of the default experiment [s].
 DEFAULT_STOP_S = 30.0
 
@@ -199,28 +202,25 @@ def export_fmu(
             raise ModelError(f"{what} {node} does not exist (nodes 0..{model.n_nodes - 1})")
     check_stable(state_space, model.name)
 
-    disc = discretize(state_space, step_s)
+    form = modal_form(state_space)
     turb = [-1, -1] if turbulence_node is None else state_space.node_ports(turbulence_node)
     in_ports = [state_space.port_index(p.port) for p in ports]
     omega = state_space.speed_rpm * RPM_TO_RAD_S
-    steady = stationary_start(disc, omega, [p for p in turb if p >= 0]) if steady_start else None
+    steady = None
+    if steady_start:
+        steady = stationary_start(discretize(state_space, step_s), omega, [p for p in turb if p >= 0])
     body = b"".join([
         np.asarray(in_ports, dtype="<i4").tobytes(),
-        np.ascontiguousarray(disc.phi, dtype="<f8").tobytes(),
-        np.ascontiguousarray(disc.gamma0.T, dtype="<f8").tobytes(),
-        np.ascontiguousarray(disc.gamma1.T, dtype="<f8").tobytes(),
-        np.ascontiguousarray(state_space.C, dtype="<f8").tobytes(),
-        *([] if steady is None else [np.ascontiguousarray(steady.factor, dtype="<f8").tobytes(),
-                                     np.ascontiguousarray(steady.response.T.real, dtype="<f8").tobytes(),
-                                     np.ascontiguousarray(steady.response.T.imag, dtype="<f8").tobytes()]),
+        *(np.ascontiguousarray(a, dtype="<c16").tobytes() for a in (form.poles, form.wb.T, form.cv)),
+        *([] if steady is None else [np.ascontiguousarray(form.left @ steady.factor, dtype="<c16").tobytes()]),
     ])  # fmt: skip
     name = model.name if name is None else str(name)
     identifier = model_identifier(name)
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
-    dims = (n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node, int(steady is not None))
+    dims = (form.n_modes, n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node, int(steady is not None))
     starts = [START[k] for k in ("unbalance_me", "unbalance_phase", "turbulence_asd", "noise_std")]
-    head = b"TWINLTI4" + struct.pack("<8i6d", *dims, step_s, omega, *starts)
+    head = RESOURCE_MAGIC + struct.pack("<9i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
     xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier,
@@ -272,7 +272,7 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
                       generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                       variableNamingConvention="flat", numberOfEventIndicators="0")  # fmt: skip
     cs = ET.SubElement(root, "CoSimulation", modelIdentifier=identifier,
-                       canHandleVariableCommunicationStepSize="false", canInterpolateInputs="false",
+                       canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
                        canBeInstantiatedOnlyOncePerProcess="false", canNotUseMemoryManagementFunctions="true",
                        canGetAndSetFMUstate="true", canSerializeFMUstate="true",
                        providesDirectionalDerivative="false")  # fmt: skip

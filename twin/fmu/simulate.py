@@ -24,6 +24,7 @@ from twin.errors import ModelError, TwinError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
+from twin.fmu.run import record_outputs
 from twin.fmu.statespace import StateSpace, check_stable, discretize
 from twin.fmu.truth import MAX_TARGET_DAMPING, hidden_effects, model_state_space, truth_state_space
 from twin.modes.analysis import damping_ratio
@@ -140,8 +141,10 @@ def simulate(
     basis, fmax_hz
         System for a model without per-mode truth: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
     warmup_s : float, optional
-        Simulated time discarded before the record so the start transient has died out
-        (default: five time constants of the slowest mode, at most 300 s).
+        By default the FMU starts in the stationary response to its excitation (its steady start,
+        :mod:`twin.fmu.steady`), so the record is stationary from its first sample. Given, the FMU
+        starts from rest instead and this much simulated time [s] is discarded before the record
+        (:func:`default_warmup_s` lets the start transient die out).
     output : path, optional
         NetCDF file to write (written to a temporary name, then renamed).
     progress : bool
@@ -180,9 +183,10 @@ def simulate(
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
                       f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", TwinWarning,
                       stacklevel=2)  # fmt: skip
-    if warmup_s is None:
-        warmup_s = default_warmup_s(ss)
-    n_warm = int(np.ceil(warmup_s * fs_hz))
+    steady = warmup_s is None
+    if not steady and not (np.isfinite(warmup_s) and warmup_s >= 0):
+        raise ModelError(f"the warm-up must be a non-negative time, got {warmup_s} s")
+    n_warm = 0 if steady else int(np.ceil(warmup_s * fs_hz))
     n_rec = int(round(duration_s * fs_hz))
     if n_rec < 2:
         raise ModelError(f"{duration_s} s at {fs_hz} Hz gives fewer than two samples")
@@ -193,42 +197,26 @@ def simulate(
     start_values = {
         "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,
         "noise_std": noise_std, "turbulence_seed": int(seed), "noise_seed": int(seed) + 7919,
-        "steady_start": False,  # from rest, through the warm-up
+        "steady_start": steady,
     }  # fmt: skip
     import fmpy
 
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[],
-                         name=fmu_name(model, ss), steady_start=False)  # fmt: skip
+                         name=fmu_name(model, ss), steady_start=steady)  # fmt: skip
         n_total = n_warm + n_rec
-        steps = bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress, mininterval=0.5)
-        done = [0]
-
-        def step_finished(time, recorder):
-            done[0] += 1
-            if done[0] % 4096 == 0:
-                steps.update(4096)
-            return True
-
-        try:
-            res = fmpy.simulate_fmu(str(fmu), start_time=-n_warm * h, stop_time=(n_rec - 1) * h, step_size=h,
-                                    output_interval=h, start_values=start_values, output=ss.outputs,
-                                    step_finished=step_finished if progress else None)  # fmt: skip
-        finally:
-            steps.update(done[0] - steps.n)
-            steps.close()
-    time = res["time"][n_warm:]
-    data = np.column_stack([res[c] for c in ss.outputs])[n_warm:]
-    if len(time) != n_rec:
-        raise TwinError(f"the FMU returned {len(time)} samples instead of {n_rec}")
-    time = np.arange(n_rec) * h  # exact sample times (FMPy's accumulate ~1e-11 drift)
+        with bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress,
+                 mininterval=0.5) as steps:  # fmt: skip
+            data = record_outputs(fmu, outputs=ss.outputs, n_samples=n_total, step_s=h, start_time=-n_warm * h,
+                                  start_values=start_values, on_progress=steps.update)[n_warm:]  # fmt: skip
+    time = np.arange(n_rec) * h
 
     sensors = {s.name: s for s in model.sensors}
     settings = {
         "duration_s": duration_s, "fs_hz": fs_hz, "seed": seed, "turbulence_asd": turbulence_asd,
         "turbulence_node": turb_node, "unbalance_me": unbalance_me, "unbalance_phase_rad": unbalance_phase_rad,
         "unbalance_node": default_unbalance_node(model), "noise_ratio": noise_ratio, "noise_std_m": noise_std,
-        "basis": ss.basis, "fmax_hz": fmax_hz, "warmup_s": n_warm * h, "n_states": ss.n_states,
+        "basis": ss.basis, "fmax_hz": fmax_hz, "warmup_s": n_warm * h, "steady_start": steady, "n_states": ss.n_states,
     }  # fmt: skip
     attrs = {
         "title": f"simulated proximeter signals of {model.name}",
@@ -237,7 +225,7 @@ def simulate(
         "speed_rpm": float(ss.speed_rpm),
         "model": model.name,
         "model_source": str(Path(model.source).resolve()) if model.source else "",
-        "producer": f"twin {__version__} twin.fmu.simulate (FMI 2.0 co-simulation through FMPy {fmpy.__version__})",
+        "producer": f"twin {__version__} twin.fmu.simulate (FMI 2.0 co-simulation, loaded by FMPy {fmpy.__version__})",
         "command": command,
         "settings": json.dumps(settings),
         "seed": int(seed),
@@ -248,7 +236,7 @@ def simulate(
     ds = xr.Dataset(
         {"displacement": (("time", "channel"), data, {"units": "m", "long_name": "proximeter displacement"})},
         coords={
-            "time": ("time", time, {"units": "s", "long_name": "time from the end of the warm-up"}),
+            "time": ("time", time, {"units": "s", "long_name": "time from the start of the record"}),
             "channel": ("channel", list(ss.outputs), {"long_name": "proximeter (sensor name)"}),
             "node": ("channel", [sensors[c].node for c in ss.outputs],
                      {"units": "1", "long_name": "FEM node the proximeter faces (0 at the shaft's first node)"}),

@@ -1,25 +1,30 @@
 /*
  * twin_lti.c - generic FMI 2.0 co-simulation runtime of a linear rotor model.
  *
- * The system x[k+1] = Phi x[k] + sum_j (G0_j f_j[k] + G1_j (f_j[k+1] - f_j[k])), y = C x
- * is read from resources/twin_lti.bin (written by twin.fmu.export). The step matrices
- * are exact (matrix exponential) for the nominal communication step, so a step costs
- * one dense mat-vec plus a few columns, and the binary does not depend on the model:
- * it is compiled once per platform and reused for every export.
+ * The system is stepped in its modal (diagonal) form, read from resources/twin_lti.bin (written by
+ * twin.fmu.export; see twin.fmu.modal): one complex first-order system per pole,
+ *     z_i' = lambda_i z_i + wb_i . f(t),   y = Re(sum_i cv_i z_i).
+ * A step of any length is exact: z <- a z + g0 wb.f(t) + g1 wb.(f(t+h) - f(t)) with a = exp(lambda h),
+ * g0 = h phi1(lambda h), g1 = h phi2(lambda h), computed once per step length and cached. A step costs
+ * O(n) rather than a dense n x n product, and the binary does not depend on the model: it is compiled
+ * once per platform and reused for every export.
  *
- * Force ports: external inputs are held constant over a step (zero-order hold);
- * the built-in 1X unbalance and runner turbulence are known ahead and use a
- * first-order hold. Random numbers: splitmix64 + Box-Muller (reproduced in
- * twin.fmu.excitation for the numpy reference).
+ * Forces: external inputs are held constant over a step (zero-order hold). The built-in excitation, the
+ * 1X unbalance and the runner turbulence, is a force linear between samples on a fixed grid, the
+ * exported step h0 from the start time; a communication step that does not end on the grid is split
+ * at its grid points, so the trajectory does not depend on the steps the host takes. Random numbers:
+ * splitmix64 + Box-Muller, addressed by sample index (turbulence sample j uses the generator's outputs
+ * 2j+1 and 2j+2; sensor noise sample j, channel c, normal number j m + c), reproduced in
+ * twin.fmu.excitation for the numpy reference. The sensor noise is constant between grid points.
  *
  * Steady start (parameter steady_start): at initialisation the state is the unbalance's periodic
  * state plus a draw from the turbulence response's stationary covariance (see twin.fmu.steady).
  *
- * FMU state: fmi2GetFMUstate copies everything a run depends on (time, state vector,
- * inputs, outputs, parameters, the random generators); fmi2SerializeFMUstate writes
- * that copy as bytes with a header naming the system's sizes, so a state is restored
- * bit for bit, in this instance or another of the same FMU.
+ * FMU state: fmi2GetFMUstate copies everything a run depends on (time, modal state, inputs, outputs,
+ * parameters); fmi2SerializeFMUstate writes that copy as bytes with a header naming the system's sizes,
+ * so a state is restored bit for bit, in this instance or another of the same FMU.
  */
+#include <complex.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -28,7 +33,7 @@
 
 #include "fmi2Functions.h"
 
-#define MAGIC "TWINLTI4"
+#define MAGIC "TWINLTI5"
 #define VR_UNBALANCE_ME 1
 #define VR_UNBALANCE_PHASE 2
 #define VR_TURBULENCE_ASD 3
@@ -41,60 +46,80 @@
 #define STEADY_STREAM 0xD1B54A32D192ED03ULL
 #define VR_INPUT0 100
 #define VR_OUTPUT0 1000
-#define STEP_TOLERANCE 1e-6
+#define GRID_SNAP 1e-9 /* a time within this many grid steps of a grid point is on it */
+#define SERIES_BELOW 0.1 /* |lambda h| below which phi1, phi2 are summed from their series */
+#define N_CACHE 4       /* step lengths whose coefficients are kept */
 #define TWO_PI 6.283185307179586476925286766559
-#define STATE_MAGIC "TWINSTA1"
+#define STATE_MAGIC "TWINSTA2"
+
+typedef double complex cplx;
 
 typedef struct {
-    uint64_t state;
-    int has_spare;
-    double spare;
-} Rng;
+    int port[4]; /* unbalance x, y, turbulence x, y (-1: none) */
+    double f[4];
+} Forces;
+
+typedef struct {
+    double h; /* step length [s], 0 = empty */
+    cplx *a, *g0, *g1;
+} Coefs;
 
 typedef struct {
     /* system */
-    int n, p, m, n_in, turb_x, turb_y;
-    double h, omega;
+    int r, n, p, m, n_in, turb_x, turb_y;
+    double h0, omega;
     int *in_port;
-    double *phi, *g0t, *g1t, *c; /* g0t, g1t: p rows of n (transposed) */
-    double *steady_f, *resp_re, *resp_im; /* steady start: n x n factor; p rows of n (transposed) */
+    cplx *lam, *wbt, *cv; /* wbt: p rows of r (port-major); cv: m rows of r */
+    cplx *steady_f;       /* steady start: r rows of n */
+    Coefs cache[N_CACHE];
+    int next_slot;
     /* run state */
-    double *x, *xn, *y, *u;
-    double t, unb_me, unb_phase, turb_asd, noise_std;
+    cplx *z;
+    double *y, *u, *scratch; /* scratch: 2 r doubles (or m for the noise) */
+    double *zeros;           /* 2 r zeros */
+    Forces sample[2];        /* the last two grid samples of the built-in forces */
+    int64_t sample_j[2];
+    int sample_ok[2];
+    double t0, pos; /* start time (the grid's origin) and time in grid steps from it */
+    double unb_me, unb_phase, turb_asd, noise_std;
     double start[4]; /* start values of unbalance_me, unbalance_phase, turbulence_asd, noise_std */
     int unb_node, turb_seed, noise_seed, steady, has_steady;
-    double turb_now[2], turb_next[2];
-    Rng turb_rng, noise_rng;
     int initialised, unb_node_start;
     fmi2CallbackFunctions cb;
     char name[128];
 } Lti;
 
-/* ---- random numbers: splitmix64 and Box-Muller ------------------------------------- */
-static uint64_t splitmix64(uint64_t *s) {
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ULL);
+static void forget_samples(Lti *s) { s->sample_ok[0] = s->sample_ok[1] = 0; }
+
+/* ---- random numbers: splitmix64 and Box-Muller, addressed by index ------------------------ */
+static uint64_t mix64(uint64_t z) {
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
     return z ^ (z >> 31);
 }
 
-static double gauss(Rng *r) {
-    if (r->has_spare) {
-        r->has_spare = 0;
-        return r->spare;
-    }
-    double u1 = ((double)(splitmix64(&r->state) >> 11) + 1.0) * 0x1.0p-53; /* (0, 1] */
-    double u2 = (double)(splitmix64(&r->state) >> 11) * 0x1.0p-53;        /* [0, 1) */
+/* The pair of standard normals made from the generator's outputs 2j+1 and 2j+2 (cos, sin). */
+static void gauss_pair(uint64_t seed, uint64_t j, double *c, double *s) {
+    uint64_t base = seed + (2 * j) * 0x9E3779B97F4A7C15ULL;
+    double u1 = ((double)(mix64(base + 0x9E3779B97F4A7C15ULL) >> 11) + 1.0) * 0x1.0p-53; /* (0, 1] */
+    double u2 = (double)(mix64(base + 2 * 0x9E3779B97F4A7C15ULL) >> 11) * 0x1.0p-53;     /* [0, 1) */
     double rad = sqrt(-2.0 * log(u1));
-    r->spare = rad * sin(TWO_PI * u2);
-    r->has_spare = 1;
-    return rad * cos(TWO_PI * u2);
+    *c = rad * cos(TWO_PI * u2);
+    *s = rad * sin(TWO_PI * u2);
 }
 
-static void rng_seed(Rng *r, int seed) {
-    r->state = (uint64_t)(int64_t)seed;
-    r->has_spare = 0;
+/* count consecutive standard normals of a seed's stream from number q0 on, one Box-Muller pair per two. */
+static void gauss_run(uint64_t seed, uint64_t q0, int count, double *out) {
+    for (int k = 0; k < count;) {
+        uint64_t q = q0 + (uint64_t)k;
+        double c, s;
+        gauss_pair(seed, q / 2, &c, &s);
+        if (q % 2 == 0) out[k++] = c;
+        if (k < count) out[k++] = s;
+    }
 }
+
+static uint64_t seed_of(int seed) { return (uint64_t)(int64_t)seed; }
 
 /* ---- helpers ------------------------------------------------------------------------ */
 /* The message is passed as the logger's format (its '%' doubled, no arguments): hosts that format it and
@@ -123,7 +148,8 @@ static fmi2Status fail(Lti *s, const char *fn, const char *what, long detail) {
 /* The values fmi2Instantiate leaves and fmi2Reset returns to: the modelDescription's start values. */
 static void to_start_values(Lti *s) {
     s->initialised = 0;
-    s->t = 0;
+    s->t0 = 0;
+    s->pos = 0;
     s->unb_me = s->start[0];
     s->unb_phase = s->start[1];
     s->turb_asd = s->start[2];
@@ -132,10 +158,10 @@ static void to_start_values(Lti *s) {
     s->turb_seed = 1;
     s->noise_seed = 2;
     s->steady = s->has_steady;
-    memset(s->x, 0, (size_t)s->n * 8);
+    forget_samples(s);
+    memset(s->z, 0, (size_t)s->r * sizeof(cplx));
     memset(s->y, 0, (size_t)(s->m ? s->m : 1) * 8);
     memset(s->u, 0, (size_t)(s->n_in ? s->n_in : 1) * 8);
-    s->turb_now[0] = s->turb_now[1] = s->turb_next[0] = s->turb_next[1] = 0.0;
 }
 
 static int read_block(FILE *f, void *dst, size_t size, size_t count) {
@@ -164,46 +190,209 @@ static void uri_to_path(const char *uri, char *out, size_t len) {
     out[k] = 0;
 }
 
-/* y = Phi x with four independent partial sums per row (the plain loop is latency-bound). */
-static void matvec(const double *a, const double *x, double *y, int rows, int cols) {
-    for (int i = 0; i < rows; i++) {
-        const double *row = a + (size_t)i * cols;
-        double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-        int j = 0;
-        for (; j + 3 < cols; j += 4) {
-            s0 += row[j] * x[j];
-            s1 += row[j + 1] * x[j + 1];
-            s2 += row[j + 2] * x[j + 2];
-            s3 += row[j + 3] * x[j + 3];
+/* ---- exact step coefficients ---------------------------------------------------------- */
+/* phi1(x) = (e^x - 1)/x and phi2(x) = (e^x - 1 - x)/x^2 (as twin.fmu.modal._phi12). */
+static void phi12(cplx x, cplx *p1, cplx *p2) {
+    if (cabs(x) < SERIES_BELOW) {
+        cplx term = 1.0, s1 = 0.0, s2 = 0.0;
+        for (int k = 0; k < 16; k++) {
+            s1 += term / (k + 1);
+            s2 += term / ((k + 1) * (k + 2));
+            term = term * x / (k + 1);
         }
-        for (; j < cols; j++) s0 += row[j] * x[j];
-        y[i] = (s0 + s1) + (s2 + s3);
+        *p1 = s1;
+        *p2 = s2;
+    } else {
+        cplx e = cexp(x);
+        *p1 = (e - 1.0) / x;
+        *p2 = (e - 1.0 - x) / (x * x);
     }
 }
 
-static void axpy(double a, const double *v, double *y, int n) {
-    if (a == 0.0) return;
-    for (int i = 0; i < n; i++) y[i] += a * v[i];
+/* The coefficients for a step of length h, from the cache or computed into its oldest slot. */
+static const Coefs *coefs(Lti *s, double h) {
+    for (int k = 0; k < N_CACHE; k++)
+        if (s->cache[k].h == h) return &s->cache[k];
+    int k = s->next_slot;
+    s->next_slot = (k + 1) % N_CACHE == 0 ? 1 : (k + 1) % N_CACHE; /* slot 0 keeps the grid step */
+    Coefs *c = &s->cache[k];
+    for (int i = 0; i < s->r; i++) {
+        cplx x = s->lam[i] * h, p1, p2;
+        phi12(x, &p1, &p2);
+        c->a[i] = cexp(x);
+        c->g0[i] = h * p1;
+        c->g1[i] = h * p2;
+    }
+    c->h = h;
+    return c;
+}
+
+/* ---- the built-in excitation on its grid --------------------------------------------- */
+/* The built-in forces at grid sample j (time t0 + j h0): unbalance, then turbulence, by port. */
+static void grid_forces(const Lti *s, int64_t j, Forces *out) {
+    double t = s->t0 + (double)j * s->h0;
+    double a = s->unb_me * s->omega * s->omega, ph = s->omega * t + s->unb_phase;
+    out->port[0] = 2 * s->unb_node;
+    out->port[1] = 2 * s->unb_node + 1;
+    out->f[0] = a * cos(ph);
+    out->f[1] = a * sin(ph);
+    out->port[2] = s->turb_x;
+    out->port[3] = s->turb_y;
+    out->f[2] = out->f[3] = 0.0;
+    if (s->turb_x >= 0 && s->turb_asd > 0) {
+        /* white noise of one-sided amplitude spectral density asd: std = asd / sqrt(2 h0) */
+        double sd = s->turb_asd / sqrt(2.0 * s->h0);
+        gauss_pair(seed_of(s->turb_seed), (uint64_t)j, &out->f[2], &out->f[3]);
+        out->f[2] *= sd;
+        out->f[3] *= sd;
+    }
+}
+
+/* The built-in forces at grid sample j, from a cache of the last two samples (derived from the run state:
+   emptied whenever the parameters or the state are set). */
+static const Forces *grid_sample(Lti *s, int64_t j) {
+    for (int k = 0; k < 2; k++)
+        if (s->sample_ok[k] && s->sample_j[k] == j) return &s->sample[k];
+    int k = s->sample_ok[0] && (!s->sample_ok[1] || s->sample_j[0] > s->sample_j[1]) ? 1 : 0; /* the older */
+    grid_forces(s, j, &s->sample[k]);
+    s->sample_j[k] = j;
+    s->sample_ok[k] = 1;
+    return &s->sample[k];
+}
+
+/* d += wb . f for n_f forces by port (re, im pairs of the modal forcing, one per mode). */
+static void add_modal_force(const Lti *s, const int *port, const double *f, int n_f, double *d) {
+    for (int q = 0; q < n_f; q++) {
+        if (port[q] < 0 || f[q] == 0.0) continue;
+        const double *w = (const double *)(s->wbt + (size_t)port[q] * s->r);
+        double v = f[q];
+        for (int i = 0; i < 2 * s->r; i++) d[i] += w[i] * v;
+    }
+}
+
+/* The modal forcing wb_i . f of forces given by port, for one mode (initialisation only). */
+static cplx modal_force(const Lti *s, int i, const int *port, const double *f, int n_f) {
+    cplx acc = 0.0;
+    for (int q = 0; q < n_f; q++)
+        if (port[q] >= 0 && f[q] != 0.0) acc += s->wbt[(size_t)port[q] * s->r + i] * f[q];
+    return acc;
+}
+
+/* Advance the modal state over [pa, pb] (grid units, one grid interval j <= pa < pb <= j + 1): the
+   built-in forces are linear between the grid samples j and j + 1, the inputs constant. Complex
+   products are written out in real arithmetic (no C99 complex multiplication, which checks for
+   infinities on every product). */
+static void advance_piece(Lti *s, int64_t j, double pa, double pb) {
+    const Coefs *c = coefs(s, (pb - pa) * s->h0);
+    const Forces *f0 = grid_sample(s, j), *f1 = grid_sample(s, j + 1);
+    double wa = pa - (double)j, wb = pb - (double)j;
+    double fa[4], df[4];
+    for (int q = 0; q < 4; q++) {
+        double slope = f1->f[q] - f0->f[q];
+        fa[q] = f0->f[q] + wa * slope;
+        df[q] = (wb - wa) * slope;
+    }
+    int r2 = 2 * s->r;
+    /* the rows of wb for the four built-in force ports (a row of zeros where there is none) */
+    const double *w[4];
+    for (int q = 0; q < 4; q++) {
+        int port = f0->port[q];
+        if (port < 0 || (fa[q] == 0.0 && df[q] == 0.0)) port = -1;
+        w[q] = port < 0 ? s->zeros : (const double *)(s->wbt + (size_t)port * s->r);
+    }
+    double *du = s->scratch;
+    if (s->n_in) {
+        memset(du, 0, (size_t)r2 * 8);
+        add_modal_force(s, s->in_port, s->u, s->n_in, du);
+    }
+    const double *a = (const double *)c->a, *g0 = (const double *)c->g0, *g1 = (const double *)c->g1;
+    double *z = (double *)s->z;
+    for (int i = 0; i < r2; i += 2) {
+        double d0r = w[0][i] * fa[0] + w[1][i] * fa[1] + w[2][i] * fa[2] + w[3][i] * fa[3];
+        double d0i = w[0][i + 1] * fa[0] + w[1][i + 1] * fa[1] + w[2][i + 1] * fa[2] + w[3][i + 1] * fa[3];
+        double d1r = w[0][i] * df[0] + w[1][i] * df[1] + w[2][i] * df[2] + w[3][i] * df[3];
+        double d1i = w[0][i + 1] * df[0] + w[1][i + 1] * df[1] + w[2][i + 1] * df[2] + w[3][i + 1] * df[3];
+        if (s->n_in) {
+            d0r += du[i];
+            d0i += du[i + 1];
+        }
+        double zr = z[i], zi = z[i + 1];
+        z[i] = a[i] * zr - a[i + 1] * zi + g0[i] * d0r - g0[i + 1] * d0i + g1[i] * d1r - g1[i + 1] * d1i;
+        z[i + 1] = a[i] * zi + a[i + 1] * zr + g0[i] * d0i + g0[i + 1] * d0r + g1[i] * d1i + g1[i + 1] * d1r;
+    }
+}
+
+static double snap(double pos) {
+    double k = floor(pos + 0.5);
+    return fabs(pos - k) < GRID_SNAP ? k : pos;
+}
+
+/* Advance the run by h seconds, split at the grid points it crosses. */
+static void advance(Lti *s, double h) {
+    double end = snap(s->pos + h / s->h0);
+    while (s->pos < end) {
+        int64_t j = (int64_t)floor(s->pos);
+        double stop = fmin(end, (double)(j + 1));
+        advance_piece(s, j, s->pos, stop);
+        s->pos = stop;
+    }
 }
 
 static void update_outputs(Lti *s) {
-    matvec(s->c, s->x, s->y, s->m, s->n);
-    if (s->noise_std > 0)
-        for (int i = 0; i < s->m; i++) s->y[i] += s->noise_std * gauss(&s->noise_rng);
+    for (int c = 0; c < s->m; c++) {
+        const cplx *row = s->cv + (size_t)c * s->r;
+        const double *cv = (const double *)row, *z = (const double *)s->z; /* (re, im) pairs */
+        double acc0 = 0.0, acc1 = 0.0;
+        for (int i = 0; i < 2 * s->r; i += 2) {
+            acc0 += cv[i] * z[i];
+            acc1 += cv[i + 1] * z[i + 1];
+        }
+        s->y[c] = acc0 - acc1;
+    }
+    if (s->noise_std > 0 && s->m) {
+        uint64_t j = (uint64_t)floor(s->pos + GRID_SNAP); /* constant between grid points */
+        double *g = s->scratch;
+        gauss_run(seed_of(s->noise_seed), j * (uint64_t)s->m, s->m, g);
+        for (int c = 0; c < s->m; c++) s->y[c] += s->noise_std * g[c];
+    }
 }
 
-static void draw_turbulence(Lti *s, double *f) {
-    /* ZOH-equivalent white noise of one-sided amplitude spectral density asd: std = asd / sqrt(2 h) */
-    double sd = s->turb_asd / sqrt(2.0 * s->h);
-    f[0] = sd * gauss(&s->turb_rng);
-    f[1] = sd * gauss(&s->turb_rng);
+/* The stationary state at the start time (see twin.fmu.steady): the unbalance's periodic state of the
+   grid's first-order hold, the turbulence response drawn from its stationary law, and the first-order
+   hold's share of the first turbulence force. */
+static void steady_state(Lti *s) {
+    const Coefs *c = coefs(s, s->h0);
+    cplx q = cexp(I * s->omega * s->h0);
+    /* force Re(U e^{i w t}) with U = (1, -i) me w^2 e^{i phase} at the unbalance node's x and y ports */
+    cplx amp = s->unb_me * s->omega * s->omega * cexp(I * (s->unb_phase + s->omega * s->t0));
+    Forces f;
+    grid_forces(s, 0, &f);
+    uint64_t seed = seed_of(s->turb_seed) ^ STEADY_STREAM;
+    double *g = malloc((size_t)s->n * 8);
+    int draw = g && s->turb_x >= 0 && s->turb_asd > 0;
+    if (draw) gauss_run(seed, 0, s->n, g);
+    for (int k = 0; draw && k < s->n; k++) g[k] *= s->turb_asd;
+    for (int i = 0; i < s->r; i++) {
+        cplx wx = s->wbt[(size_t)f.port[0] * s->r + i], wy = s->wbt[(size_t)f.port[1] * s->r + i];
+        cplx alpha = (wx - I * wy) * amp, beta = (wx + I * wy) * conj(amp); /* wb.F = (alpha e^{iwt} + beta e^{-iwt})/2 */
+        cplx gain_p = (c->g0[i] + c->g1[i] * (q - 1.0)) / (q - c->a[i]);
+        cplx gain_m = (c->g0[i] + c->g1[i] * (conj(q) - 1.0)) / (conj(q) - c->a[i]);
+        cplx zi = s->unb_me != 0.0 ? 0.5 * (alpha * gain_p + beta * gain_m) : 0.0;
+        if (draw) {
+            const cplx *row = s->steady_f + (size_t)i * s->n;
+            for (int k = 0; k < s->n; k++) zi += row[k] * g[k];
+            zi += c->g1[i] * modal_force(s, i, f.port + 2, f.f + 2, 2);
+        }
+        s->z[i] += zi;
+    }
+    free(g);
 }
 
 static void free_lti(Lti *s) {
     if (!s) return;
-    free(s->in_port); free(s->phi); free(s->g0t); free(s->g1t); free(s->c);
-    free(s->steady_f); free(s->resp_re); free(s->resp_im);
-    free(s->x); free(s->xn); free(s->y); free(s->u);
+    free(s->in_port); free(s->lam); free(s->wbt); free(s->cv); free(s->steady_f);
+    for (int k = 0; k < N_CACHE; k++) { free(s->cache[k].a); free(s->cache[k].g0); free(s->cache[k].g1); }
+    free(s->z); free(s->y); free(s->u); free(s->scratch); free(s->zeros);
     free(s);
 }
 
@@ -214,6 +403,58 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cat[]) {
     (void)c; (void)on; (void)n; (void)cat; /* the FMU logs errors only, and always: nothing to switch */
     return fmi2OK;
+}
+
+/* Read the resource file into s and its GUID into guid[64]: 1, or 0 with a message logged. */
+static int load(Lti *s, FILE *f, char *guid) {
+    char magic[8];
+    int32_t dims[9];
+    double hw[6];
+    if (!read_block(f, magic, 1, 8) || memcmp(magic, MAGIC, 8) != 0) {
+        logmsg(s, fmi2Error, "resource file twin_lti.bin has another format than this runtime's (" MAGIC
+                             "): the FMU mixes files of two twin versions; export it again");
+        return 0;
+    }
+    int ok = read_block(f, dims, 4, 9) && read_block(f, hw, 8, 6) && read_block(f, guid, 1, 64);
+    if (ok) {
+        s->r = dims[0]; s->n = dims[1]; s->p = dims[2]; s->m = dims[3]; s->n_in = dims[4];
+        s->turb_x = dims[5]; s->turb_y = dims[6];
+        s->unb_node_start = dims[7]; /* start value of the unbalance_node parameter */
+        s->has_steady = dims[8];
+        s->h0 = hw[0]; s->omega = hw[1];
+        for (int k = 0; k < 4; k++) s->start[k] = hw[2 + k];
+        ok = s->r > 0 && s->n > 0 && s->p > 0 && s->m >= 0 && s->n_in >= 0 && s->h0 > 0;
+    }
+    if (ok) {
+        size_t r = s->r, n = s->n, p = s->p, m = s->m, c = sizeof(cplx), n_in = s->n_in ? s->n_in : 1;
+        s->in_port = calloc(n_in, sizeof(int));
+        s->lam = malloc(r * c); s->wbt = malloc(p * r * c); s->cv = malloc((m ? m : 1) * r * c);
+        s->steady_f = malloc((s->has_steady ? n : 1) * r * c); /* the steady start's factor, when exported */
+        s->z = calloc(r, c); s->y = calloc(m ? m : 1, 8); s->u = calloc(n_in, 8);
+        s->scratch = malloc((2 * r + m + 1) * 8);
+        s->zeros = calloc(2 * r, 8);
+        ok = s->in_port && s->lam && s->wbt && s->cv && s->steady_f && s->z && s->y && s->u && s->scratch && s->zeros;
+        for (int k = 0; ok && k < N_CACHE; k++) {
+            s->cache[k].a = malloc(r * c); s->cache[k].g0 = malloc(r * c); s->cache[k].g1 = malloc(r * c);
+            ok = s->cache[k].a && s->cache[k].g0 && s->cache[k].g1;
+        }
+        int32_t *tmp = calloc(n_in, 4);
+        ok = ok && tmp && read_block(f, tmp, 4, s->n_in) && read_block(f, s->lam, c, r) &&
+             read_block(f, s->wbt, c, p * r) && read_block(f, s->cv, c, m * r) &&
+             (!s->has_steady || read_block(f, s->steady_f, c, r * n));
+        for (int i = 0; ok && i < s->n_in; i++) {
+            s->in_port[i] = tmp[i];
+            if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
+        }
+        free(tmp);
+    }
+    if (!ok) {
+        logmsg(s, fmi2Error, "resource file twin_lti.bin is corrupt or truncated");
+        return 0;
+    }
+    guid[63] = 0;
+    coefs(s, s->h0); /* slot 0: the grid step, kept */
+    return 1;
 }
 
 fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
@@ -228,7 +469,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         free_lti(s);
         return NULL;
     }
-    char path[4096], file[4200];
+    char path[4096], file[4200], fguid[64];
     uri_to_path(resources ? resources : "", path, sizeof path);
     size_t len = strlen(path);
     snprintf(file, sizeof file, "%s%stwin_lti.bin", path, (len && path[len - 1] == '/') ? "" : "/");
@@ -240,51 +481,12 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         free_lti(s);
         return NULL;
     }
-    char magic[8], fguid[64];
-    int32_t dims[8];
-    double hw[6];
-    int ok = read_block(f, magic, 1, 8);
-    if (ok && memcmp(magic, MAGIC, 8) != 0) {
-        fclose(f);
-        logmsg(s, fmi2Error, "resource file twin_lti.bin has another format than this runtime's (" MAGIC
-                             "): the FMU mixes files of two twin versions; export it again");
-        free_lti(s);
-        return NULL;
-    }
-    ok = ok && read_block(f, dims, 4, 8) && read_block(f, hw, 8, 6) && read_block(f, fguid, 1, 64);
-    if (ok) {
-        s->n = dims[0]; s->p = dims[1]; s->m = dims[2]; s->n_in = dims[3]; s->turb_x = dims[4]; s->turb_y = dims[5];
-        s->unb_node_start = dims[6]; /* start value of the unbalance_node parameter */
-        s->has_steady = dims[7];
-        s->h = hw[0]; s->omega = hw[1];
-        for (int k = 0; k < 4; k++) s->start[k] = hw[2 + k];
-        size_t n = s->n, p = s->p, m = s->m;
-        s->in_port = calloc(s->n_in ? s->n_in : 1, sizeof(int));
-        s->phi = malloc(n * n * 8); s->g0t = malloc(p * n * 8); s->g1t = malloc(p * n * 8);
-        s->c = malloc(m * n * 8);
-        size_t ns = s->has_steady ? n : 0; /* the steady start's matrices, when exported */
-        s->steady_f = malloc(ns * n * 8 + 8); s->resp_re = malloc(ns ? p * n * 8 : 8);
-        s->resp_im = malloc(ns ? p * n * 8 : 8);
-        s->x = calloc(n, 8); s->xn = calloc(n, 8); s->y = calloc(m ? m : 1, 8); s->u = calloc(s->n_in ? s->n_in : 1, 8);
-        int32_t *tmp = calloc(s->n_in ? s->n_in : 1, 4);
-        ok = s->phi && s->g0t && s->g1t && s->c && s->x && s->xn && s->y && s->u && tmp &&
-             read_block(f, tmp, 4, s->n_in) && read_block(f, s->phi, 8, n * n) && read_block(f, s->g0t, 8, p * n) &&
-             read_block(f, s->g1t, 8, p * n) && read_block(f, s->c, 8, m * n) && s->steady_f && s->resp_re &&
-             s->resp_im && (!ns || (read_block(f, s->steady_f, 8, n * n) && read_block(f, s->resp_re, 8, p * n) &&
-                                     read_block(f, s->resp_im, 8, p * n)));
-        for (int i = 0; ok && i < s->n_in; i++) {
-            s->in_port[i] = tmp[i];
-            if (tmp[i] < 0 || tmp[i] >= s->p) ok = 0;
-        }
-        free(tmp);
-    }
+    int ok = load(s, f, fguid);
     fclose(f);
     if (!ok) {
-        logmsg(s, fmi2Error, "resource file twin_lti.bin is corrupt or truncated");
         free_lti(s);
         return NULL;
     }
-    fguid[63] = 0;
     if (!guid || strcmp(guid, fguid) != 0) {
         logmsg(s, fmi2Error, "GUID of modelDescription.xml does not match the resource file");
         free_lti(s);
@@ -299,50 +501,21 @@ void fmi2FreeInstance(fmi2Component c) { free_lti((Lti *)c); }
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start,
                                fmi2Boolean stopDefined, fmi2Real stop) {
     (void)tolDefined; (void)tol; (void)stopDefined; (void)stop;
-    ((Lti *)c)->t = start;
+    Lti *s = (Lti *)c;
+    s->t0 = start;
+    s->pos = 0;
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
 
-/* The stationary state at the start time (see twin.fmu.steady): the unbalance's periodic state, the
-   turbulence response drawn from its stationary law, and the first-order hold's share of the first force. */
-static void steady_state(Lti *s) {
-    int n = s->n;
-    if (s->unb_me != 0.0) {
-        double a = s->unb_me * s->omega * s->omega, ph = s->unb_phase + s->omega * s->t;
-        double cr = a * cos(ph), ci = a * sin(ph);
-        size_t cx = (size_t)(2 * s->unb_node) * n, cy = cx + n;
-        for (int i = 0; i < n; i++) /* Re(R_x c) + Re(R_y (-i c)) */
-            s->x[i] += s->resp_re[cx + i] * cr - s->resp_im[cx + i] * ci + s->resp_re[cy + i] * ci +
-                       s->resp_im[cy + i] * cr;
-    }
-    if (s->turb_x >= 0 && s->turb_asd > 0) {
-        Rng r = {(uint64_t)(int64_t)s->turb_seed ^ STEADY_STREAM, 0, 0.0};
-        double *g = s->xn; /* scratch */
-        for (int i = 0; i < n; i++) g[i] = s->turb_asd * gauss(&r);
-        for (int i = 0; i < n; i++) {
-            const double *row = s->steady_f + (size_t)i * n;
-            double acc = 0.0;
-            for (int j = 0; j < n; j++) acc += row[j] * g[j];
-            s->x[i] += acc;
-        }
-        axpy(s->turb_now[0], s->g1t + (size_t)s->turb_x * n, s->x, n);
-        axpy(s->turb_now[1], s->g1t + (size_t)s->turb_y * n, s->x, n);
-    }
-}
-
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Lti *s = (Lti *)c;
-    if (s->unb_node < 0 || 2 * s->unb_node + 1 >= s->p) {
-        logmsg(s, fmi2Error, "unbalance_node is not a node of the model");
-        return fmi2Error;
-    }
-    rng_seed(&s->turb_rng, s->turb_seed);
-    rng_seed(&s->noise_rng, s->noise_seed);
-    memset(s->x, 0, (size_t)s->n * 8);
-    s->turb_now[0] = s->turb_now[1] = 0.0;
-    if (s->turb_x >= 0 && s->turb_asd > 0) draw_turbulence(s, s->turb_now);
+    if (s->unb_node < 0 || 2 * s->unb_node + 1 >= s->p)
+        return fail(s, "fmi2ExitInitializationMode", "unbalance_node is not a node of the model:", s->unb_node);
+    memset(s->z, 0, (size_t)s->r * sizeof(cplx));
+    s->pos = 0;
+    forget_samples(s);
     if (s->steady) steady_state(s);
     update_outputs(s);
     s->initialised = 1;
@@ -356,48 +529,17 @@ fmi2Status fmi2Reset(fmi2Component c) {
     return fmi2OK;
 }
 
-static void unbalance(const Lti *s, double t, double *f) {
-    double a = s->unb_me * s->omega * s->omega, ph = s->omega * t + s->unb_phase;
-    f[0] = a * cos(ph);
-    f[1] = a * sin(ph);
-}
-
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
-    (void)noSetPrior;
+    (void)t; (void)noSetPrior; /* the FMU keeps its own time: t0 + pos h0 */
     Lti *s = (Lti *)c;
     if (!s->initialised) return fail(s, "fmi2DoStep", "called before fmi2ExitInitializationMode", -1);
-    if (fabs(h - s->h) > STEP_TOLERANCE * s->h) {
+    if (!(h >= 0) || !isfinite(h)) {
         char msg[256];
-        snprintf(msg, sizeof msg, "communication step %.12g s differs from the exported step %.12g s; export the FMU for this step", h, s->h);
+        snprintf(msg, sizeof msg, "fmi2DoStep: communication step %.17g s is not a non-negative number", h);
         logmsg(s, fmi2Error, msg);
         return fmi2Error;
     }
-    int n = s->n;
-    matvec(s->phi, s->x, s->xn, n, n);
-    for (int i = 0; i < s->n_in; i++) axpy(s->u[i], s->g0t + (size_t)s->in_port[i] * n, s->xn, n);
-    if (s->unb_me != 0.0) {
-        double f0[2], f1[2];
-        unbalance(s, t, f0);
-        unbalance(s, t + h, f1);
-        for (int d = 0; d < 2; d++) {
-            size_t col = (size_t)(2 * s->unb_node + d) * n;
-            axpy(f0[d], s->g0t + col, s->xn, n);
-            axpy(f1[d] - f0[d], s->g1t + col, s->xn, n);
-        }
-    }
-    if (s->turb_x >= 0 && s->turb_asd > 0) {
-        draw_turbulence(s, s->turb_next);
-        int ports[2] = {s->turb_x, s->turb_y};
-        for (int d = 0; d < 2; d++) {
-            size_t col = (size_t)ports[d] * n;
-            axpy(s->turb_now[d], s->g0t + col, s->xn, n);
-            axpy(s->turb_next[d] - s->turb_now[d], s->g1t + col, s->xn, n);
-        }
-        s->turb_now[0] = s->turb_next[0];
-        s->turb_now[1] = s->turb_next[1];
-    }
-    double *tmp = s->x; s->x = s->xn; s->xn = tmp;
-    s->t = t + h;
+    advance(s, h);
     update_outputs(s);
     return fmi2OK;
 }
@@ -405,7 +547,6 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
 fmi2Status fmi2CancelStep(fmi2Component c) {
     return fail((Lti *)c, "fmi2CancelStep", "steps are synchronous: there is none to cancel", -1);
 }
-
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     Lti *s = (Lti *)c;
     for (size_t i = 0; i < nvr; i++) {
@@ -495,52 +636,53 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* ---- FMU state ----------------------------------------------------------------------- */
 typedef struct {
-    double t, unb_me, unb_phase, turb_asd, noise_std, turb_now[2], turb_next[2];
+    double t0, pos, unb_me, unb_phase, turb_asd, noise_std;
     int unb_node, turb_seed, noise_seed, initialised, steady;
-    Rng turb_rng, noise_rng;
-    double *x, *y, *u;
+    cplx *z;
+    double *y, *u;
 } Snapshot;
 
 static void free_snapshot(Snapshot *q) {
     if (!q) return;
-    free(q->x); free(q->y); free(q->u);
+    free(q->z); free(q->y); free(q->u);
     free(q);
 }
 
 /* The run state's fields, of the same name and type in Lti and Snapshot: one list for both directions. */
-#define RUN_STATE(X) X(t) X(unb_me) X(unb_phase) X(turb_asd) X(noise_std) X(turb_now) X(turb_next) \
-    X(unb_node) X(turb_seed) X(noise_seed) X(initialised) X(steady) X(turb_rng) X(noise_rng)
+#define RUN_STATE(X) X(t0) X(pos) X(unb_me) X(unb_phase) X(turb_asd) X(noise_std) \
+    X(unb_node) X(turb_seed) X(noise_seed) X(initialised) X(steady)
 #define COPY_FIELD(f)                                                                        \
     {                                                                                        \
         _Static_assert(sizeof dst->f == sizeof src->f, "run-state field " #f " differs in size"); \
         memcpy(&dst->f, &src->f, sizeof dst->f);                                             \
     }
 
-/* Copy the state vector, outputs and inputs (sizes of the system s). */
-static void copy_vectors(const Lti *s, double *x, double *y, double *u, const double *fx, const double *fy,
+/* Copy the modal state, outputs and inputs (sizes of the system s). */
+static void copy_vectors(const Lti *s, cplx *z, double *y, double *u, const cplx *fz, const double *fy,
                          const double *fu) {
-    memcpy(x, fx, (size_t)s->n * 8);
+    memcpy(z, fz, (size_t)s->r * sizeof(cplx));
     memcpy(y, fy, (size_t)(s->m ? s->m : 1) * 8);
     memcpy(u, fu, (size_t)(s->n_in ? s->n_in : 1) * 8);
 }
 
 static void take(const Lti *src, Snapshot *dst) {
     RUN_STATE(COPY_FIELD)
-    copy_vectors(src, dst->x, dst->y, dst->u, src->x, src->y, src->u);
+    copy_vectors(src, dst->z, dst->y, dst->u, src->z, src->y, src->u);
 }
 
 static void give(Lti *dst, const Snapshot *src) {
+    forget_samples(dst);
     RUN_STATE(COPY_FIELD)
-    copy_vectors(dst, dst->x, dst->y, dst->u, src->x, src->y, src->u);
+    copy_vectors(dst, dst->z, dst->y, dst->u, src->z, src->y, src->u);
 }
 
 static Snapshot *new_snapshot(const Lti *s) {
     Snapshot *q = calloc(1, sizeof(Snapshot));
     if (!q) return NULL;
-    q->x = malloc((size_t)s->n * 8);
+    q->z = malloc((size_t)s->r * sizeof(cplx));
     q->y = malloc((size_t)(s->m ? s->m : 1) * 8);
     q->u = malloc((size_t)(s->n_in ? s->n_in : 1) * 8);
-    if (!q->x || !q->y || !q->u) {
+    if (!q->z || !q->y || !q->u) {
         free_snapshot(q);
         return NULL;
     }
@@ -576,10 +718,12 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *st) {
     return fmi2OK;
 }
 
-/* Bytes: magic, int32 n, m, n_in, unb_node, seeds, initialised, rng has_spare x2, steady, uint64 rng states x2,
-   doubles t, parameters (4), turbulence (4), rng spares (2), x, y, u. */
+/* Bytes: magic, int32 r, m, n_in, unb_node, seeds (2), initialised, steady, doubles t0, pos, parameters (4),
+   z (2 r), y, u. */
+#define STATE_INTS 8
+#define STATE_DOUBLES 6
 static size_t state_bytes(const Lti *s) {
-    return 8 + 4 * 10 + 8 * 2 + 8 * (1 + 4 + 4 + 2) + 8 * ((size_t)s->n + (size_t)s->m + (size_t)s->n_in);
+    return 8 + 4 * STATE_INTS + 8 * (STATE_DOUBLES + 2 * (size_t)s->r + (size_t)s->m + (size_t)s->n_in);
 }
 
 static void put(fmi2Byte **p, const void *v, size_t size) { memcpy(*p, v, size); *p += size; }
@@ -597,16 +741,13 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate st, fmi2Byte b[],
     if (!q) return fail(s, "fmi2SerializeFMUstate", "no state given (NULL)", -1);
     if (n < state_bytes(s)) return fail(s, "fmi2SerializeFMUstate", "buffer too small; bytes needed:", (long)state_bytes(s));
     fmi2Byte *p = b;
-    int32_t ints[10] = {s->n, s->m, s->n_in, q->unb_node, q->turb_seed, q->noise_seed, q->initialised,
-                        q->turb_rng.has_spare, q->noise_rng.has_spare, q->steady};
-    double d[11] = {q->t, q->unb_me, q->unb_phase, q->turb_asd, q->noise_std, q->turb_now[0], q->turb_now[1],
-                    q->turb_next[0], q->turb_next[1], q->turb_rng.spare, q->noise_rng.spare};
+    int32_t ints[STATE_INTS] = {s->r, s->m, s->n_in, q->unb_node, q->turb_seed, q->noise_seed, q->initialised,
+                                q->steady};
+    double d[STATE_DOUBLES] = {q->t0, q->pos, q->unb_me, q->unb_phase, q->turb_asd, q->noise_std};
     put(&p, STATE_MAGIC, 8);
     put(&p, ints, sizeof ints);
-    put(&p, &q->turb_rng.state, 8);
-    put(&p, &q->noise_rng.state, 8);
     put(&p, d, sizeof d);
-    put(&p, q->x, (size_t)s->n * 8);
+    put(&p, q->z, (size_t)s->r * sizeof(cplx));
     put(&p, q->y, (size_t)s->m * 8);
     put(&p, q->u, (size_t)s->n_in * 8);
     return fmi2OK;
@@ -618,29 +759,24 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
     if (n != state_bytes(s) || memcmp(b, STATE_MAGIC, 8) != 0)
         return fail(s, "fmi2DeSerializeFMUstate", "not a state of this FMU; bytes given:", (long)n);
     const fmi2Byte *p = b + 8;
-    int32_t ints[10];
-    double d[11];
+    int32_t ints[STATE_INTS];
+    double d[STATE_DOUBLES];
     get(&p, ints, sizeof ints);
-    if (ints[0] != s->n || ints[1] != s->m || ints[2] != s->n_in)
-        return fail(s, "fmi2DeSerializeFMUstate", "a state of another system; its state size:", (long)ints[0]);
+    if (ints[0] != s->r || ints[1] != s->m || ints[2] != s->n_in)
+        return fail(s, "fmi2DeSerializeFMUstate", "a state of another system; its number of modes:", (long)ints[0]);
     Snapshot *q = new_snapshot(s);
     if (!q) return fail(s, "fmi2DeSerializeFMUstate", "out of memory", -1);
     q->unb_node = ints[3]; q->turb_seed = ints[4]; q->noise_seed = ints[5]; q->initialised = ints[6];
-    q->turb_rng.has_spare = ints[7]; q->noise_rng.has_spare = ints[8]; q->steady = ints[9];
-    get(&p, &q->turb_rng.state, 8);
-    get(&p, &q->noise_rng.state, 8);
+    q->steady = ints[7];
     get(&p, d, sizeof d);
-    q->t = d[0]; q->unb_me = d[1]; q->unb_phase = d[2]; q->turb_asd = d[3]; q->noise_std = d[4];
-    q->turb_now[0] = d[5]; q->turb_now[1] = d[6]; q->turb_next[0] = d[7]; q->turb_next[1] = d[8];
-    q->turb_rng.spare = d[9]; q->noise_rng.spare = d[10];
-    get(&p, q->x, (size_t)s->n * 8);
+    q->t0 = d[0]; q->pos = d[1]; q->unb_me = d[2]; q->unb_phase = d[3]; q->turb_asd = d[4]; q->noise_std = d[5];
+    get(&p, q->z, (size_t)s->r * sizeof(cplx));
     get(&p, q->y, (size_t)s->m * 8);
     get(&p, q->u, (size_t)s->n_in * 8);
     if (*st) free_snapshot((Snapshot *)*st);
     *st = q;
     return fmi2OK;
 }
-
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
                                         const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real dz[]) {
     (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
@@ -659,7 +795,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
     Lti *s = (Lti *)c;
-    if (k == fmi2LastSuccessfulTime) { *v = s->t; return fmi2OK; }
+    if (k == fmi2LastSuccessfulTime) { *v = s->t0 + s->pos * s->h0; return fmi2OK; }
     return fmi2Discard;
 }
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer *v) { (void)c; (void)k; (void)v; return fmi2Discard; }
