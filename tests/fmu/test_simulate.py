@@ -99,12 +99,14 @@ def test_one_hour_with_the_paper_truth_has_the_predicted_variance(tmp_path, hydr
     np.testing.assert_allclose(x.std(axis=0), expected, rtol=0.15)
 
 
-def test_a_record_is_stationary_from_its_first_sample_without_warm_up(hydro_unit):
-    """By default the FMU starts steady (its steady start): the record is the reference run from that state."""
+def test_a_steady_start_needs_no_warm_up(hydro_unit):
+    """With steady_start the record is the reference run from the FMU's steady start, from its first sample."""
     fs, n = 256.0, 256
-    ds = simulate(hydro_unit, duration_s=n / fs, fs_hz=fs, seed=5, progress=False)
+    ds = simulate(hydro_unit, duration_s=n / fs, fs_hz=fs, seed=5, steady_start=True, progress=False)
     settings = json.loads(ds.attrs["settings"])
     assert settings["warmup_s"] == 0 and settings["steady_start"] is True
     ref = fmu_reference(full_state_space(hydro_unit), n, me=100.0, asd=3000.0, seed=5, steady=True)
     ref += sensor_noise(n, 8, settings["noise_std_m"], 5 + 7919)
     np.testing.assert_allclose(ds.displacement.values, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+    with pytest.raises(ModelError, match="not both"):
+        simulate(hydro_unit, duration_s=1.0, steady_start=True, warmup_s=2.0, progress=False)

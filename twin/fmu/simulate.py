@@ -112,6 +112,7 @@ def simulate(
     basis: str = "full",
     fmax_hz: float | None = None,
     warmup_s: float | None = None,
+    steady_start: bool = False,
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -141,10 +142,11 @@ def simulate(
     basis, fmax_hz
         System for a model without per-mode truth: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
     warmup_s : float, optional
-        By default the FMU starts in the stationary response to its excitation (its steady start,
-        :mod:`twin.fmu.steady`), so the record is stationary from its first sample. Given, the FMU
-        starts from rest instead and this much simulated time [s] is discarded before the record
-        (:func:`default_warmup_s` lets the start transient die out).
+        Simulated time discarded before the record so the start transient from rest has died out
+        (default: :func:`default_warmup_s`, five time constants of the slowest mode, at most 300 s).
+    steady_start : bool
+        Start the FMU in the stationary response to its excitation instead (its steady start,
+        :mod:`twin.fmu.steady`): the record is stationary from its first sample, with no warm-up.
     output : path, optional
         NetCDF file to write (written to a temporary name, then renamed).
     progress : bool
@@ -183,10 +185,14 @@ def simulate(
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
                       f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", TwinWarning,
                       stacklevel=2)  # fmt: skip
-    steady = warmup_s is None
-    if not steady and not (np.isfinite(warmup_s) and warmup_s >= 0):
+    steady = bool(steady_start)
+    if steady and warmup_s is not None:
+        raise ModelError("a steady start needs no warm-up: give steady_start or warmup_s, not both")
+    if warmup_s is None:
+        warmup_s = 0.0 if steady else default_warmup_s(ss)
+    if not (np.isfinite(warmup_s) and warmup_s >= 0):
         raise ModelError(f"the warm-up must be a non-negative time, got {warmup_s} s")
-    n_warm = 0 if steady else int(np.ceil(warmup_s * fs_hz))
+    n_warm = int(np.ceil(warmup_s * fs_hz))
     n_rec = int(round(duration_s * fs_hz))
     if n_rec < 2:
         raise ModelError(f"{duration_s} s at {fs_hz} Hz gives fewer than two samples")
