@@ -13,7 +13,13 @@ Then ``twin simulate`` itself (:func:`twin.fmu.simulate.simulate`: the export, t
 the record, the Dataset) for the same hour of the full FEM, and with its steady start (no warm-up), and the time to export a changed model once the C
 runtime is compiled and cached (the loop re-exports after every update), against building its state space.
 
-Run from the repository root:  python benchmarks/fmu_simulation.py [--duration 3600] [--out FILE.md]
+With ``--baseline-fmu`` an FMU of the full hydro unit exported by another version of twin (``twin export-fmu
+hydro_unit -o old.fmu`` on a checkout of it) is timed in the same run through ``fmpy.simulate_fmu``, for the
+record alone and for the warm-up from rest plus the record (what ``twin simulate`` ran), so a change of the
+runtime is measured against the same numpy reference.
+
+Run from the repository root:  python benchmarks/fmu_simulation.py [--duration 3600] [--baseline-fmu OLD.fmu]
+[--out FILE.md]
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import fmpy
 import numpy as np
 
 import twin
@@ -30,7 +37,7 @@ from twin.fmu import export_fmu, full_state_space, truncated_state_space
 from twin.fmu.excitation import excitation_forces, turbulence_force
 from twin.fmu.modal import modal_form, simulate_modal
 from twin.fmu.run import record_outputs
-from twin.fmu.simulate import simulate
+from twin.fmu.simulate import default_warmup_s, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 FS = 256.0
@@ -48,8 +55,6 @@ def numpy_modal(ss, n: int, h: float) -> tuple[np.ndarray, float]:
 
 def fmu_runs(fmu: Path, outputs: list[str], n: int, h: float) -> tuple[float, float, np.ndarray]:
     """Seconds of ``fmpy.simulate_fmu`` and of ``record_outputs`` for ``n`` samples, and the outputs."""
-    import fmpy
-
     start = time.perf_counter()
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * h, step_size=h, output_interval=h, start_values=START)
     general = time.perf_counter() - start
@@ -66,7 +71,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=3600.0, help="simulated time [s] (default 3600)")
     parser.add_argument("--out", type=Path, default=None, help="also write the table to this Markdown file")
+    parser.add_argument("--baseline-fmu", type=Path, default=None,
+                        help="an FMU of the full hydro unit from another twin version, timed in the same run")
     args = parser.parse_args()
+    if args.baseline_fmu is not None and not args.baseline_fmu.is_file():
+        parser.error(f"--baseline-fmu: no file {args.baseline_fmu}")
     h = 1.0 / FS
     n = int(round(args.duration * FS))
     model = twin.load_model(ROOT / "models" / "hydro_unit.toml")
@@ -103,6 +112,16 @@ def main() -> None:
     lines += [""] + [f"twin simulate of the full FEM ({what}): {twin_s[steady]:.2f} s, "
                      f"{twin_s[steady] / ref_full:.2f} x the numpy modal reference of the same run"
                      for steady, what in ((False, "from rest, default warm-up"), (True, "steady start, no warm-up"))]
+    if args.baseline_fmu is not None:
+        lines.append("")
+        n_warm = int(np.ceil(default_warmup_s(full) * FS))
+        for what, samples in (("the record", n), (f"warm-up ({n_warm * h:.1f} s) and record", n_warm + n)):
+            start = time.perf_counter()
+            fmpy.simulate_fmu(str(args.baseline_fmu), stop_time=(samples - 1) * h, step_size=h, output_interval=h,
+                              start_values=START)  # fmt: skip
+            spent = time.perf_counter() - start
+            lines.append(f"baseline FMU {args.baseline_fmu.name}, {what} through fmpy.simulate_fmu: {spent:.2f} s, "
+                         f"{spent / ref_full:.2f} x the numpy modal reference of the same run")  # fmt: skip
     lines += [
               f"re-export of a changed model (runtime cached): {1e3 * export_s:.0f} ms, "
               f"{export_s / build_s:.1f} x building its state space ({1e3 * build_s:.0f} ms)"]  # fmt: skip
@@ -110,6 +129,8 @@ def main() -> None:
     print(text)
     if args.out is not None:
         command = "python benchmarks/fmu_simulation.py" + (f" --duration {args.duration:g}" if args.duration != 3600 else "")
+        if args.baseline_fmu is not None:
+            command += f" --baseline-fmu {args.baseline_fmu.name}"
         args.out.write_text(f"# FMU simulation speed\n\nCommand: `{command}`\n\n{text}\n")
 
 

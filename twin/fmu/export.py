@@ -53,7 +53,7 @@ from twin.netcdf import atomic_output
 log = logging.getLogger(__name__)
 
 #: The FMU's units: name, SI base-unit exponents, display units (name, factor: shown = factor x value).
-UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
+UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("m/s", {"m": "1", "s": "-1"}, (("mm/s", 1e3),)), ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
          ("kg.m", {"kg": "1", "m": "1"}, (("g.mm", 1e6),)), ("rad", {"rad": "1"}, (("deg", 180 / np.pi),)),
          ("N/sqrt(Hz)", {}, ()))  # fmt: skip
 
@@ -67,6 +67,10 @@ START = {"unbalance_me": DEFAULT_UNBALANCE_ME, "unbalance_phase": 0.0, "turbulen
          "noise_std": 0.0}  # fmt: skip
 #: The resource file's format, shared with twin_lti.c (MAGIC).
 RESOURCE_MAGIC = b"TWINLTI5"
+#: The FMI interfaces an export declares, by its ``kind``.
+KINDS = {"both": ("cs", "me"), "cs": ("cs",), "me": ("me",)}
+#: First value references of the continuous states (Re z_i at 2i, Im z_i at 2i + 1) and of their derivatives.
+VR_STATE0, VR_DER0 = 100000, 200000
 #: Length of the default experiment [s].
 DEFAULT_STOP_S = 30.0
 
@@ -143,6 +147,7 @@ def export_fmu(
     description: str | None = None,
     name: str | None = None,
     steady_start: bool = True,
+    kind: str = "both",
 ) -> Path:
     """Export the model as an FMI 2.0 co-simulation FMU.
 
@@ -174,6 +179,9 @@ def export_fmu(
         Ship the matrices of the steady start (:mod:`twin.fmu.steady`; a discrete Lyapunov solution,
         under a second for the full hydro unit) and start steady by default; False: the FMU starts from
         rest only (its ``steady_start`` parameter is false and cannot be set).
+    kind : {"both", "cs", "me"}
+        The FMI interfaces the FMU declares: co-simulation (the FMU steps itself, exactly), model
+        exchange (the host's solver integrates its modal states), or both (one binary serves both).
 
     Returns
     -------
@@ -190,6 +198,8 @@ def export_fmu(
     'unit.fmu'
     """
     path = Path(path)
+    if kind not in KINDS:
+        raise TwinError(f"kind must be one of {', '.join(KINDS)} (FMI interfaces), got {kind!r}")
     if not path.parent.is_dir():
         raise TwinError(f"cannot write {path}: folder {path.parent} does not exist")
     if state_space is None:
@@ -223,8 +233,8 @@ def export_fmu(
     head = RESOURCE_MAGIC + struct.pack("<9i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
-    xml = _model_description(model, state_space, ports, guid, step_s, unbalance_node, description, name, identifier,
-                             steady is not None)  # fmt: skip
+    xml = _model_description(model, state_space, form, ports, guid, step_s, unbalance_node, description, name,
+                             identifier, steady is not None, KINDS[kind])  # fmt: skip
     library = build.compiled_runtime()
     plat = build.platform_folder()
     headers = build.fmi2_headers()
@@ -263,21 +273,26 @@ def model_identifier(name: str) -> str:
     return ("m_" + ident if ident[0].isdigit() else ident)[:64]
 
 
-def _model_description(model, ss, ports, guid, step_s, unbalance_node, description, name, identifier,
-                       steady: bool) -> bytes:  # fmt: skip
+def _model_description(model, ss, form, ports, guid, step_s, unbalance_node, description, name, identifier,
+                       steady: bool, kinds: tuple[str, ...]) -> bytes:  # fmt: skip
     root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=name, guid=guid,
                       description=description or f"{model.name} at {ss.speed_rpm:g} rpm, {ss.basis} basis, "
                                                  f"{ss.n_states} states (twin linear rotor)",
                       generationTool=f"twin {__version__}",
                       generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                       variableNamingConvention="flat", numberOfEventIndicators="0")  # fmt: skip
-    cs = ET.SubElement(root, "CoSimulation", modelIdentifier=identifier,
-                       canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
-                       canBeInstantiatedOnlyOncePerProcess="false", canNotUseMemoryManagementFunctions="true",
-                       canGetAndSetFMUstate="true", canSerializeFMUstate="true",
-                       providesDirectionalDerivative="false")  # fmt: skip
-    files = ET.SubElement(cs, "SourceFiles")
-    ET.SubElement(files, "File", name=f"{build.MODEL_IDENTIFIER}.c")
+    common = {"modelIdentifier": identifier, "canBeInstantiatedOnlyOncePerProcess": "false",
+              "canNotUseMemoryManagementFunctions": "true", "canGetAndSetFMUstate": "true",
+              "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"}  # fmt: skip
+    interfaces = []
+    if "me" in kinds:
+        interfaces.append(ET.SubElement(root, "ModelExchange", completedIntegratorStepNotNeeded="true", **common))
+    if "cs" in kinds:
+        interfaces.append(ET.SubElement(root, "CoSimulation", canHandleVariableCommunicationStepSize="true",
+                                        canInterpolateInputs="false", **common))  # fmt: skip
+    for cs in interfaces:
+        files = ET.SubElement(cs, "SourceFiles")
+        ET.SubElement(files, "File", name=f"{build.MODEL_IDENTIFIER}.c")
     units = ET.SubElement(root, "UnitDefinitions")
     for unit_name, base, display in UNITS:
         unit = ET.SubElement(units, "Unit", name=unit_name)
@@ -316,11 +331,31 @@ def _model_description(model, ss, ports, guid, step_s, unbalance_node, descripti
         where = f" at {sensor.location} (node {sensor.node})" if sensor else ""
         _var(mv, channel, VR_OUTPUT0 + i, "output", "continuous", f"proximeter displacement {channel}{where}",
              initial="calculated", unit="m", displayUnit="um")  # fmt: skip
+    first_state = first_output + len(ss.outputs)
+    n_states = 2 * form.n_modes
+    for k in range(n_states):
+        lam = form.poles[k // 2]
+        what = (f"mode {k // 2 + 1} ({abs(lam.imag) / (2 * np.pi):.4g} Hz, damping ratio {-lam.real / abs(lam):.3g})"
+                if lam.imag else f"real pole {k // 2 + 1} ({lam.real:.4g} 1/s)")  # fmt: skip
+        _var(mv, f"z[{k // 2 + 1}].{'im' if k % 2 else 're'}", VR_STATE0 + k, "local", "continuous",
+             f"{'imaginary' if k % 2 else 'real'} part of the modal coordinate of {what}: the mode's displacement "
+             "at the sensor it moves most", unit="m", displayUnit="um")  # fmt: skip
+    for k in range(n_states):
+        _var(mv, f"der(z[{k // 2 + 1}].{'im' if k % 2 else 're'})", VR_DER0 + k, "local", "continuous",
+             "its time derivative", derivative=str(first_state + k), unit="m/s")  # fmt: skip
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
+    derivatives = ET.SubElement(structure, "Derivatives")
     initial = ET.SubElement(structure, "InitialUnknowns")
+    states = " ".join(str(first_state + k) for k in range(n_states))
+    inputs = [str(len(VR) + 1 + j) for j in range(len(ports))]
     for i in range(len(ss.outputs)):
-        ET.SubElement(outputs, "Unknown", index=str(first_output + i), dependencies="")
-        ET.SubElement(initial, "Unknown", index=str(first_output + i))
+        ET.SubElement(outputs, "Unknown", index=str(first_output + i), dependencies=states)
+    for k in range(n_states):
+        pair = f"{first_state + k - k % 2} {first_state + k - k % 2 + 1}"
+        ET.SubElement(derivatives, "Unknown", index=str(first_state + n_states + k),
+                      dependencies=" ".join([*inputs, pair]) if inputs else pair)  # fmt: skip
+    for index in [first_output + i for i in range(len(ss.outputs))] + [first_state + k for k in range(2 * n_states)]:
+        ET.SubElement(initial, "Unknown", index=str(index))
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)

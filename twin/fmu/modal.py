@@ -1,7 +1,8 @@
 """The modal (diagonal) form the FMU steps, its exact step coefficients for any step, and its numpy reference.
 
 A real state space ``x' = A x + B f``, ``y = C x`` with distinct poles is, in modal coordinates
-``z = W x`` (``W = V⁻¹``, ``V`` the right eigenvectors),
+``z = W x`` (``W = V⁻¹``, ``V`` the right eigenvectors, each scaled so that its largest sensor
+displacement is 1: a coordinate is the mode's displacement there [m]),
 
     z_i' = λ_i z_i + (W B)_i f,   y = Σ_i c_i z_i,
 
@@ -93,6 +94,12 @@ def modal_form(ss: StateSpace) -> ModalForm:
     keep = lam.imag >= 0  # LAPACK returns the poles of a real matrix in exact conjugate pairs
     order = np.lexsort((lam.real[keep], lam.imag[keep]))
     lam, right, left = lam[keep][order], right[:, keep][:, order], left[keep][order]
+    # scale each coordinate to metres: its largest sensor displacement is 1 (for a mode no sensor sees,
+    # its largest state entry)
+    seen = ss.C @ right
+    ref = np.where(np.abs(seen).max(axis=0) > 0, seen[np.abs(seen).argmax(axis=0), np.arange(len(lam))],
+                   right[np.abs(right).argmax(axis=0), np.arange(len(lam))])  # fmt: skip
+    right, left = right / ref, left * ref[:, None]
     weight = np.where(lam.imag > 0, 2.0, 1.0)
     return ModalForm(lam, (ss.C @ right) * weight, left @ ss.B, left)
 
@@ -165,8 +172,7 @@ def simulate_modal(form: ModalForm, h: float, foh: np.ndarray, zoh: np.ndarray |
     if zoh is not None:
         drive += (np.asarray(zoh, dtype=float) @ form.wb.T) * g0
     z0 = np.zeros(form.n_modes, dtype=complex) if z0 is None else np.asarray(z0, dtype=complex)
-    k = np.arange(len(foh))
     states = np.empty((len(foh), form.n_modes), dtype=complex)
-    for i in range(form.n_modes):  # z[k] = a z[k-1] + drive[k-1]: a first-order filter per pole
-        states[:, i] = lfilter([0.0, 1.0], [1.0, -a[i]], drive[:, i]) + z0[i] * a[i] ** k
+    for i in range(form.n_modes):  # z[0] = z0, z[k] = a z[k-1] + drive[k-1]: a first-order filter per pole
+        states[:, i] = lfilter([1.0], [1.0, -a[i]], np.concatenate([[z0[i]], drive[:-1, i]]))
     return np.real(states @ form.cv.T)

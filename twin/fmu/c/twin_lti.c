@@ -46,6 +46,8 @@
 #define STEADY_STREAM 0xD1B54A32D192ED03ULL
 #define VR_INPUT0 100
 #define VR_OUTPUT0 1000
+#define VR_STATE0 100000 /* the continuous states: Re z_i at 2i, Im z_i at 2i + 1 */
+#define VR_DER0 200000   /* their derivatives */
 #define GRID_SNAP 1e-9 /* a time within this many grid steps of a grid point is on it */
 #define SERIES_BELOW 0.1 /* |lambda h| below which phi1, phi2 are summed from their series */
 #define N_CACHE 4       /* step lengths whose coefficients are kept */
@@ -85,6 +87,7 @@ typedef struct {
     double start[4]; /* start values of unbalance_me, unbalance_phase, turbulence_asd, noise_std */
     int unb_node, turb_seed, noise_seed, steady, has_steady;
     int initialised, unb_node_start;
+    int model_exchange; /* instantiated as fmi2ModelExchange: the host integrates dz/dt */
     fmi2CallbackFunctions cb;
     char name[128];
 } Lti;
@@ -248,16 +251,23 @@ static void grid_forces(const Lti *s, int64_t j, Forces *out) {
     }
 }
 
-/* The built-in forces at grid sample j, from a cache of the last two samples (derived from the run state:
-   emptied whenever the parameters or the state are set). */
-static const Forces *grid_sample(Lti *s, int64_t j) {
-    for (int k = 0; k < 2; k++)
-        if (s->sample_ok[k] && s->sample_j[k] == j) return &s->sample[k];
-    int k = s->sample_ok[0] && (!s->sample_ok[1] || s->sample_j[0] > s->sample_j[1]) ? 1 : 0; /* the older */
-    grid_forces(s, j, &s->sample[k]);
-    s->sample_j[k] = j;
-    s->sample_ok[k] = 1;
-    return &s->sample[k];
+/* The built-in forces at grid samples j and j + 1, from a cache of two samples (derived from the run
+   state: emptied whenever the parameters or the state are set); neither lookup evicts the other. */
+static void grid_pair(Lti *s, int64_t j, const Forces **f0, const Forces **f1) {
+    int slot[2] = {-1, -1};
+    for (int q = 0; q < 2; q++)
+        for (int k = 0; k < 2; k++)
+            if (s->sample_ok[k] && s->sample_j[k] == j + q) slot[q] = k;
+    for (int q = 0; q < 2; q++) {
+        if (slot[q] >= 0) continue;
+        int k = slot[1 - q] >= 0 ? 1 - slot[1 - q] : q; /* the slot the other sample does not hold */
+        grid_forces(s, j + q, &s->sample[k]);
+        s->sample_j[k] = j + q;
+        s->sample_ok[k] = 1;
+        slot[q] = k;
+    }
+    *f0 = &s->sample[slot[0]];
+    *f1 = &s->sample[slot[1]];
 }
 
 /* d += wb . f for n_f forces by port (re, im pairs of the modal forcing, one per mode). */
@@ -284,7 +294,8 @@ static cplx modal_force(const Lti *s, int i, const int *port, const double *f, i
    infinities on every product). */
 static void advance_piece(Lti *s, int64_t j, double pa, double pb) {
     const Coefs *c = coefs(s, (pb - pa) * s->h0);
-    const Forces *f0 = grid_sample(s, j), *f1 = grid_sample(s, j + 1);
+    const Forces *f0, *f1;
+    grid_pair(s, j, &f0, &f1);
     double wa = pa - (double)j, wb = pb - (double)j;
     double fa[4], df[4];
     for (int q = 0; q < 4; q++) {
@@ -335,6 +346,25 @@ static void advance(Lti *s, double h) {
         double stop = fmin(end, (double)(j + 1));
         advance_piece(s, j, s->pos, stop);
         s->pos = stop;
+    }
+}
+
+/* dz/dt at the current time: lambda z + wb . f(t), the built-in forces interpolated between the grid
+   samples around the time and the inputs, as (re, im) pairs into d (2 r doubles). */
+static void derivatives_now(Lti *s, double *d) {
+    double p = snap(s->pos);
+    int64_t j = (int64_t)floor(p);
+    const Forces *f0, *f1;
+    grid_pair(s, j, &f0, &f1);
+    double w = p - (double)j, f[4];
+    for (int q = 0; q < 4; q++) f[q] = f0->f[q] + w * (f1->f[q] - f0->f[q]);
+    memset(d, 0, (size_t)(2 * s->r) * 8);
+    add_modal_force(s, f0->port, f, 4, d);
+    if (s->n_in) add_modal_force(s, s->in_port, s->u, s->n_in, d);
+    const double *lam = (const double *)s->lam, *z = (const double *)s->z;
+    for (int i = 0; i < 2 * s->r; i += 2) {
+        d[i] += lam[i] * z[i] - lam[i + 1] * z[i + 1];
+        d[i + 1] += lam[i] * z[i + 1] + lam[i + 1] * z[i];
     }
 }
 
@@ -464,11 +494,12 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     if (!s) return NULL;
     if (functions) s->cb = *functions;
     snprintf(s->name, sizeof s->name, "%s", name ? name : "twin");
-    if (type != fmi2CoSimulation) {
-        logmsg(s, fmi2Error, "this FMU supports co-simulation only");
+    if (type != fmi2CoSimulation && type != fmi2ModelExchange) {
+        logmsg(s, fmi2Error, "fmi2Instantiate: the type is neither fmi2ModelExchange nor fmi2CoSimulation");
         free_lti(s);
         return NULL;
     }
+    s->model_exchange = type == fmi2ModelExchange;
     char path[4096], file[4200], fguid[64];
     uri_to_path(resources ? resources : "", path, sizeof path);
     size_t len = strlen(path);
@@ -549,9 +580,18 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
 }
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     Lti *s = (Lti *)c;
+    unsigned n2 = 2u * (unsigned)s->r;
+    int derivatives = 0;
+    if (s->model_exchange && s->initialised) update_outputs(s); /* the host moved the time or the states */
     for (size_t i = 0; i < nvr; i++) {
         fmi2ValueReference r = vr[i];
         if (r >= VR_OUTPUT0 && r < VR_OUTPUT0 + (unsigned)s->m) value[i] = s->y[r - VR_OUTPUT0];
+        else if (r >= VR_STATE0 && r < VR_STATE0 + n2) value[i] = ((const double *)s->z)[r - VR_STATE0];
+        else if (r >= VR_DER0 && r < VR_DER0 + n2) {
+            if (!derivatives) derivatives_now(s, s->scratch);
+            derivatives = 1;
+            value[i] = s->scratch[r - VR_DER0];
+        }
         else if (r >= VR_INPUT0 && r < VR_INPUT0 + (unsigned)s->n_in) value[i] = s->u[r - VR_INPUT0];
         else if (r == VR_UNBALANCE_ME) value[i] = s->unb_me;
         else if (r == VR_UNBALANCE_PHASE) value[i] = s->unb_phase;
@@ -777,11 +817,131 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n
     *st = q;
     return fmi2OK;
 }
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
-                                        const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real dz[]) {
-    (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
-    return fail((Lti *)c, "fmi2GetDirectionalDerivative", "not provided by this FMU", -1);
+/* The Jacobian of the linear system times a seed: unknowns are state derivatives or outputs, knowns are
+   continuous states or inputs (d der(z)/dz = the 2 x 2 block of lambda, d der(z)/du = wb, dy/dz = cv,
+   dy/du = 0). */
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference unknown[], size_t n_unknown,
+                                        const fmi2ValueReference known[], size_t n_known, const fmi2Real seed[],
+                                        fmi2Real out[]) {
+    Lti *s = (Lti *)c;
+    unsigned n2 = 2u * (unsigned)s->r;
+    double *dz = calloc(n2 + (size_t)s->n_in + 1, 8), *du = dz ? dz + n2 : NULL;
+    if (!dz) return fail(s, "fmi2GetDirectionalDerivative", "out of memory", -1);
+    fmi2Status st = fmi2OK;
+    for (size_t k = 0; k < n_known && st == fmi2OK; k++) {
+        fmi2ValueReference r = known[k];
+        if (r >= VR_STATE0 && r < VR_STATE0 + n2) dz[r - VR_STATE0] += seed[k];
+        else if (r >= VR_INPUT0 && r < VR_INPUT0 + (unsigned)s->n_in) du[r - VR_INPUT0] += seed[k];
+        else st = fail(s, "fmi2GetDirectionalDerivative", "a known must be a state or an input; value reference", (long)r);
+    }
+    const double *lam = (const double *)s->lam, *z = dz;
+    for (size_t k = 0; k < n_unknown && st == fmi2OK; k++) {
+        fmi2ValueReference r = unknown[k];
+        if (r >= VR_DER0 && r < VR_DER0 + n2) {
+            unsigned e = r - VR_DER0, i = e & ~1u; /* the mode's real part */
+            double v = e % 2 ? lam[i] * z[i + 1] + lam[i + 1] * z[i] : lam[i] * z[i] - lam[i + 1] * z[i + 1];
+            for (int q = 0; q < s->n_in; q++) v += ((const double *)(s->wbt + (size_t)s->in_port[q] * s->r))[e] * du[q];
+            out[k] = v;
+        } else if (r >= VR_OUTPUT0 && r < VR_OUTPUT0 + (unsigned)s->m) {
+            const double *cv = (const double *)(s->cv + (size_t)(r - VR_OUTPUT0) * s->r);
+            double v = 0.0;
+            for (unsigned i = 0; i < n2; i += 2) v += cv[i] * z[i] - cv[i + 1] * z[i + 1];
+            out[k] = v;
+        } else {
+            st = fail(s, "fmi2GetDirectionalDerivative", "an unknown must be a state derivative or an output; value reference", (long)r);
+        }
+    }
+    free(dz);
+    return st;
 }
+
+/* ---- FMI 2.0 model exchange ------------------------------------------------------------ */
+fmi2Status fmi2EnterEventMode(fmi2Component c) { (void)c; return fmi2OK; }
+
+/* The only events are the grid points, where the built-in forces change slope and the sensor noise
+   takes its next sample: time events, one grid step apart. */
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info) {
+    Lti *s = (Lti *)c;
+    info->newDiscreteStatesNeeded = fmi2False;
+    info->terminateSimulation = fmi2False;
+    info->nominalsOfContinuousStatesChanged = fmi2False;
+    info->valuesOfContinuousStatesChanged = fmi2False;
+    info->nextEventTimeDefined = fmi2True;
+    info->nextEventTime = s->t0 + (floor(s->pos + GRID_SNAP) + 1.0) * s->h0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { (void)c; return fmi2OK; }
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetPrior, fmi2Boolean *enterEventMode,
+                                       fmi2Boolean *terminateSimulation) {
+    (void)c; (void)noSetPrior;
+    *enterEventMode = fmi2False;
+    *terminateSimulation = fmi2False;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real t) {
+    Lti *s = (Lti *)c;
+    s->pos = (t - s->t0) / s->h0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
+    Lti *s = (Lti *)c;
+    if (nx != 2 * (size_t)s->r) return fail(s, "fmi2SetContinuousStates", "the FMU has 2 x its modes states, not", (long)nx);
+    memcpy(s->z, x, nx * 8);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    Lti *s = (Lti *)c;
+    if (nx != 2 * (size_t)s->r) return fail(s, "fmi2GetContinuousStates", "the FMU has 2 x its modes states, not", (long)nx);
+    memcpy(x, s->z, nx * 8);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t nx) {
+    Lti *s = (Lti *)c;
+    if (nx != 2 * (size_t)s->r) return fail(s, "fmi2GetDerivatives", "the FMU has 2 x its modes states, not", (long)nx);
+    derivatives_now(s, dx);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t nz) {
+    (void)z;
+    return nz ? fail((Lti *)c, "fmi2GetEventIndicators", "the FMU has no event indicators; asked for", (long)nz) : fmi2OK;
+}
+
+/* A state's nominal value, for the host's error control: the size of the mode's response to the built-in
+   excitation, the larger of its stationary RMS under the turbulence (sqrt(|b|^2 asd^2 / (4 |Re lambda|)) for
+   a white force of one-sided density asd, |b| the mode's input row at the turbulence node) and its amplitude
+   under the rotating unbalance (its forward and backward parts, as in steady_state); the static response
+   to 1 N without excitation. */
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    Lti *s = (Lti *)c;
+    if (nx != 2 * (size_t)s->r) return fail(s, "fmi2GetNominalsOfContinuousStates", "the FMU has 2 x its modes states, not", (long)nx);
+    for (int i = 0; i < s->r; i++) {
+        double bt = 0.0, v = 0.0;
+        for (int q = 0; q < 2 && s->turb_x >= 0; q++)
+            bt += pow(cabs(s->wbt[(size_t)(q ? s->turb_y : s->turb_x) * s->r + i]), 2);
+        if (s->turb_asd > 0 && creal(s->lam[i]) < 0) v = sqrt(bt / (-4.0 * creal(s->lam[i]))) * s->turb_asd;
+        if (s->unb_me > 0) {
+            cplx wx = s->wbt[(size_t)(2 * s->unb_node) * s->r + i], wy = s->wbt[(size_t)(2 * s->unb_node + 1) * s->r + i];
+            double a = 0.5 * s->unb_me * s->omega * s->omega;
+            v = fmax(v, a * (cabs(wx - I * wy) / cabs(I * s->omega - s->lam[i]) +
+                             cabs(wx + I * wy) / cabs(-I * s->omega - s->lam[i])));
+        }
+        if (!(v > 0)) {
+            double w = 0.0;
+            for (int q = 0; q < s->p; q++) w = fmax(w, cabs(s->wbt[(size_t)q * s->r + i]));
+            v = w / cabs(s->lam[i]);
+        }
+        x[2 * i] = x[2 * i + 1] = v > 0 ? v : 1.0;
+    }
+    return fmi2OK;
+}
+
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
     (void)vr; (void)nvr; (void)order; (void)value;
