@@ -111,7 +111,7 @@ def test_every_error_says_why(fmu):
         with pytest.raises(Exception):
             call()
     assert len(a.messages) == 1 + len(calls), a.messages
-    assert "before fmi2ExitInitializationMode" in a.messages[0]
+    assert "fmi2DoStep: called before the end of initialisation" in a.messages[0]
     assert "value reference 999" in a.messages[1] and "fixed after initialisation" in a.messages[2]
 
 

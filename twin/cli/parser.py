@@ -251,10 +251,12 @@ def _add_stages(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="model file to write: the model with the added sensors")
     p.add_argument("--design", default=None, help="also write the design, step by step (NetCDF)")
 
-    p = _command(sub, "export-fmu", "export the model as an FMI 2.0 co-simulation FMU",
-                 "Compiles the model's state-space matrices into an FMU (needs a C compiler, gcc or cc); forces\n"
-                 "at the disks are its inputs, the proximeter displacements its outputs.",
-                 ["twin export-fmu hydro_unit -o unit.fmu", "twin export-fmu hydro_unit -o unit.fmu --basis modal --fmax 120"],
+    p = _command(sub, "export-fmu", "export the model as an FMU (FMI 2.0 or 3.0, co-simulation and model exchange)",
+                 "Writes the model's modal form into an FMU with the generic runtime (compiled once per machine;\n"
+                 "needs a C compiler, gcc or cc); forces at the disks are its inputs, the proximeter displacements\n"
+                 "its outputs, the modal coordinates its states.",
+                 ["twin export-fmu hydro_unit -o unit.fmu", "twin export-fmu hydro_unit -o unit.fmu --basis modal --fmax 120",
+                  "twin export-fmu hydro_unit -o unit3.fmu --fmi 3 --kind me"],
                  stages._export_fmu)  # fmt: skip
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
@@ -264,6 +266,9 @@ def _add_stages(sub) -> None:
     p.add_argument("--fmax", type=POSITIVE, default=None,
                    help="highest mode kept by the modal basis [Hz] (required with --basis modal)")
     p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    p.add_argument("--kind", choices=("both", "cs", "me"), default="both",
+                   help="interfaces: co-simulation, model exchange or both (default both)")
 
     p = _command(sub, "simulate", "simulate proximeter signals through the model's FMU",
                  "Turbulence on the runner, unbalance at the generator and sensor noise drive the FMU (through\n"

@@ -77,7 +77,8 @@ def _export_fmu(args: argparse.Namespace) -> int:
         raise TwinError(f"--fs must be positive, got {args.fs:g}")
     model = load_model(args.model)
     inputs = None if args.inputs is None else [s.strip() for s in args.inputs.split(",") if s.strip()]
-    path = export_fmu(model, args.output, step_s=1.0 / args.fs, basis=args.basis, fmax_hz=args.fmax, inputs=inputs)
+    path = export_fmu(model, args.output, step_s=1.0 / args.fs, basis=args.basis, fmax_hz=args.fmax, inputs=inputs,
+                      kind=args.kind, fmi_version=args.fmi)
     print(f"wrote {path}")
     return 0
 

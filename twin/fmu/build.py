@@ -30,9 +30,20 @@ class FMUBuildError(TwinError):
     """No C compiler was found, or compiling the FMU runtime failed."""
 
 
+#: The runtime's C files: the translation unit (first) and the files it includes.
+RUNTIME_FILES = (f"{MODEL_IDENTIFIER}.c", "twin_core.c", "twin_fmi2.c", "twin_fmi3.c")
+
+
 def runtime_source() -> Path:
-    """Path of the C source of the FMU runtime shipped with the package."""
+    """Path of the C source of the FMU runtime shipped with the package (the translation unit; it includes
+    the other :data:`RUNTIME_FILES` from its folder)."""
     return Path(str(resources.files("twin.fmu") / "c" / f"{MODEL_IDENTIFIER}.c"))
+
+
+def runtime_sources() -> dict[str, bytes]:
+    """Every C file of the runtime by name, as an FMU's ``sources/`` ships them."""
+    folder = runtime_source().parent
+    return {name: (folder / name).read_bytes() for name in RUNTIME_FILES}
 
 
 def fmi_headers_dir() -> Path:
@@ -58,6 +69,7 @@ _PREFIXED = """#if defined(FMI2_FUNCTION_PREFIX)
 #endif
 """
 FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
 
 
 def fmi2_headers() -> dict[str, bytes]:
@@ -72,6 +84,16 @@ def fmi2_headers() -> dict[str, bytes]:
     return out
 
 
+def fmi_headers() -> dict[str, bytes]:
+    """The FMI 2.0 headers (:func:`fmi2_headers`) and FMPy's copies of the standard FMI 3.0 headers (which
+    honour ``FMI3_FUNCTION_PREFIX`` as they are), by file name."""
+    folder = fmi_headers_dir()
+    missing = [name for name in FMI3_HEADERS if not (folder / name).is_file()]
+    if missing:
+        raise FMUBuildError(f"FMI 3.0 headers {', '.join(missing)} not found in {folder}: reinstall fmpy")
+    return {**fmi2_headers(), **{name: (folder / name).read_bytes() for name in FMI3_HEADERS}}
+
+
 def platform_folder() -> str:
     """FMI 2.0 binaries folder name for this machine, e.g. ``linux64``."""
     bits = "64" if sys.maxsize > 2**32 else "32"
@@ -79,6 +101,16 @@ def platform_folder() -> str:
     if system is None:
         raise FMUBuildError(f"no FMI 2.0 platform name for {platform.system()}")
     return system + bits
+
+
+def platform_tuple() -> str:
+    """FMI 3.0 binaries folder name for this machine, e.g. ``x86_64-linux``."""
+    system = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(platform.system())
+    machine = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64",
+               "i386": "x86", "i686": "x86", "x86": "x86"}.get(platform.machine().lower())  # fmt: skip
+    if system is None or machine is None:
+        raise FMUBuildError(f"no FMI 3.0 platform tuple for {platform.machine()} {platform.system()}")
+    return f"{machine}-{system}"
 
 
 def shared_library_suffix() -> str:
@@ -112,7 +144,8 @@ def compiled_runtime(rebuild: bool = False) -> Path:
     FMUBuildError
         No compiler, or the compiler failed (its own message is included).
     """
-    return _compiled(runtime_source(), fmi2_headers(), MODEL_IDENTIFIER, "the FMU runtime", rebuild)
+    extra = b"".join(text for name, text in runtime_sources().items() if name != runtime_source().name)
+    return _compiled(runtime_source(), fmi_headers(), MODEL_IDENTIFIER, "the FMU runtime", rebuild, extra)
 
 
 def compiled_recorder(rebuild: bool = False) -> Path:
@@ -121,8 +154,9 @@ def compiled_recorder(rebuild: bool = False) -> Path:
     return _compiled(source, {}, "twin_record", "the FMU recording loop", rebuild)
 
 
-def _compiled(source: Path, headers: dict[str, bytes], name: str, what: str, rebuild: bool) -> Path:
-    digest = hashlib.sha256(source.read_bytes() + b"".join(headers.values())).hexdigest()[:16]
+def _compiled(source: Path, headers: dict[str, bytes], name: str, what: str, rebuild: bool,
+              included: bytes = b"") -> Path:
+    digest = hashlib.sha256(source.read_bytes() + included + b"".join(headers.values())).hexdigest()[:16]
     target = cache_dir() / f"{platform_folder()}-{digest}" / (name + shared_library_suffix())
     if target.is_file() and not rebuild:
         return target

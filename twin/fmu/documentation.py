@@ -29,12 +29,13 @@ def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> 
     """
     root = ET.fromstring(model_description)
     name, description = root.get("modelName", ""), root.get("description", "")
+    version = root.get("fmiVersion", "2.0")
+    interfaces = " and ".join(label for tag, label in (("CoSimulation", "co-simulation"),
+                                                      ("ModelExchange", "model exchange")) if root.find(tag) is not None)
     rows = []
-    for sv in root.iter("ScalarVariable"):
-        kind = next(iter(sv), None)
-        unit = kind.get("unit", "") if kind is not None else ""
-        start = kind.get("start", "") if kind is not None else ""
-        cells = (sv.get("name", ""), sv.get("causality", ""), unit, start, sv.get("description", ""))
+    for element in _variables(root):
+        cells = (element.get("name", ""), element.get("causality", ""), element.get("unit", ""),
+                 element.get("start", ""), element.get("description", ""))  # fmt: skip
         rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
     truth = ""
     effects = hidden_effects(attrs)
@@ -48,10 +49,12 @@ def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> 
 <body>
 <h1>{html.escape(name)}</h1>
 <p>{html.escape(description)}</p>
-<p>A linear rotor model exported by twin {html.escape(__version__)} as an FMI 2.0 co-simulation FMU. Each
-communication step of {step_s:.12g} s is integrated exactly (the matrix exponential of the system); the
-outputs are proximeter displacements. Forces: the external inputs are held over a step; the built-in
-1X unbalance and the runner's white turbulence force are parameters, set before initialisation.</p>
+<p>A linear rotor model exported by twin {html.escape(__version__)} as an FMI {html.escape(version)} FMU for
+{html.escape(interfaces or "no interface")}. It is stepped in its modal form, exactly for a communication
+step of any length; the outputs are proximeter displacements. Forces: the external inputs are held over a
+step; the built-in 1X unbalance and the runner's white turbulence force are parameters, set before
+initialisation, and linear between samples every {step_s:.12g} s from the start time. In model exchange
+the host integrates the modal states, with a time event at each of those samples.</p>
 {truth}
 <h2>Variables</h2>
 <table border="1" cellspacing="0" cellpadding="3">
@@ -60,3 +63,15 @@ outputs are proximeter displacements. Forces: the external inputs are held over 
 </table>
 </body></html>
 """
+
+
+def _variables(root: ET.Element) -> list[dict[str, str]]:
+    """Each variable's attributes, its type element's merged in (FMI 2.0 nests them, FMI 3.0 does not)."""
+    out = []
+    for element in root.find("ModelVariables") if root.find("ModelVariables") is not None else []:
+        attrs = dict(element.attrib)
+        if element.tag == "ScalarVariable":
+            kind = next(iter(element), None)
+            attrs.update(kind.attrib if kind is not None else {})
+        out.append(attrs)
+    return out

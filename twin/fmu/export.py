@@ -1,18 +1,18 @@
-"""Export a rotor model as an FMI 2.0 co-simulation FMU.
+"""Export a rotor model as an FMU: FMI 2.0 or 3.0, co-simulation, model exchange or both.
 
 The FMU holds
 
-* ``modelDescription.xml``: inputs (forces at named nodes), outputs (the
-  sensor channels), parameters of the built-in excitation;
-* ``resources/twin_lti.bin``: the exact step matrices of the linear system
-  (full FEM or truncated modal basis) for the nominal communication step, the
-  port map, the GUID, the real parameters' start values and the steady start's
-  matrices (:mod:`twin.fmu.steady`);
-* ``binaries/<platform>/<modelIdentifier>.<so|dylib|dll>``: the generic runtime,
-  compiled once per platform (:mod:`twin.fmu.build`);
-* ``sources/``: the runtime's C source and the FMI headers, so the FMU can be
-  rebuilt on another platform (with ``-DFMI2_FUNCTION_PREFIX=<modelIdentifier>_``
-  for static linking beside other FMUs);
+* ``modelDescription.xml`` (:mod:`twin.fmu.description`): inputs (forces at named nodes), outputs (the
+  sensor channels), parameters of the built-in excitation, the modal states and their derivatives;
+* ``resources/twin_lti.bin``: the system's modal form (:mod:`twin.fmu.modal`: poles, input and output
+  rows), the port map, the GUID, the real parameters' start values and the steady start's factor
+  (:mod:`twin.fmu.steady`);
+* ``binaries/<platform>/<modelIdentifier>.<so|dylib|dll>``: the generic runtime, compiled once per
+  platform (:mod:`twin.fmu.build`); one binary serves FMI 2.0 and 3.0 (platform ``linux64`` and
+  ``x86_64-linux``);
+* ``sources/``: the runtime's C sources and the FMI headers, so the FMU can be rebuilt on another
+  platform (with ``-DFMI2_FUNCTION_PREFIX=<modelIdentifier>_`` or ``-DFMI3_FUNCTION_PREFIX=...`` for
+  static linking beside other FMUs; an FMI 3.0 FMU has its ``buildDescription.xml``);
 * ``documentation/index.html``: what the FMU is (model, truth, variables and units).
 
 The modelName is the model's (and its truth's) name, the modelIdentifier that
@@ -24,7 +24,6 @@ failed export never leaves half an FMU behind.
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
 import logging
 import re
@@ -34,15 +33,13 @@ import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from twin import __version__
-from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
 from twin.errors import ModelError, TwinError
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
+from twin.fmu.description import START, fmi2_description, fmi3_build_description, fmi3_description, variables
 from twin.fmu.documentation import documentation_html
 from twin.fmu.modal import modal_form
 from twin.fmu.statespace import StateSpace, check_stable, discretize
@@ -52,27 +49,12 @@ from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
 
-#: The FMU's units: name, SI base-unit exponents, display units (name, factor: shown = factor x value).
-UNITS = (("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))), ("m/s", {"m": "1", "s": "-1"}, (("mm/s", 1e3),)), ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
-         ("kg.m", {"kg": "1", "m": "1"}, (("g.mm", 1e6),)), ("rad", {"rad": "1"}, (("deg", 180 / np.pi),)),
-         ("N/sqrt(Hz)", {}, ()))  # fmt: skip
-
-# value references, shared with twin_lti.c
-VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
-      "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7, "steady_start": 8}  # fmt: skip
-VR_INPUT0, VR_OUTPUT0 = 100, 1000
-#: Start values of the real parameters (modelDescription and runtime, where fmi2Reset returns them): the
-#: default experiment shows the unit running with twin's default unbalance and turbulence.
-START = {"unbalance_me": DEFAULT_UNBALANCE_ME, "unbalance_phase": 0.0, "turbulence_asd": DEFAULT_TURBULENCE_ASD,
-         "noise_std": 0.0}  # fmt: skip
 #: The resource file's format, shared with twin_lti.c (MAGIC).
 RESOURCE_MAGIC = b"TWINLTI5"
 #: The FMI interfaces an export declares, by its ``kind``.
 KINDS = {"both": ("cs", "me"), "cs": ("cs",), "me": ("me",)}
-#: First value references of the continuous states (Re z_i at 2i, Im z_i at 2i + 1) and of their derivatives.
-VR_STATE0, VR_DER0 = 100000, 200000
-#: Length of the default experiment [s].
-DEFAULT_STOP_S = 30.0
+#: The FMI versions an export can be written in.
+FMI_VERSIONS = (2, 3)
 
 
 @dataclass(frozen=True)
@@ -148,6 +130,7 @@ def export_fmu(
     name: str | None = None,
     steady_start: bool = True,
     kind: str = "both",
+    fmi_version: int = 2,
 ) -> Path:
     """Export the model as an FMI 2.0 co-simulation FMU.
 
@@ -182,6 +165,8 @@ def export_fmu(
     kind : {"both", "cs", "me"}
         The FMI interfaces the FMU declares: co-simulation (the FMU steps itself, exactly), model
         exchange (the host's solver integrates its modal states), or both (one binary serves both).
+    fmi_version : {2, 3}
+        FMI 2.0 or FMI 3.0 (the same runtime binary serves both).
 
     Returns
     -------
@@ -200,6 +185,8 @@ def export_fmu(
     path = Path(path)
     if kind not in KINDS:
         raise TwinError(f"kind must be one of {', '.join(KINDS)} (FMI interfaces), got {kind!r}")
+    if fmi_version not in FMI_VERSIONS:
+        raise TwinError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     if not path.parent.is_dir():
         raise TwinError(f"cannot write {path}: folder {path.parent} does not exist")
     if state_space is None:
@@ -233,29 +220,26 @@ def export_fmu(
     head = RESOURCE_MAGIC + struct.pack("<9i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
-    xml = _model_description(model, state_space, form, ports, guid, step_s, unbalance_node, description, name,
-                             identifier, steady is not None, KINDS[kind])  # fmt: skip
+    vs = variables(model, state_space, form, ports, unbalance_node, steady is not None)
+    text = description or (f"{model.name} at {state_space.speed_rpm:g} rpm, {state_space.basis} basis, "
+                            f"{state_space.n_states} states (twin linear rotor)")  # fmt: skip
+    write = fmi2_description if fmi_version == 2 else fmi3_description
+    xml = write(model, state_space, vs, guid=guid, identifier=identifier, name=name, description=text, step_s=step_s,
+                kinds=KINDS[kind])  # fmt: skip
     library = build.compiled_runtime()
-    plat = build.platform_folder()
-    headers = build.fmi2_headers()
+    plat = build.platform_folder() if fmi_version == 2 else build.platform_tuple()
+    headers = build.fmi_headers()  # sources/ compile without a prefix to both APIs: both versions' headers
     with atomic_output(path, ".fmu.part") as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
         z.writestr("documentation/index.html", documentation_html(xml, state_space.attrs, step_s))
         z.writestr("resources/twin_lti.bin", resource)
         z.write(library, f"binaries/{plat}/{identifier}{build.shared_library_suffix()}")
-        z.write(build.runtime_source(), f"sources/{build.MODEL_IDENTIFIER}.c")
-        for name, text in headers.items():
-            z.writestr(f"sources/{name}", text)
+        for file_name, source in {**build.runtime_sources(), **headers}.items():
+            z.writestr(f"sources/{file_name}", source)
+        if fmi_version == 3:
+            z.writestr("sources/buildDescription.xml", fmi3_build_description(identifier))
     log.info("wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s)
     return path
-
-
-def _var(parent, name, vr, causality, variability, description, kind="Real", initial=None, **attrs):
-    sv = ET.SubElement(parent, "ScalarVariable", name=name, valueReference=str(vr), causality=causality,
-                       variability=variability, description=description)  # fmt: skip
-    if initial:
-        sv.set("initial", initial)
-    ET.SubElement(sv, kind, **{k: str(v) for k, v in attrs.items()})
 
 
 def model_identifier(name: str) -> str:
@@ -273,89 +257,4 @@ def model_identifier(name: str) -> str:
     return ("m_" + ident if ident[0].isdigit() else ident)[:64]
 
 
-def _model_description(model, ss, form, ports, guid, step_s, unbalance_node, description, name, identifier,
-                       steady: bool, kinds: tuple[str, ...]) -> bytes:  # fmt: skip
-    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=name, guid=guid,
-                      description=description or f"{model.name} at {ss.speed_rpm:g} rpm, {ss.basis} basis, "
-                                                 f"{ss.n_states} states (twin linear rotor)",
-                      generationTool=f"twin {__version__}",
-                      generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-                      variableNamingConvention="flat", numberOfEventIndicators="0")  # fmt: skip
-    common = {"modelIdentifier": identifier, "canBeInstantiatedOnlyOncePerProcess": "false",
-              "canNotUseMemoryManagementFunctions": "true", "canGetAndSetFMUstate": "true",
-              "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"}  # fmt: skip
-    interfaces = []
-    if "me" in kinds:
-        interfaces.append(ET.SubElement(root, "ModelExchange", completedIntegratorStepNotNeeded="true", **common))
-    if "cs" in kinds:
-        interfaces.append(ET.SubElement(root, "CoSimulation", canHandleVariableCommunicationStepSize="true",
-                                        canInterpolateInputs="false", **common))  # fmt: skip
-    for cs in interfaces:
-        files = ET.SubElement(cs, "SourceFiles")
-        ET.SubElement(files, "File", name=f"{build.MODEL_IDENTIFIER}.c")
-    units = ET.SubElement(root, "UnitDefinitions")
-    for unit_name, base, display in UNITS:
-        unit = ET.SubElement(units, "Unit", name=unit_name)
-        if base:  # N/sqrt(Hz) has a half power of the second, which FMI 2.0's integer exponents cannot say
-            ET.SubElement(unit, "BaseUnit", **base)
-        for shown, factor in display:
-            ET.SubElement(unit, "DisplayUnit", name=shown, factor=repr(factor))
-    ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(DEFAULT_STOP_S), stepSize=repr(step_s))
-    mv = ET.SubElement(root, "ModelVariables")
-    _var(mv, "unbalance_me", VR["unbalance_me"], "parameter", "fixed",
-         "unbalance mass times eccentricity (1X, forward)", start=repr(START["unbalance_me"]), unit="kg.m",
-         min="0")
-    _var(mv, "unbalance_phase", VR["unbalance_phase"], "parameter", "fixed", "phase of the unbalance at t = 0",
-         start=repr(START["unbalance_phase"]), unit="rad", displayUnit="deg")
-    _var(mv, "turbulence_asd", VR["turbulence_asd"], "parameter", "fixed",
-         "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
-         start=repr(START["turbulence_asd"]), unit="N/sqrt(Hz)", min="0")
-    _var(mv, "noise_std", VR["noise_std"], "parameter", "fixed", "standard deviation of the sensor noise",
-         start=repr(START["noise_std"]), unit="m", displayUnit="um", min="0")
-    _var(mv, "unbalance_node", VR["unbalance_node"], "parameter", "fixed", "node carrying the unbalance",
-         kind="Integer", start=str(unbalance_node), min="0", max=str(model.n_nodes - 1))
-    _var(mv, "turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence",
-         kind="Integer", start="1")
-    _var(mv, "noise_seed", VR["noise_seed"], "parameter", "fixed", "seed of the sensor noise",
-         kind="Integer", start="2")
-    _var(mv, "steady_start", VR["steady_start"], "parameter", "fixed",
-         "start in the stationary response to the built-in excitation (else from rest)"
-         + ("" if steady else "; this FMU was exported without it"), kind="Boolean",
-         start="true" if steady else "false")  # fmt: skip
-    for j, port in enumerate(ports):
-        _var(mv, port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a step)",
-             start="0", unit="N")  # fmt: skip
-    first_output = len(VR) + len(ports) + 1  # 1-based index in ModelVariables: parameters, inputs, outputs
-    for i, channel in enumerate(ss.outputs):
-        sensor = next((s for s in model.sensors if s.name == channel), None)
-        where = f" at {sensor.location} (node {sensor.node})" if sensor else ""
-        _var(mv, channel, VR_OUTPUT0 + i, "output", "continuous", f"proximeter displacement {channel}{where}",
-             initial="calculated", unit="m", displayUnit="um")  # fmt: skip
-    first_state = first_output + len(ss.outputs)
-    n_states = 2 * form.n_modes
-    for k in range(n_states):
-        lam = form.poles[k // 2]
-        what = (f"mode {k // 2 + 1} ({abs(lam.imag) / (2 * np.pi):.4g} Hz, damping ratio {-lam.real / abs(lam):.3g})"
-                if lam.imag else f"real pole {k // 2 + 1} ({lam.real:.4g} 1/s)")  # fmt: skip
-        _var(mv, f"z[{k // 2 + 1}].{'im' if k % 2 else 're'}", VR_STATE0 + k, "local", "continuous",
-             f"{'imaginary' if k % 2 else 'real'} part of the modal coordinate of {what}: the mode's displacement "
-             "at the sensor it moves most", unit="m", displayUnit="um")  # fmt: skip
-    for k in range(n_states):
-        _var(mv, f"der(z[{k // 2 + 1}].{'im' if k % 2 else 're'})", VR_DER0 + k, "local", "continuous",
-             "its time derivative", derivative=str(first_state + k), unit="m/s")  # fmt: skip
-    structure = ET.SubElement(root, "ModelStructure")
-    outputs = ET.SubElement(structure, "Outputs")
-    derivatives = ET.SubElement(structure, "Derivatives")
-    initial = ET.SubElement(structure, "InitialUnknowns")
-    states = " ".join(str(first_state + k) for k in range(n_states))
-    inputs = [str(len(VR) + 1 + j) for j in range(len(ports))]
-    for i in range(len(ss.outputs)):
-        ET.SubElement(outputs, "Unknown", index=str(first_output + i), dependencies=states)
-    for k in range(n_states):
-        pair = f"{first_state + k - k % 2} {first_state + k - k % 2 + 1}"
-        ET.SubElement(derivatives, "Unknown", index=str(first_state + n_states + k),
-                      dependencies=" ".join([*inputs, pair]) if inputs else pair)  # fmt: skip
-    for index in [first_output + i for i in range(len(ss.outputs))] + [first_state + k for k in range(2 * n_states)]:
-        ET.SubElement(initial, "Unknown", index=str(index))
-    ET.indent(root)
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+

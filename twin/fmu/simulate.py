@@ -20,7 +20,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME  # noqa: F401 (shared with the CLI)
-from twin.errors import ModelError, TwinError, TwinWarning
+from twin.errors import ModelError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
