@@ -16,6 +16,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -136,8 +137,28 @@ def cache_dir() -> Path:
     return Path(os.environ.get("TWIN_CACHE_DIR", Path.home() / ".cache" / "twin"))
 
 
-def compiled_runtime(rebuild: bool = False) -> Path:
-    """Path of the compiled runtime for this platform, compiling it if needed.
+@dataclass(frozen=True)
+class CrossTarget:
+    """A platform the runtime is cross-compiled for: its FMI 2.0 folder, FMI 3.0 folder, library suffix and
+    the compiler that builds for it (found on the PATH, e.g. Debian's gcc-mingw-w64-x86-64)."""
+
+    fmi2_folder: str
+    fmi3_folder: str
+    suffix: str
+    compiler: str
+
+
+CROSS_TARGETS = (CrossTarget("win64", "x86_64-windows", ".dll", "x86_64-w64-mingw32-gcc"),)
+
+
+def available_cross_targets() -> list[CrossTarget]:
+    """The cross targets other than this machine's own platform whose compiler is on the PATH."""
+    native = platform_folder()
+    return [t for t in CROSS_TARGETS if t.fmi2_folder != native and shutil.which(t.compiler)]
+
+
+def compiled_runtime(rebuild: bool = False, target: CrossTarget | None = None) -> Path:
+    """Path of the compiled runtime for this platform (or a cross ``target``), compiling it if needed.
 
     Raises
     ------
@@ -145,7 +166,7 @@ def compiled_runtime(rebuild: bool = False) -> Path:
         No compiler, or the compiler failed (its own message is included).
     """
     extra = b"".join(text for name, text in runtime_sources().items() if name != runtime_source().name)
-    return _compiled(runtime_source(), fmi_headers(), MODEL_IDENTIFIER, "the FMU runtime", rebuild, extra)
+    return _compiled(runtime_source(), fmi_headers(), MODEL_IDENTIFIER, "the FMU runtime", rebuild, extra, target)
 
 
 def compiled_recorder(rebuild: bool = False) -> Path:
@@ -155,18 +176,23 @@ def compiled_recorder(rebuild: bool = False) -> Path:
 
 
 def _compiled(source: Path, headers: dict[str, bytes], name: str, what: str, rebuild: bool,
-              included: bytes = b"") -> Path:
+              included: bytes = b"", cross: CrossTarget | None = None) -> Path:
     digest = hashlib.sha256(source.read_bytes() + included + b"".join(headers.values())).hexdigest()[:16]
-    target = cache_dir() / f"{platform_folder()}-{digest}" / (name + shared_library_suffix())
+    folder, suffix = (platform_folder(), shared_library_suffix()) if cross is None else (cross.fmi2_folder, cross.suffix)
+    target = cache_dir() / f"{folder}-{digest}" / (name + suffix)
     if target.is_file() and not rebuild:
         return target
-    compiler = find_compiler()
+    if cross is None:
+        compiler = find_compiler()
+    elif not (compiler := shutil.which(cross.compiler)):
+        raise FMUBuildError(f"no {cross.compiler} on the PATH to build the {cross.fmi2_folder} binary")
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         out = Path(tmp) / target.name
         for header, text in headers.items():
             (Path(tmp) / header).write_bytes(text)
-        cmd = [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(source), f"-I{tmp}", "-lm"]
+        pic = ["-fPIC"] if cross is None else ["-static-libgcc"]  # a DLL is position-independent already
+        cmd = [compiler, "-shared", *pic, "-O2", "-o", str(out), str(source), f"-I{tmp}", "-lm"]
         log.info("compiling %s: %s", what, " ".join(cmd))
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)

@@ -131,6 +131,7 @@ def export_fmu(
     steady_start: bool = True,
     kind: str = "both",
     fmi_version: int = 2,
+    cross: bool = True,
 ) -> Path:
     """Export the model as an FMI 2.0 co-simulation FMU.
 
@@ -167,6 +168,10 @@ def export_fmu(
         exchange (the host's solver integrates its modal states), or both (one binary serves both).
     fmi_version : {2, 3}
         FMI 2.0 or FMI 3.0 (the same runtime binary serves both).
+    cross : bool
+        Also ship the binaries of the platforms a cross compiler on the PATH builds for
+        (:data:`twin.fmu.build.CROSS_TARGETS`: win64 with Debian's ``gcc-mingw-w64-x86-64``), compiled
+        once and cached like this machine's.
 
     Returns
     -------
@@ -234,6 +239,9 @@ def export_fmu(
         z.writestr("documentation/index.html", documentation_html(xml, state_space.attrs, step_s))
         z.writestr("resources/twin_lti.bin", resource)
         z.write(library, f"binaries/{plat}/{identifier}{build.shared_library_suffix()}")
+        for target in build.available_cross_targets() if cross else []:
+            folder = target.fmi2_folder if fmi_version == 2 else target.fmi3_folder
+            z.write(build.compiled_runtime(target=target), f"binaries/{folder}/{identifier}{target.suffix}")
         for file_name, source in {**build.runtime_sources(), **headers}.items():
             z.writestr(f"sources/{file_name}", source)
         if fmi_version == 3:

@@ -209,7 +209,7 @@ def simulate(
 
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[],
-                         name=fmu_name(model, ss), steady_start=steady)  # fmt: skip
+                         name=fmu_name(model, ss), steady_start=steady, cross=False)  # fmt: skip
         n_total = n_warm + n_rec
         with bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress,
                  mininterval=0.5) as steps:  # fmt: skip

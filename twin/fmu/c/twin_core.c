@@ -197,6 +197,9 @@ static void uri_to_path(const char *uri, char *out, size_t len) {
     } else if (strncmp(p, "file:", 5) == 0) {
         p += 5;
     }
+#ifdef _WIN32
+    if (p[0] == '/' && p[1] && p[2] == ':') p++; /* file:///C:/... is the path C:/... */
+#endif
     size_t k = 0;
     while (*p && k + 1 < len) {
         if (p[0] == '%' && p[1] && p[2]) {
