@@ -4,7 +4,8 @@ The FMU's record is the exact recursion of its state space (:func:`twin.fmu.simu
 to 1e-9 of the response, ``tests/test_simulate.py``) driven by the runtime's splitmix64 and Box-Muller streams
 (:mod:`twin.fmu.excitation`). :func:`numpy_signals` builds the same record (the same system, 1X unbalance,
 turbulence level, warm-up and sensor noise level, forces linear between samples as the FMU takes them) from
-numpy's generator instead: with ``--streams numpy`` the FMU dataset benchmarks check that what they find on FMU
+numpy's generator instead (from rest through the warm-up of :func:`twin.fmu.simulate.default_warmup_s`, where the
+FMU starts steady: both are stationary records of the same system): with ``--streams numpy`` the FMU dataset benchmarks check that what they find on FMU
 records is no property of the runtime's streams (docs/decisions/extraction-differenced.md).
 """
 
@@ -22,7 +23,8 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     """The ``signals.nc`` Dataset of :func:`twin.fmu.simulate.simulate` with its defaults, from numpy's streams.
 
     Turbulence (x and y at the runner), then the sensor noise, are drawn from ``numpy.random.default_rng(seed)``;
-    everything else is the FMU's: its system for ``truth``, warm-up, noise level and 1X unbalance.
+    everything else is the FMU's: its system for ``truth``, noise level and 1X unbalance; it starts from rest and
+    discards :func:`twin.fmu.simulate.default_warmup_s`.
 
     Examples
     --------

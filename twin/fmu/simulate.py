@@ -112,7 +112,7 @@ def simulate(
     basis: str = "full",
     fmax_hz: float | None = None,
     warmup_s: float | None = None,
-    steady_start: bool = False,
+    steady_start: bool | None = None,
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
@@ -142,11 +142,13 @@ def simulate(
     basis, fmax_hz
         System for a model without per-mode truth: ``"full"`` FEM or ``"modal"`` up to ``fmax_hz``.
     warmup_s : float, optional
-        Simulated time discarded before the record so the start transient from rest has died out
-        (default: :func:`default_warmup_s`, five time constants of the slowest mode, at most 300 s).
-    steady_start : bool
-        Start the FMU in the stationary response to its excitation instead (its steady start,
-        :mod:`twin.fmu.steady`): the record is stationary from its first sample, with no warm-up.
+        Start from rest instead and discard this much simulated time [s] before the record, so the start
+        transient has died out (:func:`default_warmup_s` gives five time constants of the slowest mode).
+    steady_start : bool, optional
+        Start the FMU in the stationary response to its excitation (its steady start,
+        :mod:`twin.fmu.steady`), so the record is stationary from its first sample with no warm-up: the
+        default unless ``warmup_s`` is given. False without ``warmup_s``: from rest with
+        :func:`default_warmup_s`.
     output : path, optional
         NetCDF file to write (written to a temporary name, then renamed).
     progress : bool
@@ -185,7 +187,7 @@ def simulate(
         warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
                       f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", TwinWarning,
                       stacklevel=2)  # fmt: skip
-    steady = bool(steady_start)
+    steady = warmup_s is None if steady_start is None else bool(steady_start)
     if steady and warmup_s is not None:
         raise ModelError("a steady start needs no warm-up: give steady_start or warmup_s, not both")
     if warmup_s is None:
