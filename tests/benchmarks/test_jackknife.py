@@ -38,6 +38,7 @@ def test_stretch_keeps_the_mean_and_scales_the_spread():
     np.testing.assert_allclose(out.std(axis=(0, 1)) / draws.std(axis=(0, 1)), [1.0, 2.0, 1.5])
 
 
+@pytest.mark.slow
 def test_the_adjustment_undoes_a_mode_counted_twice(hydro_unit):
     # the composite-likelihood case in its plainest form: one mode's data entered twice as if independent.
     # The model's posterior std falls by sqrt(2) (it counts the information twice); the joint perturbations

@@ -138,6 +138,7 @@ def _hidden_pull_modes(tmp_path):
     return str(write_modes(data, tmp_path / "modes.nc"))
 
 
+@pytest.mark.slow
 def test_compare_and_diagnose_commands(tmp_path, capsys):
     import json
 
@@ -206,6 +207,7 @@ def test_laplace_update_then_the_next_round_from_the_command_line(tmp_path, caps
     assert "--method laplace takes no sampler settings (--draws)" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_per_mode_fsi_from_the_command_line(tmp_path, capsys):
     """compare --effect fsi_per_mode, update --fsi --method laplace, compare --posterior: the three used to fail."""
     from twin import load_model
@@ -224,6 +226,7 @@ def test_per_mode_fsi_from_the_command_line(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["error"] < 0.2 * before
 
 
+@pytest.mark.slow
 def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, capsys):
     from twin.loop.history import read_history
 

@@ -88,6 +88,7 @@ def test_defaults_find_every_visible_mode_and_nothing_spurious(structure, durati
     assert not s["missed"] and not s["spurious"] and len(s["found"]) == int(truth.visible.sum()) >= 2, s
 
 
+@pytest.mark.slow
 def test_the_modes_found_do_not_move_with_the_number_of_samples():
     """In blocks shorter than three time constants a pole is judged on its frequency alone, so the modes
     found are the same from 4 to 60 samples of a 240 s record of 0.2%-damped modes (16 to 1 time

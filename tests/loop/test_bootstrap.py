@@ -33,6 +33,7 @@ def _seal_update(hydro_unit, draws: int = 500):
     return tw, post
 
 
+@pytest.mark.slow
 def test_the_fitted_density_is_the_update_s(hydro_unit):
     # each bootstrap record is fitted with the update's own density (marginal_setup from the posterior's
     # settings): on the measured modes themselves its mode and Laplace std must be the HMC posterior's, within

@@ -13,6 +13,7 @@ from twin.loop.scenarios import parse_scenario
 from twin.loop.history import read_history
 
 
+@pytest.mark.slow
 def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     out = tmp_path / "demo"
     # 10 min instead of 20: the same loop at a fraction of the cost, on twice the reference pull so that it

@@ -14,6 +14,7 @@ from twin.loop.twin import Twin
 from twin.update import synthesize_modes
 
 
+@pytest.mark.slow
 def test_the_loop_brings_the_error_down_and_keeps_the_history(hydro_unit, tmp_path):
     data = synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=100, seed=4,
                             pole_variance=(0.01, 0.01))  # fmt: skip
@@ -52,6 +53,7 @@ def test_laplace_update_identifies_the_added_effect_and_refuses_bad_method(hydro
         tw.update("MAG.stiffness", method="laplace", draws=10)
 
 
+@pytest.mark.slow
 def test_run_goes_round_the_loop_to_the_end(hydro_unit):
     """Two hidden effects: one round names both, updates them jointly; the next finds nothing missing."""
     from twin.fem.effects import SealCrossCoupling
@@ -86,6 +88,7 @@ def test_per_mode_effect_is_sized_to_the_measured_modes(hydro_unit):
     assert abs(float(mass) - 6.09e4) < 3 * float(post["std"].sel(parameter="FSI.added_mass_4"))
 
 
+@pytest.mark.slow
 def test_per_mode_effect_is_updated_by_the_gibbs_sampler(hydro_unit):
     """The loop's default update of a per-mode effect: the sampler's per-mode FSI, applied to the twin's model."""
     from twin.fem.truthfile import paper_truth

@@ -238,6 +238,7 @@ def test_synthetic_modes_follow_the_paper_noise_model(hydro_unit, paper_truth_mo
     np.testing.assert_allclose(ds["frequency"].values, paper_truth_modes.poles.imag / (2 * np.pi))
 
 
+@pytest.mark.slow
 def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     modes = tmp_path / "modes.nc"
     assert main(["synthesize-modes", "models/hydro_unit.toml", "-o", str(modes), "--samples", "20", "--seed", "4"]) == 0

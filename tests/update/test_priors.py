@@ -34,6 +34,7 @@ def _added_mass_6(model, data, **kw):
     return tree, float(np.std(draws)), np.quantile(draws, [0.05, 0.95])
 
 
+@pytest.mark.slow
 def test_the_default_prior_bounds_what_the_data_do_not_determine(hydro_unit):
     # mode 6 alone with 10 samples whose poles scatter 10 rad/s and shapes 20%: the data hardly say what its
     # added mass is (truth 5.08e4 kg). Flat, the chains wander to 1e6 kg and disagree (std 1.0e6, R-hat 1.8);

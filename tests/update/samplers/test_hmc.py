@@ -39,6 +39,7 @@ def test_mode_is_a_stationary_point_and_the_chain_samples_about_it(small):
     assert np.all(x[:, ~sharp].std(axis=0) > 0.5 * std[~sharp])
 
 
+@pytest.mark.slow
 def test_the_per_mode_slice_step_keeps_the_posterior(small):
     # HMC alone and HMC followed by the slice step of each mode's own parameters sample the same posterior:
     # every mean within 4 Monte Carlo std of the difference (from each chain's bulk ESS), every std within 15%
@@ -58,6 +59,7 @@ def test_the_per_mode_slice_step_keeps_the_posterior(small):
     np.testing.assert_allclose(x1.std(axis=0), x2.std(axis=0), rtol=0.15)
 
 
+@pytest.mark.slow
 def test_a_quarter_turn_decorrelates_the_draws_and_their_spread(small):
     """Lag-one autocorrelation of each parameter and of its squared deviation, one chain of 2000 draws.
 
@@ -140,6 +142,7 @@ def test_default_mixes_a_per_mode_fsi_record_where_hmc_alone_did_not(hydro_unit)
     assert float(table["ess_bulk"].values[determined].min()) >= 400  # 100 per chain of 500
 
 
+@pytest.mark.slow
 def test_one_parameter_chains_take_two_leapfrog_steps_and_agree(hydro_unit):
     # modes extracted from the 20-min FMU record of seed 10130 with a seal cross-coupling in its truth,
     # one parameter. When a trajectory could be one leapfrog step, each chain's dual averaging ended either side
