@@ -23,12 +23,12 @@ pole), so the extraction reports every shape in displacement
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import lru_cache
 
 import numpy as np
 import xarray as xr
 
 from twin.errors import SignalError
+from twin.units import registry
 
 #: The quantities a channel may measure: their SI unit and their order of time derivative of the displacement.
 QUANTITIES = {"displacement": ("m", 0), "velocity": ("m/s", 1), "acceleration": ("m/s**2", 2)}
@@ -39,13 +39,6 @@ ALIASES = {"mil": "thou", "mils": "thou", "g": "standard_gravity", "G": "standar
 #: The SI units of each quantity written without pint (so a record in SI needs no units library).
 _SI = {"displacement": {"m", "meter", "metre", "meters", "metres"}, "velocity": {"m/s", "m s-1", "meter/second"},
        "acceleration": {"m/s**2", "m/s^2", "m/s2", "m s-2", "meter/second**2"}}  # fmt: skip
-
-
-@lru_cache(maxsize=1)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
 
 
 def si_factor(units: str, quantity: str, where: str) -> float:
@@ -66,7 +59,7 @@ def si_factor(units: str, quantity: str, where: str) -> float:
         return 1.0
     import pint
 
-    ureg = _registry()
+    ureg = registry()
     try:
         value = ureg.Quantity(1.0, ALIASES.get(text, text))
         factor = float(value.to(QUANTITIES[quantity][0]).magnitude)

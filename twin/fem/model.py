@@ -73,6 +73,11 @@ class RotorModel:
         posterior applied to the model).
     source : str
         Where the model came from (file path), for provenance.
+    description : str
+        One line saying what the machine is.
+    operation : Operation, optional
+        Operating conditions and the laws the parameters follow in them
+        (:mod:`twin.fem.operation`); None for a model that declares none.
 
     Examples
     --------
@@ -101,6 +106,7 @@ class RotorModel:
     values: Mapping[str, float] = field(default_factory=dict)
     source: str = ""
     description: str = ""
+    operation: object | None = None
 
     def __post_init__(self) -> None:
         for name in ("shaft", "disks", "bearings", "thrusts", "sensors", "effects"):

@@ -15,6 +15,9 @@ and the key. The format (see ``models/hydro_unit.toml`` for a full example)::
     [regions]      named node lists: immersed, generator, seal, ...
     [damping]      shaft_mass_proportional [1/s], shaft_stiffness_proportional [s]
     [effects.KEY]  switched-on effects of :mod:`twin.fem.effects` with their values
+    [[condition]]  name, units, reference, range = [low, high], description?: operating data
+    [[law]]        parameter, reference?, slopes = {condition = per unit}, description?
+                   (:mod:`twin.fem.operation`)
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from twin.errors import ModelFileError
 from twin.fem.effects import EFFECTS, effect_fields, effect_label
 from twin.fem.elements import BEARING_COEFFICIENTS, Bearing, Disk, Material, ShaftElement, ThrustBearing
 from twin.fem.model import RotorModel, Sensor
+from twin.fem.operation import read_operation
 
 _MISSING = object()
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*$")
@@ -269,14 +273,16 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     rayleigh = _read_damping(top)
     tables: list[str] = []
     effects = _read_effects(top, regions, element_names(bearings, thrusts), tables)
-    top.finish()
     model = RotorModel(
         name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
         speed_rpm=speed_rpm, regions=regions, effects=(), rayleigh=rayleigh, source=source,
         description=description,
     )  # fmt: skip
     check_effect_bounds(effects, model, source, tables)
-    return model.with_effects(*effects)
+    model = model.with_effects(*effects)
+    operation = read_operation(top, model)
+    top.finish()
+    return dataclasses.replace(model, operation=operation) if operation is not None else model
 
 
 def check_effect_bounds(effects: Sequence, model, path: str, tables: Sequence[str]) -> None:

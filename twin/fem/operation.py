@@ -1,0 +1,299 @@
+"""Operating conditions and the laws by which model parameters follow them.
+
+A machine's modes move with its operating point: the magnetic pull grows with
+the excitation the load needs, the seals' cross-coupling with the head across
+them, the guide bearings' stiffness and damping fall as their oil warms. A
+model file declares the operating data it depends on (``[[condition]]``) and
+the laws (``[[law]]``)::
+
+    [[condition]]
+    name = "power"                 # how records and schedules name it
+    units = "MW"                   # read with pint; laws' slopes are per one of these
+    reference = 180.0              # the operating point the laws' reference values hold at
+    range = [60.0, 210.0]          # where the laws are valid (checked against the bounds)
+    description = "active power at the generator terminals"
+
+    [[law]]
+    parameter = "MAG.stiffness"    # a model parameter, or one a library effect brings
+    reference = -6.0e7             # its value at the reference point [SI]; default: the model's
+                                   # (zero for a parameter an effect brings)
+    slopes = { power = -1.5e5 }    # change per unit of each condition [SI per condition unit]
+    description = "pull grows with the field current the load needs"
+
+A law is affine in the conditions, the linearisation of the physics about the
+reference point within the declared ranges, and linear in its coefficients
+(the reference value and the slopes), so a tracker can fit them by linear
+least squares through the model's sensitivities. A parameter that a library
+effect brings (``MAG.stiffness``) is added to the model at an operating point;
+the model read without one (:func:`twin.load_model`) is the machine without
+its operation-dependent effects, as the single-record loop uses it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from twin.errors import ModelError, ModelFileError
+from twin.fem.effects import effect_label, effect_providing, library_effects
+
+_IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One operating quantity: its name, units, reference value and valid range (in its own units).
+
+    Examples
+    --------
+    >>> c = Condition("head", "m", 140.0, 125.0, 150.0, "net head")
+    >>> c.contains(151.0)
+    False
+    """
+
+    name: str
+    units: str
+    reference: float
+    low: float
+    high: float
+    description: str = ""
+
+    def contains(self, value: float) -> bool:
+        """Whether ``value`` lies in the declared range (ends included)."""
+        return bool(self.low <= value <= self.high)
+
+
+@dataclass(frozen=True)
+class Law:
+    """A parameter's affine dependence on the conditions: ``reference + sum(slope_k * (c_k - ref_k))``.
+
+    ``reference`` is None where the parameter keeps the model's value at the reference point.
+    """
+
+    parameter: str
+    slopes: tuple[tuple[str, float], ...]
+    reference: float | None = None
+    description: str = ""
+
+    @property
+    def conditions(self) -> tuple[str, ...]:
+        """The conditions the law depends on."""
+        return tuple(name for name, _ in self.slopes)
+
+
+@dataclass(frozen=True)
+class Operation:
+    """The operating conditions a model declares and the laws its parameters follow.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> op = load_model(shipped_model("hydro_unit")).operation
+    >>> op.names[:3]
+    ('power', 'reactive_power', 'head')
+    >>> round(op.reference_point()["head"], 1)
+    140.0
+    """
+
+    conditions: tuple[Condition, ...]
+    laws: tuple[Law, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The conditions' names, in the order the model file declares them."""
+        return tuple(c.name for c in self.conditions)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Each condition's units."""
+        return {c.name: c.units for c in self.conditions}
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """The parameters the laws set."""
+        return tuple(law.parameter for law in self.laws)
+
+    def condition(self, name: str) -> Condition:
+        for c in self.conditions:
+            if c.name == name:
+                return c
+        raise ModelError(f"no operating condition '{name}' (the model declares: {', '.join(self.names)})")
+
+    def reference_point(self) -> dict[str, float]:
+        """The reference value of every condition."""
+        return {c.name: c.reference for c in self.conditions}
+
+    def check_point(self, point: Mapping[str, float], where: str = "operating point") -> dict[str, float]:
+        """The point with every condition given, finite and in range; conditions left out take their reference.
+
+        Raises :class:`~twin.errors.ModelError` naming ``where`` and the condition for an unknown name, a
+        value that is not a finite number, or one outside the declared range.
+        """
+        unknown = sorted(set(point) - set(self.names))
+        if unknown:
+            raise ModelError(f"{where}: unknown operating condition '{unknown[0]}' (the model declares: "
+                             f"{', '.join(self.names)})")  # fmt: skip
+        out = {}
+        for c in self.conditions:
+            value = point.get(c.name, c.reference)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(float(value)):  # fmt: skip
+                raise ModelError(f"{where}: {c.name} must be a finite number [{c.units}], got {value!r}")
+            if not c.contains(float(value)):
+                raise ModelError(f"{where}: {c.name} = {float(value):g} {c.units} is outside the model's range "
+                                 f"[{c.low:g}, {c.high:g}] {c.units}, where its laws hold")  # fmt: skip
+            out[c.name] = float(value)
+        return out
+
+    def values(self, model, point: Mapping[str, float]) -> dict[str, float]:
+        """The laws' parameter values [SI] at an operating point (checked by :meth:`check_point`)."""
+        point = self.check_point(point)
+        out = {}
+        for law in self.laws:
+            base = law.reference if law.reference is not None else model.parameter(law.parameter).nominal
+            out[law.parameter] = base + sum(s * (point[k] - self.condition(k).reference) for k, s in law.slopes)
+        return out
+
+
+def with_parameters(model, names) -> object:
+    """The model with the library effects added (zero-valued) that bring those of ``names`` it lacks.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> m = with_parameters(load_model(shipped_model("hydro_unit")), ["MAG.stiffness", "UGB.kxx"])
+    >>> m.parameter("MAG.stiffness").nominal
+    0.0
+    """
+    have = set(model.parameter_names)
+    wanted = []
+    for name in names:
+        if name in have:
+            continue
+        label = effect_providing(model, name)
+        if label is None:
+            model.parameter(name)  # raises, naming close parameters
+        if label not in wanted:
+            wanted.append(label)
+    effects = [e for e in library_effects(model) if effect_label(e) in wanted]
+    return model.with_effects(*effects) if effects else model
+
+
+def at_operating_point(model, point: Mapping[str, float]):
+    """The model at an operating point: the laws' effects added and their parameters set.
+
+    Parameters
+    ----------
+    model : RotorModel
+        A model whose file declares ``[[condition]]`` and ``[[law]]`` tables.
+    point : mapping of str to float
+        Condition values in their declared units; a condition left out is at its reference.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> low = at_operating_point(unit, {"power": 80.0})
+    >>> low.parameter("MAG.stiffness").nominal > at_operating_point(unit, {}).parameter("MAG.stiffness").nominal
+    True
+    """
+    op = getattr(model, "operation", None)
+    if op is None:
+        raise ModelError(f"model '{model.name}' declares no operating conditions ([[condition]] and [[law]] tables)")
+    model = with_parameters(model, op.parameters)
+    return model.with_values(op.values(model, point))
+
+
+def read_operation(top, model) -> Operation | None:
+    """The ``[[condition]]`` and ``[[law]]`` tables of a model file (``top``, a model file's reading table).
+
+    Every problem is a :class:`~twin.errors.ModelFileError` naming the file, the table and the key: a
+    condition without units pint reads, a reference outside its range, a law on an unknown parameter or
+    condition, a law that takes its parameter outside the physical bounds somewhere in the declared ranges.
+    """
+    from twin.fem.modelfile import _array_of_tables, _label
+
+    conditions: list[Condition] = []
+    for t in _array_of_tables(top, "condition"):
+        name = t.string("name")
+        if not _IDENTIFIER.match(name):
+            raise t.error("name", f"{name!r} is not a valid condition name (letters, digits and '_')")
+        _label(t, name)
+        if name in {c.name for c in conditions}:
+            raise t.error("name", f"a second condition named '{name}'")
+        units = t.string("units")
+        _check_units(t, units)
+        reference = t.number("reference")
+        span = t.array("range")
+        if len(span) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in span) \
+                or not span[0] < span[1]:  # fmt: skip
+            raise t.error("range", f"expected [low, high] with low < high, got {span!r}")
+        if not span[0] <= reference <= span[1]:
+            raise t.error("reference", f"{reference:g} {units} is outside the range [{span[0]:g}, {span[1]:g}]")
+        conditions.append(Condition(name, units, reference, float(span[0]), float(span[1]), t.string("description", "")))
+        t.finish()
+    laws_tables = _array_of_tables(top, "law")
+    if not conditions:
+        if laws_tables:
+            raise laws_tables[0].error(None, "a law needs operating conditions: declare them in [[condition]] tables")
+        return None
+    op = Operation(tuple(conditions))
+    laws: list[Law] = []
+    for t in laws_tables:
+        parameter = t.string("parameter")
+        _label(t, parameter)
+        if parameter in {law.parameter for law in laws}:
+            raise t.error("parameter", f"a second law for '{parameter}': put every condition's slope in one law")
+        try:
+            extended = with_parameters(model, [parameter])
+            p = extended.parameter(parameter)
+        except ModelError as exc:
+            raise t.error("parameter", str(exc)) from None
+        if p.per_mode:
+            raise t.error("parameter", f"'{parameter}' takes one value per mode; a law sets a single FEM parameter")
+        reference = t.number("reference", None)
+        slopes_table = t._get("slopes", None)
+        if not isinstance(slopes_table, dict) or not slopes_table:
+            raise t.error("slopes", "expected a table of slopes by condition, e.g. slopes = { power = -1.5e5 }")
+        slopes = []
+        for k, v in slopes_table.items():
+            if k not in op.names:
+                raise t.error("slopes", f"no condition '{k}' (declared: {', '.join(op.names)})")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise t.error("slopes", f"the slope on '{k}' must be a finite number, got {v!r}")
+            slopes.append((k, float(v)))
+        law = Law(parameter, tuple(slopes), reference, t.string("description", ""))
+        t.finish()
+        _check_bounds(t, op, law, p, extended)
+        laws.append(law)
+    return dataclasses.replace(op, laws=tuple(laws))
+
+
+def _check_units(table, units: str) -> None:
+    """Refuse units pint cannot read (a typo in a file is found at load time, not in a report)."""
+    from twin.units import registry
+
+    try:
+        registry().Unit(units)
+    except Exception as exc:  # pint raises several kinds (UndefinedUnitError, DefinitionSyntaxError, ...)
+        raise table.error("units", f"{units!r} are not units pint reads ({type(exc).__name__})") from None
+
+
+def _check_bounds(table, op: Operation, law: Law, parameter, model) -> None:
+    """Refuse a law that takes its parameter outside its physical bounds at a corner of the declared ranges."""
+    one = dataclasses.replace(op, laws=(law,))
+    names = law.conditions
+    for corner in itertools.product(*[(op.condition(k).low, op.condition(k).high) for k in names]):
+        point = dict(zip(names, corner))
+        value = one.values(model, point)[law.parameter]
+        if not parameter.within(value):
+            at = ", ".join(f"{k} = {v:g} {op.condition(k).units}" for k, v in point.items())
+            raise ModelFileError(table.path, table.where, "slopes",
+                                 f"at {at} the law gives {law.parameter} = {value:.4g} {parameter.unit}, outside its "
+                                 f"physical bounds ({parameter.bounds_text()})")  # fmt: skip
