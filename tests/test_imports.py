@@ -11,8 +11,8 @@ from tests.conftest import ROOT
 PACKAGE = ROOT / "twin"
 #: The stages in the order of the loop; a module may import from its own stage and the ones before it.
 #: ``common`` is what every stage shares (defaults, errors, NetCDF, progress, tasks), ``cli`` is on top of all.
-STAGES = ("common", "fem", "modes", "fmu", "design", "extract", "update", "loop", "cli")
-COMMON = {"defaults", "errors", "netcdf", "progress", "tasks"}
+STAGES = ("common", "fem", "modes", "fmu", "design", "extract", "update", "loop", "track", "cli")
+COMMON = {"defaults", "errors", "netcdf", "progress", "tasks", "units"}
 MAX_LINES = 600
 
 

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
+from tests.conftest import ROOT
 from twin import ModelError, ModelFileError, load_model, shipped_model
 from twin.fem.operation import at_operating_point
-
-from tests.conftest import ROOT
 
 ROSS = (ROOT / "models" / "ross_reference.toml").read_text()
 CONDITION = """

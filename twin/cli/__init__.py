@@ -16,9 +16,10 @@
     twin demo [--out DIR] [--hidden SPEC] [--duration S] [--seed N] [--model MODEL.toml]
     twin sweep [--hidden SPEC,...] [--seeds N,...] [--scenarios FILE] [--out DIR]
     twin params MODEL.toml [--effect LABEL] [--json]
+    twin campaign MODEL.toml --schedule SCHEDULE.toml -o DIR [--seed N] [--workers N] [--json]
 
 The parser is :mod:`twin.cli.parser`; the stages' commands are in
-:mod:`twin.cli.stages` (1-3) and :mod:`twin.cli.loop` (4-5). Progress (a
+:mod:`twin.cli.stages` (1-3), :mod:`twin.cli.loop` (4-5) and :mod:`twin.cli.track` (over time). Progress (a
 line per stage, bars for the long ones) goes to stderr when it is a
 terminal, unless ``--quiet``. Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback; an interrupt (Ctrl-C) on one line with status 130.

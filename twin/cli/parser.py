@@ -10,7 +10,7 @@ import argparse
 import math
 
 from twin import __version__
-from twin.cli import design, loop, stages
+from twin.cli import design, loop, stages, track
 from twin.defaults import (CHAINS, DEFAULT_RECORDS, DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, DEMO_RECORDS, DRAWS,
                            GIBBS_BURN_IN, HMC_MIN_WARMUP, HMC_WARMUP, MAX_BATCHES, METHODS, ORDERS_PER_MODE, SAMPLES)
 
@@ -509,4 +509,5 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_stages(sub)
     _add_loop(sub)
+    track.add_commands(sub, _command, _add_scheduler)
     return parser

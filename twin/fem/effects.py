@@ -442,6 +442,24 @@ def describe(effect, model) -> str:
     return f"{effect_label(effect)}: {effect.explanation}. " + "; ".join(parts) + "."
 
 
+def scaled(effect, factor: float):
+    """The effect (or local change) with every value multiplied by ``factor``; element names and indices kept.
+
+    Examples
+    --------
+    >>> scaled(BearingChange("UGB", -2e8, 2e7), 0.5)
+    BearingChange(bearing='UGB', stiffness_change=-100000000.0, damping_change=10000000.0)
+    """
+    changes = {}
+    for f in dataclasses.fields(effect):
+        value = getattr(effect, f.name)
+        if isinstance(value, float):
+            changes[f.name] = factor * value
+        elif isinstance(value, tuple):
+            changes[f.name] = tuple(factor * v for v in value)
+    return dataclasses.replace(effect, **changes)
+
+
 def effect_fields(cls: type) -> dict[str, type]:
     """The settable values of an effect class and their Python types.
 

@@ -20,7 +20,15 @@ from functools import cached_property
 import numpy as np
 
 from twin.errors import ModelError
-from twin.fem.elements import DOF_NAMES, DOFS_PER_NODE, Bearing, Disk, ShaftElement, ThrustBearing, node_dofs
+from twin.fem.elements import (
+    DOF_NAMES,
+    DOFS_PER_NODE,
+    Bearing,
+    Disk,
+    ShaftElement,
+    ThrustBearing,
+    node_dofs,
+)
 from twin.fem.parameters import MATRIX_KINDS, Parameter, Term
 
 RPM_TO_RAD_S = 2.0 * np.pi / 60.0

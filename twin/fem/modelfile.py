@@ -26,129 +26,23 @@ import dataclasses
 import difflib
 import math
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from twin.errors import ModelFileError
+from twin.errors import ModelError, ModelFileError
 from twin.fem.effects import EFFECTS, effect_fields, effect_label
-from twin.fem.elements import BEARING_COEFFICIENTS, Bearing, Disk, Material, ShaftElement, ThrustBearing
+from twin.fem.elements import (
+    BEARING_COEFFICIENTS,
+    Bearing,
+    Disk,
+    Material,
+    ShaftElement,
+    ThrustBearing,
+)
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.operation import read_operation
-
-_MISSING = object()
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*$")
-
-
-class _Table:
-    """One TOML table being read: typed getters that report file/table/key, and a check for unknown keys."""
-
-    def __init__(self, path: str, where: str, data: Any) -> None:
-        if not isinstance(data, Mapping):
-            raise ModelFileError(path, where, None, f"must be a table, got {type(data).__name__}")
-        self.path, self.where, self.data = path, where, data
-        self.used: set[str] = set()
-
-    def error(self, key: str | None, problem: str) -> ModelFileError:
-        return ModelFileError(self.path, self.where, key, problem)
-
-    def _get(self, key: str, default: Any) -> Any:
-        self.used.add(key)
-        if key not in self.data:
-            if default is _MISSING:
-                close = difflib.get_close_matches(key, [k for k in self.data if isinstance(k, str)], n=1)
-                hint = f" (the table has '{close[0]}': a typo?)" if close else ""
-                raise self.error(key, f"missing key{hint}")
-            return default
-        return self.data[key]
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def number(self, key: str, default: Any = _MISSING, *, positive: bool = False, nonnegative: bool = False) -> float:
-        if key not in self.data and default is not _MISSING:
-            self.used.add(key)
-            return default
-        value = self._get(key, default)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(key, f"expected a number, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.error(key, f"must be finite, got {value}")
-        if positive and value <= 0:
-            raise self.error(key, f"must be positive, got {value:g}")
-        if nonnegative and value < 0:
-            raise self.error(key, f"must not be negative, got {value:g}")
-        return value
-
-    def integer(self, key: str, default: Any = _MISSING) -> int:
-        value = self._get(key, default)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(key, f"expected a whole number, got {value!r}")
-        return value
-
-    def string(self, key: str, default: Any = _MISSING) -> str:
-        value = self._get(key, default)
-        if not isinstance(value, str):
-            raise self.error(key, f"expected a string, got {value!r}")
-        return value
-
-    def name(self, key: str = "name") -> str:
-        value = self.string(key)
-        if not _NAME.match(value):
-            raise self.error(key, f"{value!r} is not a valid name (letters, digits, '_' or '-', starting with a letter)")
-        return value
-
-    def boolean(self, key: str, default: Any = _MISSING) -> bool:
-        value = self._get(key, default)
-        if not isinstance(value, bool):
-            raise self.error(key, f"expected true or false, got {value!r}")
-        return value
-
-    def array(self, key: str, default: Any = _MISSING) -> list:
-        value = self._get(key, default)
-        if not isinstance(value, list):
-            raise self.error(key, f"expected an array, got {value!r}")
-        return value
-
-    def node_list(self, key: str, n_nodes: int, default: Any = _MISSING) -> list[int]:
-        nodes = self.array(key, default)
-        for n in nodes:
-            self._check_node(key, n, n_nodes)
-        return nodes
-
-    def node(self, key: str, n_nodes: int) -> int:
-        n = self._get(key, _MISSING)
-        self._check_node(key, n, n_nodes)
-        return n
-
-    def _check_node(self, key: str, n: Any, n_nodes: int) -> None:
-        if isinstance(n, bool) or not isinstance(n, int):
-            raise self.error(key, f"expected a node number, got {n!r}")
-        if not 0 <= n < n_nodes:
-            raise self.error(key, f"node {n} does not exist (the shaft has nodes 0..{n_nodes - 1})")
-
-    def finish(self) -> None:
-        """Reject keys nobody read (typos), suggesting the closest known key."""
-        unknown = [k for k in self.data if k not in self.used]
-        if unknown:
-            key = unknown[0]
-            close = difflib.get_close_matches(key, sorted(self.used), n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else f"; known keys: {', '.join(sorted(self.used))}"
-            raise self.error(key, f"unknown key{hint}")
-
-
-def _array_of_tables(top: _Table, key: str, required: bool = False) -> list[_Table]:
-    items = top.array(key, _MISSING if required else [])
-    if required and not items:
-        raise top.error(key, f"at least one [[{key}]] table is needed")
-    return [_Table(top.path, f"[[{key}]] #{i + 1}", item) for i, item in enumerate(items)]
-
-
-def _label(table: _Table, name: str) -> None:
-    table.where = f"{table.where.split(' ')[0]} '{name}'"
-
+from twin.fem.tables import MISSING, Table, array_of_tables, label_table, read_toml
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 
@@ -200,19 +94,6 @@ def load_model(path: str | Path) -> RotorModel:
     return model_from_dict(read_toml(path), source=str(path))
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file, reporting a missing, unreadable or malformed file as a ModelFileError."""
-    path = Path(path)
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ModelFileError(str(path), "(file)", None, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelFileError(str(path), "(file)", None, f"cannot be read: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelFileError(str(path), "(file)", None, f"not valid TOML: {exc}") from None
-
-
 def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorModel:
     """Build a model from the parsed contents of a model file (see :func:`load_model`).
 
@@ -225,8 +106,8 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     >>> model_from_dict(d).n_nodes
     3
     """
-    top = _Table(source, "(top level)", data)
-    head = _Table(source, "[model]", top._get("model", _MISSING))
+    top = Table(source, "(top level)", data)
+    head = Table(source, "[model]", top._get("model", MISSING))
     name = head.name()
     speed_rpm = head.number("speed_rpm", nonnegative=True)
     description = head.string("description", "")
@@ -239,22 +120,22 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
 
     names: dict[str, str] = {}
 
-    def unique(table: _Table, kind: str) -> str:
+    def unique(table: Table, kind: str) -> str:
         nm = table.name()
-        _label(table, nm)
+        label_table(table, nm)
         if nm in names:
             raise table.error("name", f"'{nm}' is already the name of a {names[nm]}")
         names[nm] = kind
         return nm
 
     disks = []
-    for t in _array_of_tables(top, "disk"):
+    for t in array_of_tables(top, "disk"):
         nm = unique(t, "disk")
         disks.append(Disk(nm, t.node("node", n_nodes), t.number("mass", nonnegative=True),
                           t.number("Id", nonnegative=True), t.number("Ip", nonnegative=True)))  # fmt: skip
         t.finish()
     bearings = []
-    for t in _array_of_tables(top, "bearing"):
+    for t in array_of_tables(top, "bearing"):
         nm = unique(t, "bearing")
         node = t.node("node", n_nodes)
         # a guide bearing holds the shaft: positive direct stiffness, non-negative direct damping
@@ -263,7 +144,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
         bearings.append(Bearing(nm, node, {k: t.number(k, **rules.get(k, {})) for k in BEARING_COEFFICIENTS}))
         t.finish()
     thrusts = []
-    for t in _array_of_tables(top, "thrust"):
+    for t in array_of_tables(top, "thrust"):
         nm = unique(t, "thrust bearing")
         thrusts.append(ThrustBearing(nm, t.node("node", n_nodes), t.number("k_tilt", nonnegative=True),
                                      t.number("c_tilt", nonnegative=True)))  # fmt: skip
@@ -293,7 +174,11 @@ def check_effect_bounds(effects: Sequence, model, path: str, tables: Sequence[st
     (:attr:`twin.fem.parameters.Parameter.bounds`, as ``twin params`` lists them).
     """
     for effect, table in zip(effects, tables):
-        for p in effect.parameters(model):
+        try:
+            parameters = effect.parameters(model)
+        except ModelError as exc:  # a local change's element the model lacks
+            raise ModelFileError(path, table, None, str(exc)) from None
+        for p in parameters:
             if p.within(p.nominal):
                 continue
             key = p.name.split(".", 1)[1]
@@ -304,12 +189,12 @@ def check_effect_bounds(effects: Sequence, model, path: str, tables: Sequence[st
                                  f"{p.description})")  # fmt: skip
 
 
-def _read_materials(top: _Table) -> dict[str, Material]:
-    tables = _Table(top.path, "[materials]", top._get("materials", _MISSING))
+def _read_materials(top: Table) -> dict[str, Material]:
+    tables = Table(top.path, "[materials]", top._get("materials", MISSING))
     out = {}
     for key in tables.data:
         tables.used.add(key)
-        t = _Table(top.path, f"[materials.{key}]", tables.data[key])
+        t = Table(top.path, f"[materials.{key}]", tables.data[key])
         E = t.number("E", positive=True)
         rho = t.number("rho", positive=True)
         if t.has("G") == t.has("poisson"):
@@ -328,9 +213,9 @@ def _read_materials(top: _Table) -> dict[str, Material]:
     return out
 
 
-def _read_shaft(top: _Table, materials: dict[str, Material], flags: dict[str, bool]) -> list[ShaftElement]:
+def _read_shaft(top: Table, materials: dict[str, Material], flags: dict[str, bool]) -> list[ShaftElement]:
     sections = []
-    for t in _array_of_tables(top, "shaft", required=True):
+    for t in array_of_tables(top, "shaft", required=True):
         nodes = t.array("nodes")
         if len(nodes) != 2 or any(isinstance(n, bool) or not isinstance(n, int) or n < 0 for n in nodes):
             raise t.error("nodes", f"expected [first, last] node numbers, got {nodes!r}")
@@ -375,11 +260,11 @@ def _read_shaft(top: _Table, materials: dict[str, Material], flags: dict[str, bo
     return elements
 
 
-def _read_sensors(top: _Table, n_nodes: int) -> list[Sensor]:
+def _read_sensors(top: Table, n_nodes: int) -> list[Sensor]:
     sensors: list[Sensor] = []
-    for t in _array_of_tables(top, "sensor"):
+    for t in array_of_tables(top, "sensor"):
         nm = t.name()
-        _label(t, nm)
+        label_table(t, nm)
         node = t.node("node", n_nodes)
         location = t.string("location", "")
         directions = t.array("directions", ["x", "y"])
@@ -394,8 +279,8 @@ def _read_sensors(top: _Table, n_nodes: int) -> list[Sensor]:
     return sensors
 
 
-def _read_regions(top: _Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
-    t = _Table(top.path, "[regions]", top._get("regions", {}))
+def _read_regions(top: Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
+    t = Table(top.path, "[regions]", top._get("regions", {}))
     out = {}
     for key in list(t.data):
         nodes = t.node_list(key, n_nodes)
@@ -405,8 +290,8 @@ def _read_regions(top: _Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
     return out
 
 
-def _read_damping(top: _Table) -> tuple[float, float]:
-    t = _Table(top.path, "[damping]", top._get("damping", {}))
+def _read_damping(top: Table) -> tuple[float, float]:
+    t = Table(top.path, "[damping]", top._get("damping", {}))
     a = t.number("shaft_mass_proportional", 0.0, nonnegative=True)
     b = t.number("shaft_stiffness_proportional", 0.0, nonnegative=True)
     t.finish()
@@ -418,20 +303,21 @@ def element_names(bearings, thrusts) -> dict[str, list[str]]:
     return {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
 
 
-def _read_effects(top: _Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]],
+def _read_effects(top: Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]],
                   tables_read: list[str]) -> list:  # fmt: skip
-    tables = _Table(top.path, "[effects]", top._get("effects", {}))
+    tables = Table(top.path, "[effects]", top._get("effects", {}))
     return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements,
                               tables_read=tables_read)  # fmt: skip
 
 
 def read_effect_tables(
-    tables: _Table,
+    tables: Table,
     regions: Mapping[str, tuple[int, ...]],
     prefix: str = "",
     per_mode_allowed: bool = True,
     elements: Mapping[str, Sequence[str]] | None = None,
     tables_read: list[str] | None = None,
+    local_allowed: bool = False,
 ) -> list:
     """Effects from tables keyed by effect label (``[prefix + label]``), validated against :data:`EFFECTS`.
 
@@ -442,17 +328,26 @@ def read_effect_tables(
     ``UGB.stiffness_change``); a value left out is zero (no change). ``elements`` maps ``"bearing"`` and
     ``"thrust"`` to the model's element names, against which element effects are checked.
     ``tables_read``, if given, gets each effect's table name, for the messages of later checks.
+    With ``local_allowed`` (truth files), local changes outside the library are read too
+    (:data:`twin.fem.local.LOCAL_CHANGES`: ``["shaft_stiffness:18"]``, ``["disk_mass:generator"]`` with
+    ``change``, the relative change); their element is named in the table's name and checked against the
+    model by :func:`check_effect_bounds`.
     """
+    from twin.fem.local import LOCAL_CHANGES
+
+    known = {**EFFECTS, **LOCAL_CHANGES} if local_allowed else EFFECTS
     out = []
     for key in tables.data:
         tables.used.add(key)
         base, _, element = key.partition(":")
-        if base not in EFFECTS:
-            close = difflib.get_close_matches(base, EFFECTS, n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(EFFECTS)}"
+        if base not in known:
+            close = difflib.get_close_matches(base, known, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(known)}"
             raise tables.error(key, f"unknown effect{hint}")
-        cls = EFFECTS[base]
-        t = _Table(tables.path, f"[{prefix}{key}]" if ":" not in key else f'[{prefix}"{key}"]', tables.data[key])
+        cls = known[base]
+        if base in LOCAL_CHANGES and not element:
+            raise tables.error(key, f"a local change names its element: ['{base}:<{cls.element}>']")
+        t = Table(tables.path, f"[{prefix}{key}]" if ":" not in key else f'[{prefix}"{key}"]', tables.data[key])
         if element and cls.element is None:
             raise t.error(None, f"effect '{base}' acts on a region, not on a named element: call the table [{prefix}{base}]")
         if cls.per_mode and not per_mode_allowed:
@@ -462,15 +357,20 @@ def read_effect_tables(
         values = {}
         defaults = {fd.name: fd.default for fd in dataclasses.fields(cls)}
         for name, kind in effect_fields(cls).items():
-            if kind is str:
+            if kind is int:  # a shaft element's index, from the table's name
+                try:
+                    values[name] = int(element)
+                except ValueError:
+                    raise t.error(None, f"'{element}' is not a shaft element's number") from None
+            elif kind is str:
                 if element and name in t.data and t.data[name] != element:
                     raise t.error(name, f"{t.data[name]!r} contradicts the table's name, which says {element!r}")
                 values[name] = element if element else t.string(name)
                 t.used.add(name)
-                known = elements.get(cls.element, ()) if elements is not None else None
-                if known is not None and values[name] not in known:
+                names = elements.get(cls.element) if elements is not None else None
+                if names is not None and values[name] not in names:
                     raise t.error(name, f"no {cls.element} named {values[name]!r} in the model "
-                                        f"(its {cls.element}s: {', '.join(map(repr, known)) or 'none'})")
+                                        f"(its {cls.element}s: {', '.join(map(repr, names)) or 'none'})")
             elif kind is tuple:
                 items = t.array(name)
                 for v in items:
@@ -478,7 +378,7 @@ def read_effect_tables(
                         raise t.error(name, f"expected an array of numbers, got {v!r} in it")
                 values[name] = tuple(float(v) for v in items)
             else:
-                values[name] = t.number(name, defaults[name] if defaults[name] is not dataclasses.MISSING else _MISSING)
+                values[name] = t.number(name, defaults[name] if defaults[name] is not dataclasses.MISSING else MISSING)
         t.finish()
         try:
             effect = cls(**values)

@@ -42,6 +42,7 @@ import numpy as np
 
 from twin.errors import ModelError, ModelFileError
 from twin.fem.effects import effect_label, effect_providing, library_effects
+from twin.fem.tables import array_of_tables, label_table
 
 _IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
@@ -203,11 +204,17 @@ def at_operating_point(model, point: Mapping[str, float]):
     >>> low.parameter("MAG.stiffness").nominal > at_operating_point(unit, {}).parameter("MAG.stiffness").nominal
     True
     """
-    op = getattr(model, "operation", None)
-    if op is None:
-        raise ModelError(f"model '{model.name}' declares no operating conditions ([[condition]] and [[law]] tables)")
+    op = operation_of(model)
     model = with_parameters(model, op.parameters)
     return model.with_values(op.values(model, point))
+
+
+def operation_of(model) -> Operation:
+    """The model's operating conditions and laws; a :class:`~twin.errors.ModelError` if it declares none."""
+    if model.operation is None:
+        raise ModelError(f"model '{model.name}' declares no operating conditions: the twin over time needs its "
+                         "[[condition]] and [[law]] tables (see models/hydro_unit.toml)")  # fmt: skip
+    return model.operation
 
 
 def read_operation(top, model) -> Operation | None:
@@ -217,14 +224,12 @@ def read_operation(top, model) -> Operation | None:
     condition without units pint reads, a reference outside its range, a law on an unknown parameter or
     condition, a law that takes its parameter outside the physical bounds somewhere in the declared ranges.
     """
-    from twin.fem.modelfile import _array_of_tables, _label
-
     conditions: list[Condition] = []
-    for t in _array_of_tables(top, "condition"):
+    for t in array_of_tables(top, "condition"):
         name = t.string("name")
         if not _IDENTIFIER.match(name):
             raise t.error("name", f"{name!r} is not a valid condition name (letters, digits and '_')")
-        _label(t, name)
+        label_table(t, name)
         if name in {c.name for c in conditions}:
             raise t.error("name", f"a second condition named '{name}'")
         units = t.string("units")
@@ -238,7 +243,7 @@ def read_operation(top, model) -> Operation | None:
             raise t.error("reference", f"{reference:g} {units} is outside the range [{span[0]:g}, {span[1]:g}]")
         conditions.append(Condition(name, units, reference, float(span[0]), float(span[1]), t.string("description", "")))
         t.finish()
-    laws_tables = _array_of_tables(top, "law")
+    laws_tables = array_of_tables(top, "law")
     if not conditions:
         if laws_tables:
             raise laws_tables[0].error(None, "a law needs operating conditions: declare them in [[condition]] tables")
@@ -247,7 +252,7 @@ def read_operation(top, model) -> Operation | None:
     laws: list[Law] = []
     for t in laws_tables:
         parameter = t.string("parameter")
-        _label(t, parameter)
+        label_table(t, parameter)
         if parameter in {law.parameter for law in laws}:
             raise t.error("parameter", f"a second law for '{parameter}': put every condition's slope in one law")
         try:
@@ -277,11 +282,13 @@ def read_operation(top, model) -> Operation | None:
 
 def _check_units(table, units: str) -> None:
     """Refuse units pint cannot read (a typo in a file is found at load time, not in a report)."""
+    import pint
+
     from twin.units import registry
 
     try:
         registry().Unit(units)
-    except Exception as exc:  # pint raises several kinds (UndefinedUnitError, DefinitionSyntaxError, ...)
+    except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError) as exc:
         raise table.error("units", f"{units!r} are not units pint reads ({type(exc).__name__})") from None
 
 

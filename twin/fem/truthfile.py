@@ -14,6 +14,9 @@ effect's parameter names without their owner (a value left out is zero)::
     ["bearing_change:UGB"]                  # quoted: a TOML key holds no colon otherwise
     stiffness_change = -1.0e8               # N/m     UGB.stiffness_change
 
+    ["shaft_stiffness:18"]                  # a local change outside the library (twin.fem.local)
+    change = -0.3                           # relative: element 18 keeps 70% of its bending stiffness
+
 Values outside a parameter's physical bounds (a positive magnetic pull, a
 negative added mass) are refused, naming the file, table and key.
 
@@ -30,7 +33,8 @@ from pathlib import Path
 from twin.errors import ModelFileError
 from twin.fem.effects import EFFECTS, FluidAddedMassPerMode, effect_fields, effect_label
 from twin.fem.model import RotorModel
-from twin.fem.modelfile import _Table, check_effect_bounds, element_names, read_effect_tables, read_toml
+from twin.fem.modelfile import check_effect_bounds, element_names, read_effect_tables
+from twin.fem.tables import Table, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
 PAPER_TABLE2 = FluidAddedMassPerMode(
@@ -131,14 +135,28 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
     if str(path) == "none":
         return Truth((), "none (the model as it is)")
     path = Path(path)
-    data = read_toml(path)
+    return truth_from_tables(read_toml(path), model, str(path))
+
+
+def truth_from_tables(data: dict, model: RotorModel, path: str, where: str = "(top level)", prefix: str = "") -> Truth:
+    """A truth from the parsed tables of a truth file (or of a table holding them, as a schedule's
+    ``[change.truth]``: ``where`` names it, ``prefix`` is its dotted name): library effects and local
+    changes, validated for ``model``; errors name ``path``, the table and the key.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> truth_from_tables({"shaft_stiffness:18": {"change": -0.3}}, unit, "schedule.toml").effects
+    (ShaftStiffnessChange(index=18, change=-0.3),)
+    """
     elements = element_names(model.bearings, model.thrusts)
     tables: list[str] = []
-    effects = read_effect_tables(_Table(str(path), "(top level)", data), model.regions, elements=elements,
-                                 tables_read=tables)  # fmt: skip
+    effects = read_effect_tables(Table(path, where, data), model.regions, prefix=prefix, elements=elements,
+                                 tables_read=tables, local_allowed=True)  # fmt: skip
     if not effects:
-        raise ModelFileError(str(path), "(top level)", None, "a truth file needs at least one effect table")
+        raise ModelFileError(path, where, None, "a truth needs at least one effect table")
     if sum(e.per_mode for e in effects) > 1:
-        raise ModelFileError(str(path), "(top level)", None, "at most one per-mode effect")
-    check_effect_bounds(effects, model, str(path), tables)
-    return Truth(tuple(effects), str(path))
+        raise ModelFileError(path, where, None, "at most one per-mode effect")
+    check_effect_bounds(effects, model, path, tables)
+    return Truth(tuple(effects), path)

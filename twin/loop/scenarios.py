@@ -31,6 +31,7 @@ from twin.fem.effects import (
     SealCrossCoupling,
     ThrustTilt,
     effect_label,
+    scaled,
 )
 from twin.fem.local import LOCAL_CHANGES, DiskInertiaChange, DiskMassChange, ShaftStiffnessChange
 from twin.fem.truthfile import PAPER_TABLE2, Truth
@@ -58,18 +59,6 @@ ALIASES = {"shaft_stiffness_loss": "shaft_stiffness:18@0.5"}
 EXCLUSIVE = ({"fsi", "fsi_per_mode"},)
 
 _TERM = re.compile(r"^(?P<label>[A-Za-z_]+(?::[A-Za-z0-9_]+)?)(?:@(?P<factor>[-+0-9.eE]+))?$")
-
-
-def _scaled(effect, factor: float):
-    """An effect with every number multiplied by ``factor`` (element names kept)."""
-    changes = {}
-    for f in dataclasses.fields(effect):
-        value = getattr(effect, f.name)
-        if isinstance(value, float):
-            changes[f.name] = factor * value
-        elif isinstance(value, tuple):
-            changes[f.name] = tuple(factor * v for v in value)
-    return dataclasses.replace(effect, **changes)
 
 
 def _local(label: str, factor: float):
@@ -197,7 +186,7 @@ def parse_scenario(spec: str) -> Scenario:
         if value is not None and not value > 0:
             raise TwinError(f"hidden change '{spec}': the factor of '{label}' must be positive, got {value:g}")
         if label in REFERENCE_EFFECTS:
-            effects.append(_scaled(REFERENCE_EFFECTS[label], 1.0 if value is None else value))
+            effects.append(scaled(REFERENCE_EFFECTS[label], 1.0 if value is None else value))
         elif label.partition(":")[0] in LOCAL_CHANGES and ":" in label:
             changes.append(_local(label, DEFAULT_FACTORS[label.partition(":")[0]] if value is None else value))
         else:

@@ -1,0 +1,220 @@
+"""Campaigns: a sequence of records of a unit through its FMU, under changing operation and hidden changes.
+
+:func:`campaign` simulates what a monitoring system would collect over days or years: a record every
+few hours, each at its operating point (:mod:`twin.track.profile`), the model's laws applied
+(:func:`twin.fem.operation.at_operating_point`), and any hidden changes of the schedule at their size on
+that day (:class:`twin.track.schedule.Change`). Each record is one ``record_<index>.nc``, a signals file
+as :func:`twin.fmu.simulate.simulate` writes it, with
+
+* ``start_time`` (ISO 8601, UTC), ``day`` (days after the first record) and ``record`` in its attrs;
+* the operating data: ``operating_point`` over ``condition`` (coordinate ``condition_units``);
+* ``schedule`` and ``truth`` (the changes in effect, at their size then) in its attrs, for tests and
+  benchmarks: a tracker never reads them.
+
+The records are independent tasks (Dask over records with ``tasks=``); a campaign is resumable: a
+record already in the folder is kept, and a folder holding another campaign's records is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from twin.errors import TwinError
+from twin.fem.effects import scaled
+from twin.fem.model import RotorModel
+from twin.fem.operation import at_operating_point, operation_of
+from twin.fem.truthfile import Truth
+from twin.netcdf import check_folder, write_netcdf
+from twin.tasks import mapper
+from twin.track.profile import operating_points
+from twin.track.schedule import Schedule, iso
+
+log = logging.getLogger(__name__)
+
+#: File name of record ``i`` in a campaign folder.
+RECORD_NAME = "record_{:05d}.nc"
+#: Seeds of the FMU's random streams are 32-bit: record seeds stay below this.
+SEED_LIMIT = 2**31 - 10_000
+
+
+def record_seed(seed: int, index: int) -> int:
+    """The turbulence seed of record ``index`` of the campaign seeded ``seed`` (its noise seed follows)."""
+    return int((int(seed) * 100_003 + index) % SEED_LIMIT)
+
+
+def with_change(model: RotorModel, effect) -> RotorModel:
+    """The model with ``effect``'s values added: to the parameters it already has, or as a new effect.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fem.effects import BearingChange
+    >>> unit = load_model(shipped_model("hydro_unit")).with_effects(BearingChange("UGB", -1e7))
+    >>> with_change(unit, BearingChange("UGB", -2e7)).parameter("UGB.stiffness_change").nominal
+    -30000000.0
+    """
+    params = effect.parameters(model)
+    have = set(model.parameter_names)
+    if all(p.name in have for p in params):
+        return model.with_values({p.name: model.parameter(p.name).nominal + p.nominal for p in params})
+    return model.with_effects(effect)
+
+
+def record_model(model: RotorModel, point: dict[str, float], schedule: Schedule, day: float
+                 ) -> tuple[RotorModel, Truth]:  # fmt: skip
+    """The unit of record ``day``: the model at its operating point with the changes in effect that day.
+
+    Returns the model and the changes in effect (each at its size that day), as a :class:`Truth`.
+    """
+    m = at_operating_point(model, point)
+    active = []
+    for change in schedule.changes:
+        fraction = change.fraction(day)
+        if fraction > 0:
+            for effect in change.truth.effects:
+                active.append(scaled(effect, fraction))
+                m = with_change(m, active[-1])
+    return m, Truth(tuple(active), schedule.source)
+
+
+def campaign_id(model: RotorModel, schedule: Schedule, seed: int) -> str:
+    """A digest of what makes a campaign's records: the model's file, the schedule and the seed."""
+    text = Path(model.source).read_text() if model.source and Path(model.source).is_file() else repr(model)
+    return hashlib.sha256(f"{text}\n{schedule.to_json()}\n{seed}".encode()).hexdigest()[:16]
+
+
+def campaign(
+    model: RotorModel,
+    schedule: Schedule,
+    out: str | Path,
+    *,
+    seed: int = 1,
+    noise_ratio: float = 0.05,
+    tasks: Any = None,
+    progress: bool = True,
+    command: str = "",
+) -> xr.Dataset:
+    """Simulate a campaign's records into ``out`` (one ``record_<index>.nc`` each), keeping those already there.
+
+    Parameters
+    ----------
+    model : RotorModel
+        A model with operating conditions (``[[condition]]`` and ``[[law]]`` tables).
+    schedule : Schedule
+        From :func:`twin.track.schedule.read_schedule`.
+    out : path
+        The campaign folder (made if missing).
+    seed : int
+        Seed of the operation's dispatch and of every record's turbulence and noise.
+    noise_ratio : float
+        Sensor noise std as a fraction of the median channel RMS of the turbulence response at the
+        reference operating point, the same for every record (the sensors do not change).
+    tasks : distributed.Client or mapper, optional
+        Where the records are simulated (:func:`twin.tasks.mapper`): here by default.
+    progress : bool
+        A progress bar over the records.
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``record``: ``start_time`` (ISO 8601), ``day``, ``operating_point`` (record, condition),
+        ``file``, ``made`` (False for a record that was there already).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from twin import load_model, shipped_model
+    >>> from twin.track.schedule import read_schedule
+    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> with tempfile.TemporaryDirectory() as d:  # doctest: +SKIP
+    ...     p = pathlib.Path(d) / "s.toml"; _ = p.write_text("days = 1\\nrecords_per_day = 2\\nduration = 60.0\\n")
+    ...     table = campaign(unit, read_schedule(p, unit), pathlib.Path(d) / "records", progress=False)
+    ...     int(table.made.sum())
+    2
+    """
+    op = operation_of(model)
+    for change in schedule.changes:  # a change the model cannot take fails before any work
+        record_model(model, op.reference_point(), Schedule(1, 1, 1.0, changes=(change,)), change.start_day + 1e9)
+    out = check_folder(out, make=True)
+    ident = campaign_id(model, schedule, seed)
+    days = np.array([schedule.record_day(i) for i in range(schedule.n_records)])
+    start = schedule.start
+    year_day0 = (start - start.replace(month=1, day=1, hour=0, minute=0, second=0, microsecond=0)).total_seconds() / 86400.0
+    points = operating_points(schedule.variations, op, days, year_day0, seed)
+    todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident)]
+    noise_std_m = _noise_std(model, schedule.fs_hz, noise_ratio)
+    log.info("campaign %s: %d records, %d to simulate", ident, schedule.n_records, len(todo))
+    mapper(tasks, progress=progress, desc="records")(
+        _simulate_record, todo, model=model, schedule=schedule, points=points, seed=seed, noise_std_m=noise_std_m,
+        out=str(out), ident=ident, command=command,
+    )  # fmt: skip
+    return xr.Dataset(
+        {
+            "start_time": ("record", [iso(schedule.record_start(i)) for i in range(schedule.n_records)]),
+            "day": ("record", days, {"units": "d", "long_name": "days after the first record's start"}),
+            "operating_point": (("record", "condition"), points),
+            "file": ("record", [RECORD_NAME.format(i) for i in range(schedule.n_records)]),
+            "made": ("record", np.isin(np.arange(schedule.n_records), todo)),
+        },
+        coords={"record": np.arange(schedule.n_records), "condition": list(op.names),
+                "condition_units": ("condition", [op.condition(k).units for k in op.names])},
+        attrs={"campaign": ident, "folder": str(out)},
+    )  # fmt: skip
+
+
+def _kept(path: Path, ident: str) -> bool:
+    """Whether the record at ``path`` is there already, from this campaign (an error if from another)."""
+    if not path.exists():
+        return False
+    try:
+        with xr.open_dataset(path) as ds:
+            theirs = ds.attrs.get("campaign")
+    except (OSError, ValueError) as exc:
+        raise TwinError(f"{path}: a record of the campaign folder cannot be read ({exc}): remove it to simulate it "
+                        "again") from None  # fmt: skip
+    if theirs != ident:
+        raise TwinError(f"{path} is a record of another campaign (model, schedule or seed differ): give another "
+                        "folder, or remove its records to start this one")  # fmt: skip
+    return True
+
+
+def _noise_std(model: RotorModel, fs_hz: float, noise_ratio: float) -> float:
+    """Sensor noise std [m] from the reference operating point's turbulence response."""
+    from twin.defaults import DEFAULT_TURBULENCE_ASD
+    from twin.fmu.export import default_turbulence_node
+    from twin.fmu.simulate import sensor_noise_std, system_for
+
+    ref = at_operating_point(model, {})
+    ss = system_for(ref, None, "full", None)
+    node = default_turbulence_node(ref)
+    ports = [] if node is None else ss.node_ports(node)
+    return sensor_noise_std(ss, 1.0 / fs_hz, DEFAULT_TURBULENCE_ASD, ports, noise_ratio, None)
+
+
+def _simulate_record(index: int, *, model: RotorModel, schedule: Schedule, points: np.ndarray, seed: int,
+                     noise_std_m: float, out: str, ident: str, command: str) -> str:  # fmt: skip
+    from twin.fmu.simulate import simulate
+
+    op = model.operation
+    day = schedule.record_day(index)
+    point = dict(zip(op.names, (float(v) for v in points[index])))
+    unit, truth = record_model(model, point, schedule, day)
+    ds = simulate(unit, duration_s=schedule.duration_s, fs_hz=schedule.fs_hz, seed=record_seed(seed, index),
+                  noise_std_m=noise_std_m, progress=False, command=command)  # fmt: skip
+    ds = ds.assign(operating_point=("condition", points[index], {"long_name": "operating conditions of the record"}))
+    ds = ds.assign_coords(condition=("condition", list(op.names)),
+                          condition_units=("condition", [op.condition(k).units for k in op.names]))  # fmt: skip
+    ds.attrs.update({
+        "title": f"campaign record {index} of {model.name}", "start_time": iso(schedule.record_start(index)),
+        "day": day, "record": index, "campaign": ident, "campaign_seed": int(seed),
+        "schedule": schedule.to_json(), "truth": truth.to_json(),
+    })  # fmt: skip
+    path = Path(out) / RECORD_NAME.format(index)
+    write_netcdf(ds, path)
+    return str(path)
