@@ -66,9 +66,9 @@ def test_a_campaign_writes_its_records_and_resumes_where_it_stopped(tmp_path, hy
 
 
 def test_a_campaign_on_dask_workers_makes_the_same_records(tmp_path, hydro_unit, schedule_file):
-    """The same records to 1e-5 of the peak: the steady start's initial state comes from a factorisation
-    whose last digits depend on the BLAS threads (one per worker, several here); the difference decays
-    with the slowest mode."""
+    """The same records to 1e-5 of the peak (about 2e-6 measured): the BLAS runs one thread on a worker and
+    several here, and the stationary covariance of lightly damped modes (a discrete Lyapunov solution)
+    amplifies the difference in the last digits; the draws are the same."""
     from twin.tasks import dask_client
 
     s = read_schedule(schedule_file, hydro_unit)

@@ -17,6 +17,7 @@
     twin sweep [--hidden SPEC,...] [--seeds N,...] [--scenarios FILE] [--out DIR]
     twin params MODEL.toml [--effect LABEL] [--json]
     twin campaign MODEL.toml --schedule SCHEDULE.toml -o DIR [--seed N] [--workers N] [--json]
+    twin track MODEL.toml DIR -o OUT [--baseline-days D] [--false-alarms PER_YEAR] [--json]
 
 The parser is :mod:`twin.cli.parser`; the stages' commands are in
 :mod:`twin.cli.stages` (1-3), :mod:`twin.cli.loop` (4-5) and :mod:`twin.cli.track` (over time). Progress (a

@@ -1,4 +1,4 @@
-"""The ``twin`` sub-commands of the twin over time: campaign (and, to come, track)."""
+"""The ``twin`` sub-commands of the twin over time: campaign and track."""
 
 from __future__ import annotations
 
@@ -25,6 +25,46 @@ def add_commands(sub, command, add_scheduler) -> None:
     p.add_argument("--seed", type=int, default=1, help="seed of the operation's dispatch and of every record")
     p.add_argument("--json", action="store_true", help="print a summary as JSON")
     add_scheduler(p, "records")
+
+    p = command(sub, "track", "track a unit over a folder of records: trends, alarms, what changed",
+                "Extracts each record's modes once (records added later are processed on the next call), finds\n"
+                "the model's modes in each, learns over the baseline days how the operating conditions move them\n"
+                "through the model's laws, watches what the conditions do not explain on a control chart, and at\n"
+                "an alarm names the change (a library effect, or where outside it) and follows it. Writes\n"
+                "OUT/track.nc and OUT/modes/.",
+                ["twin track hydro_unit records -o tracking --baseline-days 14",
+                 "twin track hydro_unit records -o tracking --json"],
+                _track)  # fmt: skip
+    p.add_argument("model", help="model file with [[condition]] and [[law]] tables, or a shipped model's name")
+    p.add_argument("folder", help="folder of the records (*.nc with start_time and operating_point)")
+    p.add_argument("-o", "--out", required=True, metavar="OUT", help="the tracker's folder")
+    p.add_argument("--baseline-days", type=float, default=14.0,
+                   help="days from the first record over which the laws are learned; no alarm in them")
+    p.add_argument("--false-alarms", type=float, default=0.1, metavar="PER_YEAR",
+                   help="false-alarm rate the control limit is set for, per unit-year")
+    p.add_argument("--json", action="store_true",
+                   help='print {"records": N, "alarms": [{"time", "day", "onset_day", "effects", "verdict"}]}')
+    add_scheduler(p, "extractions")
+
+
+def _track(args: argparse.Namespace) -> int:
+    from twin.cli.loop import _tasks
+    from twin.fem import load_model
+    from twin.track.tracker import alarms_json, track
+
+    model = load_model(args.model)
+    with _tasks(args) as client:
+        table = track(model, args.folder, args.out, baseline_days=args.baseline_days,
+                      false_alarms_per_year=args.false_alarms, tasks=client)  # fmt: skip
+    summary = alarms_json(table)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    print(f"{summary['records']} records tracked; {len(summary['alarms'])} alarm(s)")
+    for a in summary["alarms"]:
+        print(f"  {a['time']} (day {a['day']:g}, onset day {a['onset_day']:g}): {a['verdict']}")
+    print(f"wrote {Path(args.out) / 'track.nc'}")
+    return 0
 
 
 def _campaign(args: argparse.Namespace) -> int:

@@ -186,6 +186,24 @@ def with_parameters(model, names) -> object:
     return model.with_effects(*effects) if effects else model
 
 
+def with_change(model, effect):
+    """The model with ``effect``'s values added: to the parameters it already has, or as a new effect.
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> from twin.fem.effects import BearingChange
+    >>> unit = load_model(shipped_model("hydro_unit")).with_effects(BearingChange("UGB", -1e7))
+    >>> with_change(unit, BearingChange("UGB", -2e7)).parameter("UGB.stiffness_change").nominal
+    -30000000.0
+    """
+    params = effect.parameters(model)
+    have = set(model.parameter_names)
+    if all(p.name in have for p in params):
+        return model.with_values({p.name: model.parameter(p.name).nominal + p.nominal for p in params})
+    return model.with_effects(effect)
+
+
 def at_operating_point(model, point: Mapping[str, float]):
     """The model at an operating point: the laws' effects added and their parameters set.
 

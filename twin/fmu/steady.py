@@ -8,7 +8,7 @@ stationary law, the state is stationary from the first sample:
   ``w_k = x_k - Γ1 f_k`` the recursion ``x_{k+1} = Φ x_k + Γ0 f_k + Γ1 (f_{k+1} - f_k)`` becomes
   ``w_{k+1} = Φ w_k + (Φ Γ1 + Γ0 - Γ1) f_k``, driven by white noise and independent of ``f_k``. Its
   stationary covariance ``P`` solves the discrete Lyapunov equation ``P = Φ P Φᵀ + M Mᵀ / (2 h)``
-  (per unit ASD), and ``x_0 = asd F g + Γ1 f_0`` with ``F Fᵀ = P`` and ``g`` standard normal.
+  (per unit ASD), and ``x_0 = asd F g + Γ1 f_0`` with ``F = P^½`` (symmetric, so ``F Fᵀ = P``) and ``g`` standard normal.
 * **Unbalance** (a force rotating at ω, first-order hold): the periodic solution
   ``x_k = Re(X e^{iω t_k})``, ``X = (z I - Φ)⁻¹ (Γ0 + (z - 1) Γ1) F``, ``z = e^{iωh}``, for the force
   ``Re(F e^{iωt})`` at the unbalance node's two ports.
@@ -62,8 +62,11 @@ def steady_start(disc: Discrete, omega_rad_s: float, turbulence_ports: list[int]
     if turbulence_ports:
         M = phi @ g1[:, turbulence_ports] + g0[:, turbulence_ports] - g1[:, turbulence_ports]
         P = sla.solve_discrete_lyapunov(phi, M @ M.T / (2.0 * h))
+        # the symmetric square root U √D Uᵀ: unlike U √D it does not depend on which eigenvectors eigh
+        # picks in the rotor's nearly degenerate (x, y) eigenspaces, so the initial state is the same
+        # whatever the BLAS (or its thread count) on the exporting machine
         d, U = np.linalg.eigh((P + P.T) / 2)
-        factor = U * np.sqrt(np.clip(d, 0.0, None))
+        factor = (U * np.sqrt(np.clip(d, 0.0, None))) @ U.T
     z = np.exp(1j * omega_rad_s * h)
     response = np.linalg.solve(z * np.eye(n) - phi, g0 + (z - 1.0) * g1)
     return SteadyStart(factor, response)

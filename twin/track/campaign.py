@@ -28,7 +28,7 @@ import xarray as xr
 from twin.errors import TwinError
 from twin.fem.effects import scaled
 from twin.fem.model import RotorModel
-from twin.fem.operation import at_operating_point, operation_of
+from twin.fem.operation import at_operating_point, operation_of, with_change
 from twin.fem.truthfile import Truth
 from twin.netcdf import check_folder, write_netcdf
 from twin.tasks import mapper
@@ -46,24 +46,6 @@ SEED_LIMIT = 2**31 - 10_000
 def record_seed(seed: int, index: int) -> int:
     """The turbulence seed of record ``index`` of the campaign seeded ``seed`` (its noise seed follows)."""
     return int((int(seed) * 100_003 + index) % SEED_LIMIT)
-
-
-def with_change(model: RotorModel, effect) -> RotorModel:
-    """The model with ``effect``'s values added: to the parameters it already has, or as a new effect.
-
-    Examples
-    --------
-    >>> from twin import load_model, shipped_model
-    >>> from twin.fem.effects import BearingChange
-    >>> unit = load_model(shipped_model("hydro_unit")).with_effects(BearingChange("UGB", -1e7))
-    >>> with_change(unit, BearingChange("UGB", -2e7)).parameter("UGB.stiffness_change").nominal
-    -30000000.0
-    """
-    params = effect.parameters(model)
-    have = set(model.parameter_names)
-    if all(p.name in have for p in params):
-        return model.with_values({p.name: model.parameter(p.name).nominal + p.nominal for p in params})
-    return model.with_effects(effect)
 
 
 def record_model(model: RotorModel, point: dict[str, float], schedule: Schedule, day: float

@@ -1,0 +1,48 @@
+"""The control chart: standardisation, its limit, the statistic in control, the onset of a shift."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from twin.track import detect
+
+
+def test_the_factor_on_the_standard_errors_and_the_correlation_are_learned():
+    rng = np.random.default_rng(3)
+    se = rng.uniform(0.5, 2.0, size=(2000, 3))
+    mix = np.array([[1.0, 0.0, 0.0], [0.6, 0.8, 0.0], [0.0, 0.0, 1.0]])
+    r = (rng.normal(size=(2000, 3)) @ mix.T) * se * [1.0, 1.5, 0.7] + [0.0, 2.0, -1.0]
+    b = detect.learn_baseline(r, se)
+    assert np.allclose(b.scale, [1.0, 1.5, 0.7], rtol=0.05)
+    assert b.correlation[0, 1] == pytest.approx(0.6, abs=0.05) and abs(b.correlation[0, 2]) < 0.05
+    assert np.allclose(b.center, [0.0, 2.0, -1.0], atol=0.1)
+
+
+def test_the_limit_is_the_phase_two_limit_and_tends_to_the_chi_square_quantile():
+    alpha = 0.1 / (4 * 365.25)
+    assert detect.threshold(9, 10**7, 4 * 365.25) == pytest.approx(stats.chi2.isf(alpha, 9), rel=1e-3)
+    assert detect.threshold(9, 24, 4 * 365.25) > 3 * detect.threshold(9, 10**7, 4 * 365.25)
+    with pytest.raises(ValueError, match="needs more than 10 baseline records"):
+        detect.threshold(9, 10, 1460.0)
+
+
+def test_in_control_the_statistic_is_chi_square_and_a_shift_builds_up():
+    rng = np.random.default_rng(5)
+    p, lam = 4, 0.2
+    b = detect.Baseline(np.zeros(p), np.ones(p), np.eye(p), 10**6)
+    z = rng.normal(size=(20000, p))
+    t2 = detect.mewma(z, b, lam)[100:]  # past the start-up from zero
+    assert t2.mean() == pytest.approx(p, rel=0.05)
+    assert np.mean(t2 > stats.chi2.isf(0.01, p)) == pytest.approx(0.01, abs=0.004)
+    shifted = np.r_[rng.normal(size=(50, p)), rng.normal(size=(30, p)) + [2.0, 0.0, 0.0, 0.0]]
+    t2 = detect.mewma(shifted, b, lam)
+    assert t2[70:].mean() > 3 * t2[:50].mean()
+    assert 47 <= detect.onset(shifted, b) <= 53
+
+
+def test_pooled_residuals_weigh_each_record_by_its_standard_error():
+    b = detect.Baseline(np.zeros(2), np.ones(2), np.eye(2), 100)
+    r = np.array([[1.0, np.nan], [3.0, 2.0]])
+    se = np.array([[1.0, 1.0], [1.0, 2.0]])
+    mean, cov = detect.pooled(r, se, b)
+    assert mean == pytest.approx([2.0, 2.0]) and cov.diagonal() == pytest.approx([0.5, 4.0])

@@ -1,0 +1,208 @@
+"""What changed at an alarm, and how it goes on: the candidates' evidence and the changed parameter followed.
+
+At an alarm the residuals since the onset (what the operating conditions do not explain) are pooled and
+set against every change the model can name: the library's effects (:mod:`twin.fem.effects`) and the
+local changes outside it (:mod:`twin.fem.local`). Each candidate moves the tracked poles along its
+sensitivities at the reference point; with its plausible scale as a Gaussian prior, its evidence is that
+of a linear Gaussian model, ``r ~ N(0, C + J D J')``, against the evidence of no change, ``r ~ N(0, C)``,
+as the single-record loop's diagnosis weighs effects (the Occam factor in the prior). The best library
+effect is named when its evidence is the best of all; when a local change outside the library explains
+the residual better, the verdict says so and where.
+
+At the alarm the named change is updated on the records since the onset through the full model at each
+record's operating point (:func:`update`: Gauss-Newton to the posterior mode under the plausible-scale
+prior), then followed record by record: an extended Kalman filter whose state is the change, with a
+random walk of :data:`PROCESS_NOISE` times the plausible scale per day (the change may still be
+growing), and whose observations are the records' poles (:class:`Follower`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from twin.fem.effects import effect_label, library_effects
+from twin.fem.local import local_changes
+from twin.fem.model import RotorModel
+from twin.fem.operation import at_operating_point, with_change, with_parameters
+from twin.modes.sensitivity import pole_jacobian, solve_modes
+from twin.track.physics import Tracked, parts, tracked_indices
+
+#: Random walk of a followed change per square-root day, as a fraction of its plausible scale.
+PROCESS_NOISE = 0.02
+#: The evidence (natural log) a named change needs over no change at all.
+MIN_LOG_EVIDENCE = 3.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A change the tracker can name: its label, parameters, prior scales and pole-part sensitivities."""
+
+    label: str
+    library: bool
+    parameters: tuple[str, ...]
+    scale: np.ndarray
+    jacobian: np.ndarray  # (2m, k)
+    where: str = ""
+    effect: object = None
+
+    def with_values(self, values: np.ndarray):
+        """The candidate's effect at ``values`` (its parameters' order: the effect's number fields in order)."""
+        numbers = [f.name for f in dataclasses.fields(self.effect) if isinstance(getattr(self.effect, f.name), float)]
+        return dataclasses.replace(self.effect, **{k: float(v) for k, v in zip(numbers, values)})
+
+
+def candidates(model: RotorModel, tracked: Tracked) -> list[Candidate]:
+    """Every library effect (one value for the whole machine) and every local change, at the reference point."""
+    ref = at_operating_point(model, {})
+    effects = [e for e in library_effects(ref) if not e.per_mode]
+    changes = local_changes(ref)
+    out = []
+    for effect, library in [(e, True) for e in effects] + [(c, False) for c in changes]:
+        names = [p.name for p in effect.parameters(ref)]
+        m = with_parameters(ref, names) if library else ref.with_effects(effect)
+        sol = solve_modes(m)
+        jac = pole_jacobian(m, sol, names, modes=tracked_indices(m, sol, tracked))
+        scales = effect.plausible_scale(m)
+        where = "" if library else effect.where(ref)
+        out.append(Candidate(effect_label(effect), library, tuple(names), np.array([scales[n] for n in names]),
+                             parts(jac.T).T, where, effect))  # fmt: skip
+    return out
+
+
+def log_evidence(r: np.ndarray, cov: np.ndarray, jac: np.ndarray | None = None, scale: np.ndarray | None = None
+                 ) -> float:  # fmt: skip
+    """``log N(r; 0, C + J D J')`` with ``D = diag(scale^2)`` (no change when ``jac`` is None)."""
+    total = cov if jac is None else cov + (jac * scale**2) @ jac.T
+    _, logdet = np.linalg.slogdet(total)
+    return float(-0.5 * (r @ np.linalg.solve(total, r) + logdet + len(r) * np.log(2 * np.pi)))
+
+
+def fit(r: np.ndarray, cov: np.ndarray, cand: Candidate) -> tuple[np.ndarray, np.ndarray, float]:
+    """The candidate's values (posterior mean and covariance under its prior) and the fit's chi-square."""
+    J, D = cand.jacobian, cand.scale**2
+    ci = np.linalg.inv(cov)
+    post = np.linalg.inv(J.T @ ci @ J + np.diag(1.0 / D))
+    mean = post @ J.T @ ci @ r
+    e = r - J @ mean
+    return mean, post, float(e @ ci @ e)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What an alarm names: the best candidate, its values, the runner-up and the text a user reads."""
+
+    label: str
+    library: bool
+    parameters: tuple[str, ...]
+    mean: np.ndarray
+    covariance: np.ndarray
+    log_evidence: float
+    runner_up: str
+    runner_up_evidence: float
+    chi2: float
+    dof: int
+    text: str
+
+
+def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Candidate]) -> Verdict:
+    """The candidate that best explains the pooled residual ``r`` (``2m``, covariance ``cov``).
+
+    Only pole parts measured since the onset take part (NaN elsewhere).
+    """
+    ok = np.isfinite(r)
+    r, cov = r[ok], cov[np.ix_(ok, ok)]
+    null = log_evidence(r, cov)
+    scored = sorted(((log_evidence(r, cov, c.jacobian[ok], c.scale) - null, c) for c in cands),
+                    key=lambda t: -t[0])  # fmt: skip
+    (best_ev, best), (second_ev, second) = scored[0], scored[1]
+    sub = Candidate(best.label, best.library, best.parameters, best.scale, best.jacobian[ok], best.where)
+    mean, post, chi2 = fit(r, cov, sub)
+    return Verdict(best.label, best.library, best.parameters, mean, post, best_ev, second.label, second_ev, chi2,
+                   int(ok.sum()), _text(best, mean, post, best_ev, second.label, second_ev))  # fmt: skip
+
+
+def changed_poles(model: RotorModel, tracked: Tracked, point: dict[str, float], changes: list,
+                  derive: Candidate | None = None) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+    """The tracked poles at ``point`` with ``changes`` (candidate, values) on the model, and their derivatives
+    by ``derive``'s parameters (pole parts, ``(2m, k)``) when it is given."""
+    m = at_operating_point(model, point)
+    for cand, values in changes:
+        m = with_change(m, cand.with_values(values))
+    sol = solve_modes(m)
+    idx = tracked_indices(m, sol, tracked)
+    if derive is None:
+        return parts(sol.poles[idx]), None
+    return parts(sol.poles[idx]), parts(pole_jacobian(m, sol, list(derive.parameters), modes=idx).T).T
+
+
+#: Gauss-Newton steps of the update at an alarm.
+UPDATE_STEPS = 5
+
+
+def update(model: RotorModel, tracked: Tracked, cand: Candidate, observed: list[tuple[dict, np.ndarray, np.ndarray]],
+           others: list) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The candidate's values after the records since the onset: the posterior mode and covariance under its
+    prior (zero, its plausible scale), by Gauss-Newton on the full model at each record's operating point.
+
+    ``observed`` holds ``(point, y, cov)`` per record: the measured pole parts less the baseline's offsets
+    (NaN where not measured or not used) and their covariance; ``others`` the changes followed already.
+    """
+    k = len(cand.parameters)
+    mean = np.zeros(k)
+    prior = np.diag(1.0 / cand.scale**2)
+    for _ in range(UPDATE_STEPS):
+        A, b = prior.copy(), -prior @ mean
+        for point, y, cov in observed:
+            g, H = changed_poles(model, tracked, point, [*others, (cand, mean)], derive=cand)
+            ok = np.isfinite(y)
+            ci = np.linalg.inv(cov[np.ix_(ok, ok)])
+            A += H[ok].T @ ci @ H[ok]
+            b += H[ok].T @ ci @ (y[ok] - g[ok])
+        step = np.linalg.solve(A, b)
+        mean = mean + step
+        if np.all(np.abs(step) < 1e-3 * cand.scale):
+            break
+    return mean, np.linalg.inv(A)
+
+
+def named(verdict: Verdict, cand: Candidate, mean: np.ndarray, cov: np.ndarray) -> Verdict:
+    """The verdict with the change's values updated (:func:`update`) in place of the screening's linear ones."""
+    return dataclasses.replace(verdict, mean=mean, covariance=cov,
+                               text=_text(cand, mean, cov, verdict.log_evidence, verdict.runner_up,
+                                          verdict.runner_up_evidence))  # fmt: skip
+
+
+def _text(cand: Candidate, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float) -> str:
+    values = ", ".join(f"{n} = {m:.3g} ± {np.sqrt(v):.2g}" for n, m, v in zip(cand.parameters, mean, cov.diagonal()))
+    if evidence < MIN_LOG_EVIDENCE:
+        return f"no change the model can name stands out (best: {cand.label}, log evidence {evidence:.1f})"
+    if cand.library:
+        return f"{cand.label} changed: {values} (log evidence {evidence:.1f}; next {second}, {second_ev:.1f})"
+    return (f"a change outside the library: {cand.where} ({cand.label}: {values}; log evidence {evidence:.1f}; "
+            f"next {second}, {second_ev:.1f})")  # fmt: skip
+
+
+class Follower:
+    """An extended Kalman filter on a named change: its values after each record, with a random walk between."""
+
+    def __init__(self, model: RotorModel, tracked: Tracked, cand: Candidate, mean: np.ndarray, cov: np.ndarray,
+                 day: float) -> None:  # fmt: skip
+        self.model, self.tracked, self.cand = model, tracked, cand
+        self.mean, self.cov, self.day = np.array(mean, float), np.array(cov, float), day
+        self.walk = np.diag((PROCESS_NOISE * cand.scale) ** 2)
+
+    def update(self, point: dict[str, float], y: np.ndarray, cov: np.ndarray, day: float, others: list) -> None:
+        """One record: its measured pole parts less the offsets ``y`` (NaN where not used), covariance ``cov``."""
+        self.cov = self.cov + self.walk * max(day - self.day, 0.0)
+        self.day = day
+        ok = np.isfinite(y)
+        if not ok.any():
+            return
+        g, H = changed_poles(self.model, self.tracked, point, [*others, (self.cand, self.mean)], derive=self.cand)
+        S = H[ok] @ self.cov @ H[ok].T + cov[np.ix_(ok, ok)]
+        gain = self.cov @ H[ok].T @ np.linalg.inv(S)
+        self.mean = self.mean + gain @ (y[ok] - g[ok])
+        self.cov = (np.eye(len(self.mean)) - gain @ H[ok]) @ self.cov

@@ -1,0 +1,159 @@
+"""A folder of records as a tracker sees it: start times, operating data, and modes extracted once.
+
+Every ``*.nc`` in the folder is a record (a signals file, :mod:`twin.extract.signals`) that carries its
+start time (attr ``start_time``, ISO 8601) and its operating data (``operating_point`` over
+``condition``, with ``condition_units``; attrs named after the conditions are read too). Operating data
+in other units than the model's (kW against MW, degF against degC) are converted with pint. Each record's
+modes are extracted once into the tracker's cache folder (``<stem>.nc``), so a folder that grows is
+processed incrementally: only the records added since the last call are extracted.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import itertools
+import logging
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from twin.errors import NoModeError, SignalError, TwinError, TwinWarning
+from twin.fem.operation import Operation
+from twin.netcdf import check_folder, write_netcdf
+from twin.tasks import mapper
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RecordInfo:
+    """What the tracker knows of a record before its modes: file, start time (UTC), operating point."""
+
+    path: Path
+    start: dt.datetime
+    point: dict[str, float]
+
+
+def parse_time(text: str, where: str) -> dt.datetime:
+    """An ISO 8601 time with its zone, in UTC; a :class:`~twin.errors.SignalError` naming ``where`` otherwise.
+
+    Examples
+    --------
+    >>> parse_time("2027-01-01T06:00:00Z", "r.nc").isoformat()
+    '2027-01-01T06:00:00+00:00'
+    """
+    try:
+        value = dt.datetime.fromisoformat(str(text))
+    except ValueError:
+        raise SignalError(f"{where}: start_time {text!r} is not an ISO 8601 time (e.g. 2027-01-01T06:00:00Z)") from None
+    if value.tzinfo is None:
+        raise SignalError(f"{where}: start_time {text!r} has no time zone (records are compared in UTC: add Z or +01:00)")
+    return value.astimezone(dt.UTC)
+
+
+def record_info(path: Path, operation: Operation) -> RecordInfo:
+    """Start time and operating point of the record at ``path``, in the model's units, checked."""
+    import pint
+
+    from twin.units import conversion
+
+    try:
+        with xr.open_dataset(path) as ds:
+            attrs = dict(ds.attrs)
+            if "operating_point" in ds and "condition" in ds["operating_point"].dims:
+                names = [str(c) for c in ds["condition"].values]
+                units = ([str(u) for u in ds["condition_units"].values] if "condition_units" in ds.coords
+                         else [operation.units.get(n, "") for n in names])  # fmt: skip
+                given = {n: (float(v), u) for n, v, u in zip(names, ds["operating_point"].values, units)}
+            else:
+                given = {n: (attrs[n], operation.condition(n).units) for n in operation.names if n in attrs}
+    except (OSError, ValueError) as exc:
+        raise SignalError(f"{path}: cannot be read as a record ({exc})") from None
+    if "start_time" not in attrs:
+        raise SignalError(f"{path}: no start_time attr: a tracked record says when it started (ISO 8601, UTC)")
+    start = parse_time(attrs["start_time"], str(path))
+    point = {}
+    for name in operation.names:
+        if name not in given:
+            raise SignalError(f"{path}: no operating data for '{name}' (the model's conditions: "
+                              f"{', '.join(operation.names)}; give operating_point over condition)")  # fmt: skip
+        value, units = given[name]
+        want = operation.condition(name).units
+        try:
+            point[name] = float(value) if units in ("", want) else conversion(float(value), units, want)
+        except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError) as exc:
+            raise SignalError(f"{path}: operating data '{name}' in {units!r} cannot be read as {want} "
+                              f"({type(exc).__name__})") from None  # fmt: skip
+    try:
+        point = operation.check_point(point, str(path))
+    except TwinError as exc:
+        raise SignalError(str(exc)) from None
+    return RecordInfo(Path(path), start, point)
+
+
+def records_in(folder: str | Path, operation: Operation) -> list[RecordInfo]:
+    """The records of ``folder`` (``*.nc``), in order of their start times.
+
+    Raises :class:`~twin.errors.TwinError` for a missing or empty folder, and
+    :class:`~twin.errors.SignalError` naming the file for a record without a start time or operating data,
+    or two records that start at the same time.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise TwinError(f"{folder}: no such folder of records")
+    infos = sorted((record_info(p, operation) for p in sorted(folder.glob("*.nc"))), key=lambda r: r.start)
+    if not infos:
+        raise TwinError(f"{folder}: no record (*.nc) in it")
+    for a, b in itertools.pairwise(infos):
+        if a.start == b.start:
+            raise SignalError(f"{b.path}: starts at the same time as {a.path.name} ({a.start.isoformat()})")
+    return infos
+
+
+def _extract_one(path: str, *, cache: str, settings: dict[str, Any]) -> str:
+    from twin.extract import extract
+    from twin.modes.modesfile import write_modes
+
+    target = Path(cache) / (Path(path).stem + ".nc")
+    try:
+        with warnings.catch_warnings(record=True) as caught:  # one record's notes, logged: not one line per record
+            warnings.simplefilter("always", TwinWarning)
+            modes = extract(path, progress=False, **settings)
+        for w in caught:
+            log.info("%s", w.message)
+    except NoModeError as exc:  # a record without any mode is a fact to keep, not a reason to stop
+        write_netcdf(xr.Dataset(attrs={"no_mode": str(exc), "signals": str(path)}), target)
+        return str(target)
+    write_modes(modes, target)
+    return str(target)
+
+
+def extract_new(records: list[RecordInfo], cache: str | Path, *, settings: dict[str, Any] | None = None,
+                tasks: Any = None, progress: bool = True) -> list[Path]:  # fmt: skip
+    """Extract the modes of the records not yet in ``cache``; the cache files of all records, in order.
+
+    ``settings`` are :func:`twin.extract.extract`'s options (its defaults without). The records are
+    independent tasks (``tasks``, :func:`twin.tasks.mapper`). A record in which no mode stands out is kept
+    as such (a cache file with a ``no_mode`` attr) and not analysed again.
+    """
+    cache = check_folder(cache, make=True)
+    settings = dict(settings or {})
+    targets = [cache / (r.path.stem + ".nc") for r in records]
+    todo = [str(r.path) for r, t in zip(records, targets) if not t.exists()]
+    if todo:
+        log.info("extracting the modes of %d new records (of %d)", len(todo), len(records))
+        mapper(tasks, progress=progress, desc="extract")(_extract_one, todo, cache=str(cache), settings=settings)
+    return targets
+
+
+def read_cached(path: Path) -> xr.Dataset | None:
+    """A record's cached modes (None for a record without any mode)."""
+    from twin.modes.modesfile import read_modes
+
+    with xr.open_dataset(path) as ds:
+        if "no_mode" in ds.attrs:
+            return None
+    return read_modes(path)

@@ -1,0 +1,293 @@
+"""The tracker: a folder of records in, ``track.nc`` out, with the alarms and what changed.
+
+:func:`track` goes through the loop over time:
+
+1. each record's modes are extracted once (:mod:`twin.track.records`; Dask over records);
+2. each tracked mode of the model (:func:`twin.track.physics.tracked_modes`) is found in every record by
+   pole distance and MAC against the model's prediction at the record's operating point;
+3. over the baseline days the laws' slopes are learned through the model (:func:`twin.track.physics.fit_laws`);
+4. what the operating conditions do not explain goes to a control chart (:mod:`twin.track.detect`);
+5. at an alarm, the records since the onset name the change (:func:`twin.track.explain.diagnose`), which
+   is then followed record by record (:class:`twin.track.explain.Follower`) and taken out of the residual,
+   so a further change alarms again.
+
+Everything but the extraction is computed anew at each call from the cached modes, so records added to
+the folder later give the same alarms as one run over all of them.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from twin import __version__
+from twin.errors import TwinError
+from twin.fem.model import RotorModel
+from twin.fem.operation import operation_of
+from twin.modes.measured import measured_modes
+from twin.modes.pairing import pairing_cost
+from twin.netcdf import check_folder, write_netcdf
+from twin.progress import bar, stage
+from twin.track import detect, explain
+from twin.track.physics import fit_laws, parts, predict, tracked_modes, with_slopes
+from twin.track.records import extract_new, read_cached, records_in
+
+log = logging.getLogger(__name__)
+
+#: Baseline length [days] by default.
+BASELINE_DAYS = 14.0
+#: A measured mode is a tracked mode's when its pole is within this relative distance of the prediction.
+IDENTITY_TOLERANCE = 0.05
+#: ... and its shape's MAC with the model's is at least this.
+IDENTITY_MAC = 0.6
+#: A tracked mode found in fewer of the baseline's records than this fraction is not tracked.
+MIN_FOUND = 0.5
+
+
+def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Measured pole and its standard errors (real, imag) for each tracked mode, NaN where none matches."""
+    m = len(predicted)
+    pole = np.full(m, np.nan + 1j * np.nan)
+    sigma = np.full((m, 2), np.nan)
+    if meas is None:
+        return pole, sigma
+    cost, mac = pairing_cost(predicted, shapes, meas.pole, meas.shape)
+    dist = np.abs(meas.pole[None, :] - predicted[:, None]) / np.abs(predicted)[:, None]
+    cost = np.where((dist < IDENTITY_TOLERANCE) & (mac >= IDENTITY_MAC), cost, np.inf)
+    taken: set[int] = set()
+    for flat in np.argsort(cost, axis=None):
+        i, j = np.unravel_index(flat, cost.shape)
+        if not np.isfinite(cost[i, j]):
+            break
+        if np.isfinite(pole[i]) or j in taken:
+            continue
+        pole[i], sigma[i] = meas.pole[j], meas.sigma[j]
+        taken.add(int(j))
+    return pole, sigma
+
+
+def track(
+    model: RotorModel,
+    folder: str | Path,
+    out: str | Path,
+    *,
+    baseline_days: float = BASELINE_DAYS,
+    false_alarms_per_year: float = detect.FALSE_ALARMS_PER_YEAR,
+    extract_settings: dict[str, Any] | None = None,
+    tasks: Any = None,
+    progress: bool = True,
+) -> xr.Dataset:
+    """Track a unit over a folder of records; write ``out/track.nc`` and return it.
+
+    Parameters
+    ----------
+    model : RotorModel
+        A model with operating conditions and laws (:mod:`twin.fem.operation`).
+    folder : path
+        The records (``*.nc`` with ``start_time`` and ``operating_point``), e.g. from ``twin campaign``.
+    out : path
+        The tracker's folder: ``modes/`` (each record's modes, extracted once) and ``track.nc``.
+    baseline_days : float
+        Days from the first record over which the laws are learned and the chart's scale is set; no alarm
+        is raised in them.
+    false_alarms_per_year : float
+        The false-alarm rate the chart's limit is set for [per unit-year].
+    extract_settings : dict, optional
+        Options of :func:`twin.extract.extract`.
+    tasks : distributed.Client or mapper, optional
+        Where the extractions run.
+    progress : bool
+        Progress bars.
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``time`` (the records' starts) and ``mode`` (the tracked modes): ``frequency``,
+        ``damping_ratio``, ``predicted_frequency`` (at the record's operating point), ``residual``
+        (pole parts the conditions do not explain, over ``part``), ``statistic`` and ``limit`` of the
+        chart, ``operating_point``; the alarms (``alarm``: time, ``alarm_day``, ``alarm_onset_day``,
+        ``alarm_effect``, ``alarm_verdict``); the followed parameters (``parameter`` and its 5-95% interval).
+    """
+    op = operation_of(model)
+    records = records_in(folder, op)
+    out = check_folder(out, make=True)
+    with stage(f"extract the modes of {len(records)} records"):
+        cache = extract_new(records, out / "modes", settings=extract_settings, tasks=tasks, progress=progress)
+    measured = [read_cached(p) for p in cache]
+    first = next((m for m in measured if m is not None), None)
+    if first is None:
+        raise TwinError(f"{folder}: no mode stood out of any record")
+    meas0 = measured_modes(first)
+    fmax = meas0.band_hz[1] if meas0.band_hz else 100.0
+    tracked = tracked_modes(model, tuple(meas0.channels), fmax)
+    t0 = records[0].start
+    days = np.array([(r.start - t0).total_seconds() / 86400.0 for r in records])
+    base = days < baseline_days
+    if base.sum() < 3:
+        raise TwinError(f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: at least 3 are needed")
+
+    with stage("find the tracked modes in each record"):
+        poles, sigmas = [], []
+        for r, md in zip(bar(records, desc="identify", progress=progress, leave=False), measured):
+            predicted, _ = predict(model, tracked, r.point, with_jacobian=False)
+            meas = None if md is None else measured_modes(md)
+            if meas is not None and list(meas.channels) != list(tracked.channels):
+                raise TwinError(f"{r.path}: channels {meas.channels} differ from the first record's {tracked.channels}")
+            p, s = _identify(meas, predicted, tracked.shapes)
+            poles.append(p)
+            sigmas.append(s)
+    poles, sigmas = np.array(poles), np.array(sigmas)
+    found = np.isfinite(poles[base]).mean(axis=0)
+    keep = found >= MIN_FOUND
+    if not keep.any():
+        raise TwinError("no tracked mode was found in half of the baseline's records")
+    tracked = type(tracked)(tracked.poles[keep], tracked.shapes[keep], tracked.channels)
+    poles, sigmas = poles[:, keep], sigmas[:, keep]
+    y = parts(poles)
+    sig = np.concatenate([sigmas[..., 0], sigmas[..., 1]], axis=1)
+
+    with stage(f"learn the laws over {int(base.sum())} baseline records"):
+        laws = fit_laws(model, tracked, [r.point for r, b in zip(records, base) if b], y[base], sig[base])
+    learned = with_slopes(model, laws.slopes)
+    predicted = np.array([predict(learned, tracked, r.point, with_jacobian=False)[0] for r in records])
+    residual = y - parts(predicted) - laws.offsets
+
+    # the chart and the diagnosis watch the frequencies (the imaginary parts): the damping ratios scatter far more
+    # from record to record and drift with what no law describes
+    m = len(tracked.poles)
+    chart = detect.learn_baseline(residual[base], sig[base])
+    watch = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
+    records_per_year = 365.25 * len(records) / max(days[-1] - days[0], 1e-9) if len(records) > 1 else 365.25
+    limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
+    cands = explain.candidates(learned, tracked)
+    statistic, alarms, followers, current = _watch(learned, tracked, records, days, y, sig, residual, laws, chart,
+                                                   watch, limit, cands, int(base.sum()))  # fmt: skip
+    values: dict[str, np.ndarray] = {}
+    for f in followers:
+        for j, name in enumerate(f.cand.parameters):
+            values[name] = f.history[:, j, :]
+    table = _dataset(records, days, tracked, poles, predicted, current, statistic, limit, alarms, values, laws, op,
+                     baseline_days)  # fmt: skip
+    table["pole_se"] = (("time", "mode", "part"), np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
+                        {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"})
+    write_netcdf(table, out / "track.nc")
+    return table
+
+
+def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start):
+    """The chart over the records after the baseline; at each alarm the change named, updated and followed.
+
+    Returns the chart's statistic, the alarms ``(record, onset record, verdict)``, the followers (each with
+    its ``history``: value, 5% and 95% quantile per record) and each record's residual against the model
+    with the changes followed so far.
+    """
+    n, m = len(records), len(tracked.poles)
+    inv = np.linalg.inv(detect.LAMBDA / (2.0 - detect.LAMBDA) * watch.correlation)
+    statistic = np.full(n, np.nan)
+    current = residual.copy()
+    followers: list[explain.Follower] = []
+    alarms = []
+    w = np.zeros(m)
+    for t in range(start, n):
+        point, cov = records[t].point, detect.record_covariance(sig[t], chart)
+        obs = y[t] - laws.offsets - chart.center
+        obs[:m] = np.nan  # the frequencies only (the damping drifts with what no law describes)
+        for f in followers:
+            f.update(point, obs, cov, days[t], [(g.cand, g.mean) for g in followers if g is not f])
+        if followers:
+            g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
+            current[t] = y[t] - laws.offsets - g
+        z = detect.standardised(current[t, m:], sig[t, m:], watch)
+        w = detect.LAMBDA * z + (1.0 - detect.LAMBDA) * w
+        statistic[t] = w @ inv @ w
+        if statistic[t] > limit:
+            k = start + detect.onset(detect.standardised(current[start:t + 1, m:], sig[start:t + 1, m:], watch), watch)
+            mean, pooled_cov = detect.pooled(current[k:t + 1], sig[k:t + 1], chart)
+            mean[:m] = np.nan
+            verdict = explain.diagnose(mean, pooled_cov, cands)
+            if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
+                cand = next(c for c in cands if c.label == verdict.label)
+                others = [(f.cand, f.mean) for f in followers]
+                observed = []
+                for i in range(k, t + 1):
+                    o = y[i] - laws.offsets - chart.center
+                    o[:m] = np.nan
+                    observed.append((records[i].point, o, detect.record_covariance(sig[i], chart)))
+                value, value_cov = explain.update(learned, tracked, cand, observed, others)
+                verdict = explain.named(verdict, cand, value, value_cov)
+                f = explain.Follower(learned, tracked, cand, value, value_cov, days[t])
+                f.history = np.full((n, len(value), 3), np.nan)
+                followers.append(f)
+            alarms.append((t, k, verdict))
+            log.info("alarm at %s (onset %s): %s", records[t].start.isoformat(), records[k].start.isoformat(),
+                     verdict.text)  # fmt: skip
+            w = np.zeros_like(w)
+            start = t + 1
+        for f in followers:
+            half = 1.645 * np.sqrt(f.cov.diagonal())  # the 5-95% interval
+            f.history[t] = np.stack([f.mean, f.mean - half, f.mean + half], axis=1)
+    return statistic, alarms, followers, current
+
+
+def _dataset(records, days, tracked, poles, predicted, residual, statistic, limit, alarms, values, laws, op,
+             baseline_days) -> xr.Dataset:  # fmt: skip
+    m = len(tracked.poles)
+    times = np.array([r.start.replace(tzinfo=None) for r in records], dtype="datetime64[ns]")
+    freq = poles.imag / (2 * np.pi)
+    zeta = -poles.real / np.abs(poles)
+    ds = xr.Dataset(
+        {
+            "frequency": (("time", "mode"), freq, {"units": "Hz", "long_name": "measured damped frequency"}),
+            "damping_ratio": (("time", "mode"), zeta, {"units": "1", "long_name": "measured damping ratio"}),
+            "predicted_frequency": (("time", "mode"), predicted.imag / (2 * np.pi),
+                                    {"units": "Hz", "long_name": "the model's at the record's operating point"}),
+            "residual": (("time", "mode", "part"), np.stack([residual[:, :m], residual[:, m:]], axis=2),
+                         {"units": "1/s", "long_name": "pole parts the operating conditions do not explain"}),
+            "statistic": ("time", statistic, {"units": "1", "long_name": "control chart statistic (MEWMA T2)"}),
+            "limit": ((), limit, {"units": "1", "long_name": "control limit"}),
+            "operating_point": (("time", "condition"), np.array([[r.point[k] for k in op.names] for r in records])),
+            "day": ("time", days, {"units": "d", "long_name": "days after the first record"}),
+            "record": ("time", [r.path.name for r in records]),
+            "slope": ("slope_key", laws.slopes, {"long_name": "learned slopes of the laws (SI per condition unit)"}),
+            "slope_std": ("slope_key", np.sqrt(laws.covariance.diagonal())),
+            "slope_declared": ("slope_key", laws.declared),
+            "alarm_time": ("alarm", np.array([times[t] for t, _, _ in alarms], dtype="datetime64[ns]")),
+            "alarm_day": ("alarm", [float(days[t]) for t, _, _ in alarms], {"units": "d"}),
+            "alarm_onset_day": ("alarm", [float(days[k]) for _, k, _ in alarms], {"units": "d"}),
+            "alarm_effect": ("alarm", [v.label for _, _, v in alarms]),
+            "alarm_named": ("alarm", [bool(v.log_evidence >= explain.MIN_LOG_EVIDENCE) for _, _, v in alarms]),
+            "alarm_verdict": ("alarm", [v.text for _, _, v in alarms]),
+        },
+        coords={
+            "time": times, "mode": np.arange(1, m + 1), "part": ["real", "imag"],
+            "model_frequency": ("mode", tracked.frequency_hz, {"units": "Hz"}),
+            "condition": list(op.names), "condition_units": ("condition", [op.condition(k).units for k in op.names]),
+            "slope_key": [f"{p}/{c}" for p, c in laws.keys],
+        },
+        attrs={"title": "tracking of a unit over its records", "producer": f"twin {__version__} twin.track",
+               "baseline_days": float(baseline_days), "first_record": records[0].start.isoformat()},
+    )  # fmt: skip
+    if values:
+        names = sorted(values)
+        arr = np.stack([values[n] for n in names], axis=1)
+        ds["parameter"] = (("time", "tracked_parameter"), arr[..., 0], {"long_name": "followed change (SI)"})
+        ds["parameter_low"] = (("time", "tracked_parameter"), arr[..., 1], {"long_name": "5% quantile"})
+        ds["parameter_high"] = (("time", "tracked_parameter"), arr[..., 2], {"long_name": "95% quantile"})
+        ds = ds.assign_coords(tracked_parameter=names)
+    return ds
+
+
+def alarms_json(table: xr.Dataset) -> dict:
+    """The ``--json`` summary: ``{"records": N, "alarms": [{"time", "day", "effects", "verdict"}]}``."""
+    out = []
+    for i in range(table.sizes.get("alarm", 0)):
+        time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
+        effects = [str(table.alarm_effect.values[i])] if bool(table.alarm_named.values[i]) else []
+        out.append({"time": time, "day": round(float(table.alarm_day.values[i]), 4),
+                    "onset_day": round(float(table.alarm_onset_day.values[i]), 4), "effects": effects,
+                    "verdict": str(table.alarm_verdict.values[i])})  # fmt: skip
+    return {"records": int(table.sizes["time"]), "alarms": out}
