@@ -6,7 +6,14 @@ import pytest
 from twin.fem.operation import at_operating_point
 from twin.modes.analysis import modal
 from twin.track import explain
-from twin.track.physics import declared_slopes, fit_laws, parts, predict, tracked_modes, with_slopes
+from twin.track.physics import (
+    declared_slopes,
+    fit_laws,
+    parts,
+    predict,
+    tracked_modes,
+    with_slopes,
+)
 
 
 @pytest.fixture(scope="module")

@@ -31,7 +31,7 @@ def add_commands(sub, command, add_scheduler) -> None:
                 "the model's modes in each, learns over the baseline days how the operating conditions move them\n"
                 "through the model's laws, watches what the conditions do not explain on a control chart, and at\n"
                 "an alarm names the change (a library effect, or where outside it) and follows it. Writes\n"
-                "OUT/track.nc and OUT/modes/.",
+                "OUT/track.nc, OUT/report.html and OUT/modes/.",
                 ["twin track hydro_unit records -o tracking --baseline-days 14",
                  "twin track hydro_unit records -o tracking --json"],
                 _track)  # fmt: skip
@@ -63,7 +63,7 @@ def _track(args: argparse.Namespace) -> int:
     print(f"{summary['records']} records tracked; {len(summary['alarms'])} alarm(s)")
     for a in summary["alarms"]:
         print(f"  {a['time']} (day {a['day']:g}, onset day {a['onset_day']:g}): {a['verdict']}")
-    print(f"wrote {Path(args.out) / 'track.nc'}")
+    print(f"wrote {Path(args.out) / 'track.nc'} and {Path(args.out) / 'report.html'}")
     return 0
 
 

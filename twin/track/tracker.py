@@ -35,6 +35,7 @@ from twin.progress import bar, stage
 from twin.track import detect, explain
 from twin.track.physics import fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
+from twin.track.report import write_report
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +45,9 @@ BASELINE_DAYS = 14.0
 IDENTITY_TOLERANCE = 0.05
 #: ... and its shape's MAC with the model's is at least this.
 IDENTITY_MAC = 0.6
+#: The diagnosis and the followed changes use the measured damping (the poles' real parts) beside the
+#: frequencies; the chart watches the frequencies alone. See the decision log's "tracking-damping" page.
+DIAGNOSE_WITH_DAMPING = True
 #: A tracked mode found in fewer of the baseline's records than this fraction is not tracked.
 MIN_FOUND = 0.5
 
@@ -80,8 +84,9 @@ def track(
     extract_settings: dict[str, Any] | None = None,
     tasks: Any = None,
     progress: bool = True,
+    report: bool = True,
 ) -> xr.Dataset:
-    """Track a unit over a folder of records; write ``out/track.nc`` and return it.
+    """Track a unit over a folder of records; write ``out/track.nc`` and ``out/report.html``; return the first.
 
     Parameters
     ----------
@@ -102,6 +107,8 @@ def track(
         Where the extractions run.
     progress : bool
         Progress bars.
+    report : bool
+        Write ``out/report.html`` too (:func:`twin.track.report.write_report`).
 
     Returns
     -------
@@ -156,8 +163,8 @@ def track(
     predicted = np.array([predict(learned, tracked, r.point, with_jacobian=False)[0] for r in records])
     residual = y - parts(predicted) - laws.offsets
 
-    # the chart and the diagnosis watch the frequencies (the imaginary parts): the damping ratios scatter far more
-    # from record to record and drift with what no law describes
+    # the chart watches the frequencies (the imaginary parts): the damping ratios scatter far more from record
+    # to record and drift with what no law describes, which a false-alarm rate cannot hold
     m = len(tracked.poles)
     chart = detect.learn_baseline(residual[base], sig[base])
     watch = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
@@ -172,10 +179,23 @@ def track(
             values[name] = f.history[:, j, :]
     table = _dataset(records, days, tracked, poles, predicted, current, statistic, limit, alarms, values, laws, op,
                      baseline_days)  # fmt: skip
+    table.attrs.update({"records": str(Path(folder).resolve()), "false_alarms_per_year": float(false_alarms_per_year)})
     table["pole_se"] = (("time", "mode", "part"), np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
                         {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"})
     write_netcdf(table, out / "track.nc")
+    if report:
+        with stage("write the report"):
+            write_report(table, out, model=model)
     return table
+
+
+def _observation(y: np.ndarray, offsets: np.ndarray, center: np.ndarray, m: int) -> np.ndarray:
+    """A record's pole parts less the laws' offsets and the baseline's centre, as the diagnosis and the
+    followers see them (the real parts NaN unless :data:`DIAGNOSE_WITH_DAMPING`)."""
+    obs = y - offsets - center
+    if not DIAGNOSE_WITH_DAMPING:
+        obs[:m] = np.nan
+    return obs
 
 
 def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start):
@@ -194,8 +214,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     w = np.zeros(m)
     for t in range(start, n):
         point, cov = records[t].point, detect.record_covariance(sig[t], chart)
-        obs = y[t] - laws.offsets - chart.center
-        obs[:m] = np.nan  # the frequencies only (the damping drifts with what no law describes)
+        obs = _observation(y[t], laws.offsets, chart.center, m)
         for f in followers:
             f.update(point, obs, cov, days[t], [(g.cand, g.mean) for g in followers if g is not f])
         if followers:
@@ -207,15 +226,15 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
         if statistic[t] > limit:
             k = start + detect.onset(detect.standardised(current[start:t + 1, m:], sig[start:t + 1, m:], watch), watch)
             mean, pooled_cov = detect.pooled(current[k:t + 1], sig[k:t + 1], chart)
-            mean[:m] = np.nan
+            if not DIAGNOSE_WITH_DAMPING:
+                mean[:m] = np.nan
             verdict = explain.diagnose(mean, pooled_cov, cands)
             if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
                 cand = next(c for c in cands if c.label == verdict.label)
                 others = [(f.cand, f.mean) for f in followers]
                 observed = []
                 for i in range(k, t + 1):
-                    o = y[i] - laws.offsets - chart.center
-                    o[:m] = np.nan
+                    o = _observation(y[i], laws.offsets, chart.center, m)
                     observed.append((records[i].point, o, detect.record_covariance(sig[i], chart)))
                 value, value_cov = explain.update(learned, tracked, cand, observed, others)
                 verdict = explain.named(verdict, cand, value, value_cov)

@@ -1,0 +1,251 @@
+"""Benchmark: the tracker over campaigns with hidden changes, without change, and at scale.
+
+Three parts, each a set of ``twin campaign`` runs tracked by ``twin track`` (the Python functions), on
+seeds no test uses (from 5000):
+
+``detection``
+    For each library effect at its reference size (:data:`twin.loop.scenarios.REFERENCE_EFFECTS`, the
+    per-mode FSI left out) and a local change (element 18's bending stiffness), at three sizes, as a step
+    and as a ramp: a campaign of ``--baseline-days`` of baseline, one day more, then the change, tracked
+    for ``--after-days``. Per case: the delay of the first alarm after the onset [days], the effect named,
+    and the followed parameters against the truth at the last record. Per effect: the smallest size
+    detected within 7 days, beside the size the identifiability stage predicts before any data
+    (:func:`twin.design.identify.identifiability` for one record of the campaign's length at the
+    reference point, pooled over the records of 7 days, at three standard deviations).
+``false-alarms``
+    ``--runs`` campaigns of ``--days`` without change: the alarms, as a rate per unit-year.
+``throughput``
+    One campaign tracked on a Dask ``LocalCluster`` of 1 and of 2 workers: records per minute, the ratio;
+    the track's memory (peak RSS) and its size on disk, scaled to a year.
+
+Run from the repository root (the whole benchmark takes hours on 2 cores):
+
+    python benchmarks/tracking.py detection --out benchmarks/results/tracking_detection.md
+    python benchmarks/tracking.py false-alarms --days 180 --runs 2 --out benchmarks/results/tracking_false_alarms.md
+    python benchmarks/tracking.py throughput --days 30 --out benchmarks/results/tracking_throughput.md
+
+Options: ``--records-per-day`` (4), ``--duration`` [s] (600), ``--baseline-days`` (14), ``--after-days`` (7),
+``--effects`` (a subset of labels), ``--sizes`` (factors of the reference size), ``--workers`` (2),
+``--keep DIR`` (keep the records and tracks there instead of a temporary folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from twin.fem import load_model
+from twin.fem.effects import effect_label, scaled
+from twin.fem.local import ShaftStiffnessChange
+from twin.fem.operation import at_operating_point, with_parameters
+from twin.loop.scenarios import REFERENCE_EFFECTS
+from twin.tasks import dask_client
+from twin.track import campaign, read_schedule, track
+from twin.track.report import record_truth
+
+SEED = 5000
+SIZES = (0.25, 0.5, 1.0)
+LOCAL = "shaft_stiffness:18"
+
+
+def reference_effects() -> dict[str, object]:
+    """The effects a detection case hides at size 1: the library's (not the per-mode FSI) and a local one."""
+    out = {k: v for k, v in REFERENCE_EFFECTS.items() if not getattr(v, "per_mode", False)}
+    out[LOCAL] = ShaftStiffnessChange(18, -0.5)
+    return out
+
+
+def truth_table(effect) -> str:
+    """The ``[change.truth."<label>"]`` table of an effect (its number fields)."""
+    import dataclasses
+
+    label = effect_label(effect)
+    lines = [f'[change.truth."{label}"]']
+    for f in dataclasses.fields(effect):
+        value = getattr(effect, f.name)
+        if isinstance(value, float):
+            lines.append(f"{f.name} = {value!r}")
+    return "\n".join(lines) + "\n"
+
+
+def schedule_text(days: float, per_day: int, duration: float, change: tuple[object, float, float] | None) -> str:
+    text = f"days = {days:g}\nrecords_per_day = {per_day}\nduration = {duration:g}\n"
+    if change is not None:
+        effect, start, ramp = change
+        text += f"[[change]]\nstart_day = {start:g}\nramp_days = {ramp:g}\n" + truth_table(effect)
+    return text
+
+
+def run_case(model, folder: Path, text: str, seed: int, baseline: float, client, rate: float):
+    """One campaign and its tracking: the track's dataset and the seconds of each."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "schedule.toml").write_text(text)
+    t0 = time.perf_counter()
+    campaign(model, read_schedule(folder / "schedule.toml", model), folder / "records", seed=seed, tasks=client,
+             progress=False)  # fmt: skip
+    t1 = time.perf_counter()
+    table = track(model, folder / "records", folder / "out", baseline_days=baseline, false_alarms_per_year=rate,
+                  tasks=client, progress=False)  # fmt: skip
+    return table, t1 - t0, time.perf_counter() - t1
+
+
+def predicted_size(model, effect, duration: float, n_records: int) -> float:
+    """The size factor (of ``effect``) three standard deviations of ``n_records`` records' Fisher information."""
+    from twin.design.identify import identifiability
+    from twin.design.spectrum import Excitation
+
+    ref = at_operating_point(model, {})
+    params = {p.name: p.nominal for p in effect.parameters(ref)}
+    names = list(params)
+    library = effect_label(effect) in REFERENCE_EFFECTS
+    base = with_parameters(ref, names) if library else ref.with_effects(effect)
+    ident = identifiability(base, names, excitation=Excitation(duration_s=duration))
+    std = ident["std"].values
+    cov = ident.correlation.values * np.outer(std, std)
+    v = np.array([params[n] for n in names])
+    var = 1.0 / float(v @ np.linalg.pinv(cov) @ v)
+    return 3.0 * np.sqrt(var / n_records)
+
+
+def detection(args, model, root: Path, client) -> list[str]:
+    effects = reference_effects()
+    chosen = args.effects or list(effects)
+    start = args.baseline_days + 1.0
+    days = start + args.after_days
+    rows = ["| effect | size | onset | delay [d] | named | followed at the end (truth) |",
+            "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    smallest: dict[str, float] = {}
+    seed = SEED
+    for label in chosen:
+        ref = effects[label]
+        for size in args.sizes:
+            for shape, ramp in (("step", 0.0), ("ramp", args.ramp_days)):
+                seed += 1
+                effect = ShaftStiffnessChange(18, -0.5 * size) if label == LOCAL else scaled(ref, size)
+                text = schedule_text(days, args.records_per_day, args.duration, (effect, start, ramp))
+                case = root / f"{label.replace(':', '_')}_{size:g}_{shape}"
+                table, _, _ = run_case(model, case, text, seed, args.baseline_days, client, args.false_alarms)
+                after = table.alarm_day.values[table.alarm_day.values >= start] if table.sizes.get("alarm") else []
+                delay = float(after[0] - start) if len(after) else float("nan")
+                first = int(np.argmax(table.alarm_day.values >= start)) if len(after) else None
+                named = str(table.alarm_effect.values[first]) if first is not None else "-"
+                ok = named == label
+                follow = "-"
+                if "tracked_parameter" in table.dims:
+                    names = [str(n) for n in table.tracked_parameter.values]
+                    truth = record_truth(case / "records", names, model) or {}
+                    follow = "; ".join(
+                        f"{n} {float(table.parameter.sel(tracked_parameter=n).values[-1]):.3g} "
+                        f"[{float(table.parameter_low.sel(tracked_parameter=n).values[-1]):.3g}, "
+                        f"{float(table.parameter_high.sel(tracked_parameter=n).values[-1]):.3g}] "
+                        f"({float(truth.get(n, np.zeros(1))[-1]):.3g})" for n in names)  # fmt: skip
+                rows.append(f"| {label} | {size:g} | {shape} | {delay:.2f} | {named}{'' if ok else ' (wrong)'} | "
+                            f"{follow} |")  # fmt: skip
+                if ok and delay <= 7.0 and shape == "step":
+                    smallest[label] = min(smallest.get(label, np.inf), size)
+                print(rows[-1], flush=True)
+                if not args.keep:
+                    shutil.rmtree(case, ignore_errors=True)
+    n7 = int(7 * args.records_per_day)
+    rows += ["", "| effect | smallest step detected and named within 7 days | predicted before any data |",
+             "| --- | --- | --- |"]  # fmt: skip
+    for label in chosen:
+        pred = predicted_size(model, effects[label], args.duration, n7)
+        rows.append(f"| {label} | {smallest.get(label, float('nan')):g} | {pred:.2g} |")
+    return rows
+
+
+def false_alarms(args, model, root: Path, client) -> list[str]:
+    rows = ["| campaign | days | records | alarms | limit | largest statistic |", "| --- | --- | --- | --- | --- | --- |"]
+    total_alarms, total_days = 0, 0.0
+    for i in range(args.runs):
+        case = root / f"none_{i}"
+        text = schedule_text(args.days, args.records_per_day, args.duration, None)
+        table, _, _ = run_case(model, case, text, SEED + 900 + i, args.baseline_days, client, args.false_alarms)
+        n_alarms = int(table.sizes.get("alarm", 0))
+        total_alarms += n_alarms
+        total_days += args.days - args.baseline_days
+        rows.append(f"| seed {SEED + 900 + i} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
+                    f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} |")  # fmt: skip
+        print(rows[-1], flush=True)
+        if not args.keep:
+            shutil.rmtree(case, ignore_errors=True)
+    rate = total_alarms / (total_days / 365.25)
+    rows += ["", (f"{total_alarms} alarms in {total_days:g} monitored days (after the baselines): "
+             f"{rate:.2g} per unit-year, for a limit set at {args.false_alarms:g} per unit-year")]  # fmt: skip
+    return rows
+
+
+def throughput(args, model, root: Path, _client) -> list[str]:
+    rows = ["| workers | records | campaign [s] | track [s] | records tracked per minute |", "| --- | --- | --- | --- | --- |"]
+    times = {}
+    for workers in (1, 2):
+        case = root / f"scale_{workers}"
+        text = schedule_text(args.days, args.records_per_day, args.duration, None)
+        with dask_client("local", n_workers=workers) as client:
+            table, t_campaign, t_track = run_case(model, case, text, SEED + 990, args.baseline_days, client,
+                                                  args.false_alarms)  # fmt: skip
+        n = table.sizes["time"]
+        times[workers] = t_track
+        rows.append(f"| {workers} | {n} | {t_campaign:.0f} | {t_track:.0f} | {60 * n / t_track:.1f} |")
+        print(rows[-1], flush=True)
+        if workers == 2:
+            track_bytes = sum(p.stat().st_size for p in (case / "out").rglob("*") if p.is_file())
+            per_year = track_bytes * 365.25 / args.days
+            year_minutes = 365.25 * args.records_per_day / (60 * n / t_track)
+        if not args.keep:
+            shutil.rmtree(case, ignore_errors=True)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    rows += ["", f"1 -> 2 workers: {times[1] / times[2]:.2f} x faster",
+             (f"a year of {args.records_per_day} records of {args.duration:g} s a day: about {year_minutes:.0f} min to "
+             f"track on 2 workers; the track (modes and track.nc) about {per_year / 1e6:.0f} MB on disk; "
+             f"peak memory of this process {peak:.0f} MB")]  # fmt: skip
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("part", choices=["detection", "false-alarms", "throughput"])
+    parser.add_argument("--records-per-day", type=int, default=4)
+    parser.add_argument("--duration", type=float, default=600.0, help="record length [s]")
+    parser.add_argument("--baseline-days", type=float, default=14.0)
+    parser.add_argument("--after-days", type=float, default=7.0)
+    parser.add_argument("--ramp-days", type=float, default=3.0)
+    parser.add_argument("--days", type=float, default=90.0, help="false-alarms and throughput campaigns [days]")
+    parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--effects", nargs="*")
+    parser.add_argument("--sizes", type=float, nargs="*", default=list(SIZES))
+    parser.add_argument("--false-alarms", type=float, default=0.1, help="the chart's rate [per unit-year]")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--keep", type=Path)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args()
+    model = load_model("hydro_unit")
+    root = args.keep or Path(tempfile.mkdtemp(prefix="twin-tracking-"))
+    command = "python benchmarks/tracking.py " + " ".join(__import__("sys").argv[1:])
+    try:
+        if args.part == "throughput":
+            rows = throughput(args, model, root, None)
+        else:
+            with dask_client("local", n_workers=args.workers) as client:
+                rows = (detection if args.part == "detection" else false_alarms)(args, model, root, client)
+    finally:
+        if not args.keep:
+            shutil.rmtree(root, ignore_errors=True)
+    text = "\n".join([f"# Tracking: {args.part}", "", f"Command: `{command}`", "",
+                      (f"Records: {args.records_per_day} a day of {args.duration:g} s; baseline "
+                      f"{args.baseline_days:g} days; chart set for {args.false_alarms:g} false alarms per unit-year."),
+                      "", *rows, ""])  # fmt: skip
+    print(text)
+    if args.out:
+        args.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()

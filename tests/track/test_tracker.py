@@ -1,0 +1,119 @@
+"""The tracker on small campaigns: a step detected and named, no alarm without a change, incremental runs.
+
+Nine days of eight 4-minute records (the operating point moving as at a peaking plant), six days of
+baseline. A record's modes take about a second to extract, so each tracking here takes a minute on two
+workers: the module is marked slow.
+"""
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from twin import TwinError
+from twin.cli import main
+from twin.track import alarms_json, campaign, read_schedule, track
+
+pytestmark = pytest.mark.slow
+
+CAMPAIGN = """days = 9
+records_per_day = 8
+duration = 240.0
+"""
+#: A step of the upper guide bearing at 1.5 times the library's reference change, on day 7.
+STEP = CAMPAIGN + """[[change]]
+start_day = 7.0
+[change.truth."bearing_change:UGB"]
+stiffness_change = -3.0e8
+damping_change = 3.0e7
+"""
+BASELINE_DAYS = 6.0
+
+
+@pytest.fixture(scope="module")
+def client():
+    from twin.tasks import dask_client
+
+    with dask_client("local", n_workers=2) as c:
+        yield c
+
+
+def _records(tmp, text, seed, model, client):
+    (tmp / "schedule.toml").write_text(text)
+    folder = tmp / "records"
+    campaign(model, read_schedule(tmp / "schedule.toml", model), folder, seed=seed, tasks=client, progress=False)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def step(tmp_path_factory, hydro_unit, client):
+    tmp = tmp_path_factory.mktemp("step")
+    folder = _records(tmp, STEP, 21, hydro_unit, client)
+    table = track(hydro_unit, folder, tmp / "out", baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    return folder, tmp / "out", table
+
+
+def test_a_step_is_detected_within_two_days_and_named(step):
+    _, out, table = step
+    summary = alarms_json(table)
+    assert summary["records"] == 72
+    assert len(summary["alarms"]) >= 1
+    first = summary["alarms"][0]
+    assert 7.0 <= first["day"] <= 9.0
+    assert first["effects"] == ["bearing_change:UGB"]
+    assert abs(first["onset_day"] - 7.0) <= 0.5
+    # the followed damping change: its 5-95% interval at the last record holds the truth (3e7 N s/m)
+    last = table.isel(time=-1).sel(tracked_parameter="UGB.damping_change")
+    assert float(last.parameter_low) < 3.0e7 < float(last.parameter_high)
+    # the outputs: the chart below its limit over the baseline's end and the day after, the report written
+    assert np.all(table.statistic.values[(table.day.values >= BASELINE_DAYS) & (table.day.values < 7.0)]
+                  < float(table.limit))  # fmt: skip
+    page = (out / "report.html").read_text()
+    assert "bearing_change:UGB" in page and page.count("data:image/png;base64,") == 4
+    saved = xr.load_dataset(out / "track.nc")
+    assert saved.sizes["time"] == 72 and saved.sizes["alarm"] == table.sizes["alarm"]
+
+
+def test_no_alarm_without_a_change_under_varying_conditions(tmp_path, hydro_unit, client):
+    folder = _records(tmp_path, CAMPAIGN, 22, hydro_unit, client)
+    table = track(hydro_unit, folder, tmp_path / "out", baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    power = table.operating_point.sel(condition="power").values
+    assert power.max() - power.min() > 50.0  # the load moved by more than 50 MW
+    assert table.sizes["alarm"] == 0
+    assert np.nanmax(table.statistic.values) < float(table.limit)
+
+
+def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_unit, client):
+    folder, _, whole = step
+    grows = tmp_path / "records"
+    grows.mkdir()
+    paths = sorted(folder.glob("*.nc"))
+    for p in paths[:58]:
+        (grows / p.name).symlink_to(p)
+    first = track(hydro_unit, grows, tmp_path / "out", baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    assert first.sizes["time"] == 58
+    for p in paths[58:]:
+        (grows / p.name).symlink_to(p)
+    again = track(hydro_unit, grows, tmp_path / "out", baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    assert alarms_json(again) == alarms_json(whole)
+    np.testing.assert_allclose(again.statistic.values, whole.statistic.values, rtol=1e-9, equal_nan=True)
+
+
+def test_the_track_command(step, capsys):
+    folder, out, table = step
+    args = ["track", "hydro_unit", str(folder), "-o", str(out), "--scheduler", "sync"]
+    assert main(args + ["--baseline-days", str(BASELINE_DAYS), "--json", "-q"]) == 0  # the modes are there: nothing is extracted again
+    summary = json.loads(capsys.readouterr().out)
+    assert summary == alarms_json(table)
+    assert set(summary["alarms"][0]) >= {"time", "day", "effects", "verdict"}
+    assert summary["alarms"][0]["time"].endswith("Z")
+    # a baseline too short for the chart: one line, status 2
+    assert main(args + ["--baseline-days", "0.1", "-q"]) == 2
+    assert "the baseline (0.1 days) holds 1 records" in capsys.readouterr().err
+
+
+def test_a_folder_without_records_is_refused(tmp_path, hydro_unit):
+    (tmp_path / "records").mkdir()
+    with pytest.raises(TwinError, match="records"):
+        track(hydro_unit, tmp_path / "records", tmp_path / "out", progress=False)

@@ -1,0 +1,221 @@
+"""``report.html`` of a tracking: trends, the chart with its limit and alarms, followed changes, verdicts.
+
+One self-contained page (figures embedded, :mod:`twin.loop.html`) beside ``track.nc``:
+
+* the measured frequency and damping ratio of each tracked mode over time, coloured by an operating
+  condition, with the model's prediction at each record's operating point;
+* what the conditions do not explain (the frequency residuals) and the chart's statistic against its limit,
+  the alarms marked and the estimated onsets shaded;
+* each followed parameter with its 5-95% interval and, for a simulated campaign, the truth the records
+  carry in their attrs (read here for display only: the tracker never reads it);
+* the verdict at each alarm.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from twin.loop.html import markdown_to_html
+from twin.netcdf import atomic_output
+
+log = logging.getLogger(__name__)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def record_truth(folder: str | Path, names: list[str], model) -> dict[str, np.ndarray] | None:
+    """The hidden changes' values of parameters ``names`` per record of a simulated campaign, or None.
+
+    Reads each record's ``truth`` attr (what ``twin campaign`` put there); a folder of measured records
+    has none, and the report then shows no truth.
+    """
+    from twin.fem.truthfile import truth_from_json
+
+    paths = sorted(Path(folder).glob("*.nc"))
+    out = {n: np.zeros(len(paths)) for n in names}
+    seen = False
+    for i, path in enumerate(paths):
+        try:
+            with xr.open_dataset(path) as ds:
+                text = ds.attrs.get("truth")
+        except (OSError, ValueError):
+            return None
+        if not text:
+            continue
+        seen = True
+        for effect in truth_from_json(text).effects:
+            params = getattr(effect, "parameters", None)
+            if params is None:
+                continue
+            for p in params(model):
+                if p.name in out:
+                    out[p.name][i] += p.nominal
+    return out if seen else None
+
+
+def _colour_condition(table: xr.Dataset, colour_by: str | None) -> str:
+    names = [str(c) for c in table.condition.values]
+    if colour_by is not None and colour_by not in names:
+        raise ValueError(f"colour_by {colour_by!r} is not one of the operating conditions {names}")
+    return colour_by or names[0]
+
+
+def _trends(table: xr.Dataset, colour_by: str, path: Path, quantity: str) -> None:
+    plt = _pyplot()
+    m = table.sizes["mode"]
+    cols = min(3, m)
+    rows = -(-m // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.5 * rows), sharex=True, squeeze=False)
+    day = table.day.values
+    c = table.operating_point.sel(condition=colour_by).values
+    units = str(table.condition_units.sel(condition=colour_by).values)
+    scatter = None
+    for i, ax in enumerate(axes.flat):
+        if i >= m:
+            ax.set_visible(False)
+            continue
+        if quantity == "frequency":
+            y = table.frequency.values[:, i]
+            ax.plot(day, table.predicted_frequency.values[:, i], color="0.6", lw=0.8, label="model at the point")
+            ax.set_ylabel("Hz")
+        else:
+            y = 100 * table.damping_ratio.values[:, i]
+            ax.set_ylabel("%")
+        scatter = ax.scatter(day, y, c=c, s=6, cmap="viridis")
+        ax.set_title(f"mode {i + 1} ({float(table.model_frequency.values[i]):.2f} Hz)", fontsize=9)
+        for d in np.atleast_1d(table.alarm_day.values):
+            ax.axvline(d, color="tab:red", lw=0.8)
+    for ax in axes[-1]:
+        ax.set_xlabel("days")
+    if scatter is not None:
+        fig.colorbar(scatter, ax=axes, shrink=0.6, label=f"{colour_by} [{units}]")
+    fig.suptitle(f"measured {'frequency' if quantity == 'frequency' else 'damping ratio'} by {colour_by}")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def _chart(table: xr.Dataset, path: Path) -> None:
+    plt = _pyplot()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    day = table.day.values
+    res = table.residual.sel(part="imag").values / (2 * np.pi) * 1e3
+    for i in range(table.sizes["mode"]):
+        top.plot(day, res[:, i], ".", ms=3, label=f"mode {i + 1}")
+    top.set_ylabel("frequency residual [mHz]")
+    top.legend(fontsize=7, ncol=5)
+    bottom.semilogy(day, np.maximum(table.statistic.values, 1e-3), ".-", ms=3, lw=0.6, label="statistic")
+    bottom.axhline(float(table.limit), color="tab:red", ls="--", label="limit")
+    bottom.axvspan(day[0], float(table.attrs.get("baseline_days", 0.0)), color="0.9", label="baseline")
+    for d, k in zip(np.atleast_1d(table.alarm_day.values), np.atleast_1d(table.alarm_onset_day.values)):
+        for ax in (top, bottom):
+            ax.axvspan(k, d, color="tab:red", alpha=0.12)
+            ax.axvline(d, color="tab:red", lw=0.8)
+    bottom.set_ylabel("chart statistic")
+    bottom.set_xlabel("days")
+    bottom.legend(fontsize=8)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def _parameters(table: xr.Dataset, truth: dict[str, np.ndarray] | None, path: Path) -> None:
+    plt = _pyplot()
+    names = [str(n) for n in table.tracked_parameter.values]
+    fig, axes = plt.subplots(len(names), 1, figsize=(10, 2.6 * len(names)), sharex=True, squeeze=False)
+    day = table.day.values
+    for ax, name in zip(axes[:, 0], names):
+        v = table.parameter.sel(tracked_parameter=name).values
+        lo = table.parameter_low.sel(tracked_parameter=name).values
+        hi = table.parameter_high.sel(tracked_parameter=name).values
+        ax.fill_between(day, lo, hi, color="tab:blue", alpha=0.25, lw=0, label="5-95%")
+        ax.plot(day, v, color="tab:blue", lw=1, label="followed")
+        if truth is not None and name in truth and len(truth[name]) == len(day):
+            ax.plot(day, truth[name], color="k", ls="--", lw=1, label="truth (simulated)")
+        ax.set_ylabel(name, fontsize=8)
+        ax.legend(fontsize=7)
+    axes[-1, 0].set_xlabel("days")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colour_by: str) -> str:
+    """The report's text (Markdown) for the figures ``frequency.png``, ``damping.png``, ``chart.png``,
+    ``parameters.png`` (the last only when a change is followed)."""
+    n = table.sizes["time"]
+    lines = [
+        "# Tracking report", "",
+        (f"{n} records from {table.attrs.get('first_record', '')} over {float(table.day.values[-1]):.2f} days; "
+        f"baseline {float(table.attrs.get('baseline_days', 0)):g} days; {table.sizes['mode']} tracked modes; "
+        f"control limit {float(table.limit):.1f} for {float(table.attrs.get('false_alarms_per_year', np.nan)):g} "
+        "false alarms per year."), "",
+        "## Alarms", "",
+    ]  # fmt: skip
+    if table.sizes.get("alarm", 0) == 0:
+        lines.append("No alarm: what the operating conditions do not explain stayed within the control limit.")
+    else:
+        lines += ["| time (UTC) | day | onset day | effect | verdict |", "| --- | --- | --- | --- | --- |"]
+        for i in range(table.sizes["alarm"]):
+            t = np.datetime_as_string(table.alarm_time.values[i], unit="s")
+            effect = str(table.alarm_effect.values[i]) if bool(table.alarm_named.values[i]) else "(not named)"
+            verdict = html.escape(str(table.alarm_verdict.values[i])).replace("|", "\\|")
+            lines.append(f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
+                         f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {verdict} |")  # fmt: skip
+    lines += ["", f"## Trends, coloured by {colour_by}", "", '<img src="frequency.png">', "",
+              '<img src="damping.png">', "", "## What the operating conditions do not explain", "",
+              ("Frequency residuals after the learned laws and the followed changes, and the chart's statistic "
+               "(MEWMA) against its limit; alarms in red, from the estimated onset."), "", '<img src="chart.png">']
+    if "tracked_parameter" in table.dims:
+        lines += ["", "## Followed changes", "",
+                  "Each named change, updated from the records since its onset and followed record by record "
+                  "(5-95% intervals)" + ("; the dashed line is the simulated campaign's truth." if truth else "."),
+                  "", '<img src="parameters.png">']  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def write_report(table: xr.Dataset, out: str | Path, *, model=None, records: str | Path | None = None,
+                 colour_by: str | None = None) -> Path:  # fmt: skip
+    """Write ``out/report.html`` of a tracking (``track.nc``'s dataset), atomically; returns its path.
+
+    Parameters
+    ----------
+    table : xarray.Dataset
+        What :func:`twin.track.tracker.track` returns.
+    out : path
+        The tracker's folder.
+    model : RotorModel, optional
+        The model, to read a simulated campaign's truth in its parameters' terms.
+    records : path, optional
+        The records' folder (default the dataset's ``records`` attr), for the truth.
+    colour_by : str, optional
+        The operating condition the trends are coloured by (default the model's first).
+    """
+    colour = _colour_condition(table, colour_by)
+    truth = None
+    folder = records if records is not None else table.attrs.get("records")
+    if model is not None and folder and "tracked_parameter" in table.dims:
+        truth = record_truth(folder, [str(n) for n in table.tracked_parameter.values], model)
+    target = Path(out) / "report.html"
+    with tempfile.TemporaryDirectory() as tmp:
+        figures = Path(tmp)
+        _trends(table, colour, figures / "frequency.png", "frequency")
+        _trends(table, colour, figures / "damping.png", "damping")
+        _chart(table, figures / "chart.png")
+        if "tracked_parameter" in table.dims:
+            _parameters(table, truth, figures / "parameters.png")
+        page = markdown_to_html(report_markdown(table, truth, colour), figures, "tracking report")
+    with atomic_output(target, ".html.part") as tmp_path:
+        tmp_path.write_text(page, encoding="utf-8")
+    log.info("wrote %s", target)
+    return target
