@@ -118,6 +118,30 @@ def record_covariance(se: np.ndarray, baseline: Baseline) -> np.ndarray:
     return np.outer(d, d) * baseline.correlation
 
 
+class MEWMA:
+    """The chart's recursion record by record: ``add`` smooths one standardised residual and returns ``T2``;
+    ``reset`` starts again from zero (after an alarm).
+
+    Examples
+    --------
+    >>> chart = MEWMA(Baseline(np.zeros(2), np.ones(2), np.eye(2), 100), lam=0.5)
+    >>> round(chart.add(np.zeros(2)), 2), round(chart.add(np.array([3.0, 0.0])), 2)
+    (0.0, 6.75)
+    """
+
+    def __init__(self, baseline: Baseline, lam: float = LAMBDA) -> None:
+        self.lam = lam
+        self.inverse = np.linalg.inv(lam / (2.0 - lam) * baseline.correlation)
+        self.w = np.zeros(len(baseline.correlation))
+
+    def add(self, z: np.ndarray) -> float:
+        self.w = self.lam * z + (1.0 - self.lam) * self.w
+        return float(self.w @ self.inverse @ self.w)
+
+    def reset(self) -> None:
+        self.w = np.zeros_like(self.w)
+
+
 def mewma(z: np.ndarray, baseline: Baseline, lam: float = LAMBDA) -> np.ndarray:
     """The chart's statistic ``T2`` for each record (``z`` standardised, ``(n, p)``), from zero.
 
@@ -127,13 +151,8 @@ def mewma(z: np.ndarray, baseline: Baseline, lam: float = LAMBDA) -> np.ndarray:
     >>> np.round(mewma(np.array([[0.0, 0.0], [3.0, 0.0]]), b, lam=0.5), 2)
     array([0.  , 6.75])
     """
-    inv = np.linalg.inv(lam / (2.0 - lam) * baseline.correlation)
-    w = np.zeros(z.shape[1])
-    out = np.empty(len(z))
-    for i, zi in enumerate(z):
-        w = lam * zi + (1.0 - lam) * w
-        out[i] = w @ inv @ w
-    return out
+    chart = MEWMA(baseline, lam)
+    return np.array([chart.add(zi) for zi in z])
 
 
 def onset(z: np.ndarray, baseline: Baseline) -> int:

@@ -206,12 +206,11 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     with the changes followed so far.
     """
     n, m = len(records), len(tracked.poles)
-    inv = np.linalg.inv(detect.LAMBDA / (2.0 - detect.LAMBDA) * watch.correlation)
     statistic = np.full(n, np.nan)
     current = residual.copy()
     followers: list[explain.Follower] = []
     alarms = []
-    w = np.zeros(m)
+    smooth = detect.MEWMA(watch)
     for t in range(start, n):
         point, cov = records[t].point, detect.record_covariance(sig[t], chart)
         obs = _observation(y[t], laws.offsets, chart.center, m)
@@ -221,8 +220,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
             current[t] = y[t] - laws.offsets - g
         z = detect.standardised(current[t, m:], sig[t, m:], watch)
-        w = detect.LAMBDA * z + (1.0 - detect.LAMBDA) * w
-        statistic[t] = w @ inv @ w
+        statistic[t] = smooth.add(z)
         if statistic[t] > limit:
             k = start + detect.onset(detect.standardised(current[start:t + 1, m:], sig[start:t + 1, m:], watch), watch)
             mean, pooled_cov = detect.pooled(current[k:t + 1], sig[k:t + 1], chart)
@@ -244,7 +242,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             alarms.append((t, k, verdict))
             log.info("alarm at %s (onset %s): %s", records[t].start.isoformat(), records[k].start.isoformat(),
                      verdict.text)  # fmt: skip
-            w = np.zeros_like(w)
+            smooth.reset()
             start = t + 1
         for f in followers:
             half = 1.645 * np.sqrt(f.cov.diagonal())  # the 5-95% interval
