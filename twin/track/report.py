@@ -36,15 +36,17 @@ def _pyplot():
     return plt
 
 
-def record_truth(folder: str | Path, names: list[str], model) -> dict[str, np.ndarray] | None:
+def record_truth(folder: str | Path, names: list[str], model, records: list[str] | None = None
+                 ) -> dict[str, np.ndarray] | None:  # fmt: skip
     """The hidden changes' values of parameters ``names`` per record of a simulated campaign, or None.
 
-    Reads each record's ``truth`` attr (what ``twin campaign`` put there); a folder of measured records
-    has none, and the report then shows no truth.
+    Reads each record's ``truth`` attr (what ``twin campaign`` put there), for the file names ``records`` in
+    their order (a track's ``record``, which is in time order; default every ``*.nc`` by name); a folder of
+    measured records has none, and the report then shows no truth.
     """
     from twin.fem.truthfile import truth_from_json
 
-    paths = sorted(Path(folder).glob("*.nc"))
+    paths = [Path(folder) / r for r in records] if records is not None else sorted(Path(folder).glob("*.nc"))
     out = {n: np.zeros(len(paths)) for n in names}
     seen = False
     for i, path in enumerate(paths):
@@ -205,7 +207,8 @@ def write_report(table: xr.Dataset, out: str | Path, *, model=None, records: str
     truth = None
     folder = records if records is not None else table.attrs.get("records")
     if model is not None and folder and "tracked_parameter" in table.dims:
-        truth = record_truth(folder, [str(n) for n in table.tracked_parameter.values], model)
+        truth = record_truth(folder, [str(n) for n in table.tracked_parameter.values], model,
+                             [str(r) for r in table.record.values])  # fmt: skip
     target = Path(out) / "report.html"
     with tempfile.TemporaryDirectory() as tmp:
         figures = Path(tmp)
