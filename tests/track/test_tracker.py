@@ -2,7 +2,7 @@
 
 Nine days of eight 4-minute records (the operating point moving as at a peaking plant), six days of
 baseline. A record's modes take about a second to extract, so each tracking here takes a minute on two
-workers: the module is marked slow.
+workers: those tests are marked slow.
 """
 
 import json
@@ -14,8 +14,7 @@ import xarray as xr
 from twin import TwinError
 from twin.cli import main
 from twin.track import alarms_json, campaign, read_schedule, track
-
-pytestmark = pytest.mark.slow
+from twin.track.tracker import IDENTITY_TOLERANCE, _identify
 
 CAMPAIGN = """days = 9
 records_per_day = 8
@@ -54,6 +53,7 @@ def step(tmp_path_factory, hydro_unit, client):
     return folder, tmp / "out", table
 
 
+@pytest.mark.slow
 def test_a_step_is_detected_within_two_days_and_named(step):
     _, out, table = step
     summary = alarms_json(table)
@@ -75,6 +75,7 @@ def test_a_step_is_detected_within_two_days_and_named(step):
     assert saved.sizes["time"] == 72 and saved.sizes["alarm"] == table.sizes["alarm"]
 
 
+@pytest.mark.slow
 def test_no_alarm_without_a_change_under_varying_conditions(tmp_path, hydro_unit, client):
     folder = _records(tmp_path, CAMPAIGN, 22, hydro_unit, client)
     table = track(hydro_unit, folder, tmp_path / "out", baseline_days=BASELINE_DAYS, tasks=client, progress=False)
@@ -84,6 +85,7 @@ def test_no_alarm_without_a_change_under_varying_conditions(tmp_path, hydro_unit
     assert np.nanmax(table.statistic.values) < float(table.limit)
 
 
+@pytest.mark.slow
 def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_unit, client):
     folder, _, whole = step
     grows = tmp_path / "records"
@@ -100,6 +102,7 @@ def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_un
     np.testing.assert_allclose(again.statistic.values, whole.statistic.values, rtol=1e-9, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_the_track_command(step, capsys):
     folder, out, table = step
     args = ["track", "hydro_unit", str(folder), "-o", str(out), "--scheduler", "sync"]
@@ -111,9 +114,39 @@ def test_the_track_command(step, capsys):
     # a baseline too short for the chart: one line, status 2
     assert main(args + ["--baseline-days", "0.1", "-q"]) == 2
     assert "the baseline (0.1 days) holds 1 records" in capsys.readouterr().err
+    # a baseline with fewer records than the chart has residuals, plus two: one line, status 2
+    assert main(args + ["--baseline-days", "1", "-q"]) == 2
+    assert "the baseline (1 days) holds 8 records: a chart of" in capsys.readouterr().err
 
 
 def test_a_folder_without_records_is_refused(tmp_path, hydro_unit):
     (tmp_path / "records").mkdir()
     with pytest.raises(TwinError, match="records"):
         track(hydro_unit, tmp_path / "records", tmp_path / "out", progress=False)
+
+
+class _Measured:
+    def __init__(self, pole, shape):
+        self.pole, self.shape = np.asarray(pole), np.asarray(shape)
+        self.sigma = np.ones((len(self.pole), 2))
+
+
+def test_a_mode_a_change_moves_far_is_still_found_by_its_shape():
+    """Three tracked modes; the first measured 20% from its prediction (half the way to the second is 74%)."""
+    predicted = np.array([-0.05 + 7.0j, -1.3 + 17.2j, -0.6 + 63.6j])
+    shapes = np.eye(3, 4) + 0.05
+    moved = predicted[0] * 1.2
+    found, _ = _identify(_Measured([moved, predicted[1], predicted[2]], shapes), predicted, shapes)
+    np.testing.assert_array_equal(found, [moved, predicted[1], predicted[2]])
+    # the same distance with a shape only like the first (MAC 0.77): not the first mode
+    unlike = shapes[0] + 0.6 * np.array([0.0, 0.0, 0.0, 1.0])
+    found, _ = _identify(_Measured([moved, predicted[1]], np.array([unlike, shapes[1]])), predicted, shapes)
+    assert np.isnan(found[0]) and found[1] == predicted[1]
+    # close to the prediction a looser shape will do
+    near = predicted[0] * (1 + 0.5 * IDENTITY_TOLERANCE)
+    found, _ = _identify(_Measured([near], np.array([unlike])), predicted, shapes)
+    assert found[0] == near
+    # no mode is taken beyond half the way to its neighbour, however alike the shape
+    far = predicted[1] * 1.5
+    found, _ = _identify(_Measured([far], shapes[1:2]), predicted, shapes)
+    assert np.all(np.isnan(found))

@@ -5,13 +5,18 @@ start time (attr ``start_time``, ISO 8601) and its operating data (``operating_p
 ``condition``, with ``condition_units``; attrs named after the conditions are read too). Operating data
 in other units than the model's (kW against MW, degF against degC) are converted with pint. Each record's
 modes are extracted once into the tracker's cache folder (``<stem>.nc``), so a folder that grows is
-processed incrementally: only the records added since the last call are extracted.
+processed incrementally: only the records added since the last call are extracted. A cache file keeps
+what it was made from (the record's size, modification time and SHA-256, and the extraction's options):
+a record replaced or edited since, or other options, make it stale and the record is extracted again,
+so a cache never answers for data it was not made from.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import itertools
+import json
 import logging
 import warnings
 from dataclasses import dataclass
@@ -113,11 +118,65 @@ def records_in(folder: str | Path, operation: Operation) -> list[RecordInfo]:
     return infos
 
 
+def digest(path: Path) -> str:
+    """SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def stamp(path: Path) -> str:
+    """A file's size and modification time: a change of either means the file may have changed."""
+    st = path.stat()
+    return f"{st.st_size}:{st.st_mtime_ns}"
+
+
+def settings_key(settings: dict[str, Any]) -> str:
+    """The extraction options as a cache file records them."""
+    return json.dumps(settings, sort_keys=True, default=repr)
+
+
+def is_fresh(target: Path, record: Path, settings: dict[str, Any]) -> bool:
+    """Whether the cache file ``target`` holds the modes of ``record`` as it is now, with these options.
+
+    Size and modification time decide cheaply; a record whose stamp differs (copied, touched) is still
+    fresh when its bytes are those the cache was made from (its SHA-256).
+    """
+    if not target.exists():
+        return False
+    try:
+        with xr.open_dataset(target) as ds:
+            made = {k: str(ds.attrs.get(k, "")) for k in ("record_stamp", "record_sha256", "extract_settings")}
+    except (OSError, ValueError):
+        return False  # a damaged cache file is made again
+    if made["extract_settings"] != settings_key(settings):
+        return False
+    return made["record_stamp"] == stamp(record) or made["record_sha256"] == digest(record)
+
+
+def provenance(record: Path, settings: dict[str, Any]) -> dict[str, str]:
+    """What a cache file of ``record``'s modes records of its source (:func:`is_fresh` reads it back)."""
+    return {"record_stamp": stamp(record), "record_sha256": digest(record), "extract_settings": settings_key(settings)}
+
+
+def adopt(target: str | Path, record: str | Path, settings: dict[str, Any] | None = None) -> None:
+    """Mark the cache file ``target`` as the modes of ``record``: for modes extracted from the same signals
+    elsewhere (records copied into another folder with other attrs). The caller vouches for the signals."""
+    with xr.open_dataset(target) as ds:
+        ds = ds.load()
+    ds.attrs.update(provenance(Path(record), dict(settings or {})))
+    write_netcdf(ds, target)
+
+
 def _extract_one(path: str, *, cache: str, settings: dict[str, Any]) -> str:
     from twin.extract import extract
     from twin.modes.modesfile import write_modes
 
-    target = Path(cache) / (Path(path).stem + ".nc")
+    source = Path(path)
+    target = Path(cache) / (source.stem + ".nc")
+    made = provenance(source, settings)
     try:
         with warnings.catch_warnings(record=True) as caught:  # one record's notes, logged: not one line per record
             warnings.simplefilter("always", TwinWarning)
@@ -125,8 +184,9 @@ def _extract_one(path: str, *, cache: str, settings: dict[str, Any]) -> str:
         for w in caught:
             log.info("%s", w.message)
     except NoModeError as exc:  # a record without any mode is a fact to keep, not a reason to stop
-        write_netcdf(xr.Dataset(attrs={"no_mode": str(exc), "signals": str(path)}), target)
+        write_netcdf(xr.Dataset(attrs={"no_mode": str(exc), "signals": str(path), **made}), target)
         return str(target)
+    modes.attrs.update(made)
     write_modes(modes, target)
     return str(target)
 
@@ -137,14 +197,15 @@ def extract_new(records: list[RecordInfo], cache: str | Path, *, settings: dict[
 
     ``settings`` are :func:`twin.extract.extract`'s options (its defaults without). The records are
     independent tasks (``tasks``, :func:`twin.tasks.mapper`). A record in which no mode stands out is kept
-    as such (a cache file with a ``no_mode`` attr) and not analysed again.
+    as such (a cache file with a ``no_mode`` attr) and not analysed again. A cache file that is not the
+    record's as it is now (:func:`is_fresh`) is made again.
     """
     cache = check_folder(cache, make=True)
     settings = dict(settings or {})
     targets = [cache / (r.path.stem + ".nc") for r in records]
-    todo = [str(r.path) for r, t in zip(records, targets) if not t.exists()]
+    todo = [str(r.path) for r, t in zip(records, targets) if not is_fresh(t, r.path, settings)]
     if todo:
-        log.info("extracting the modes of %d new records (of %d)", len(todo), len(records))
+        log.info("extracting the modes of %d new or changed records (of %d)", len(todo), len(records))
         mapper(tasks, progress=progress, desc="extract")(_extract_one, todo, cache=str(cache), settings=settings)
     return targets
 

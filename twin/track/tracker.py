@@ -45,6 +45,13 @@ BASELINE_DAYS = 14.0
 IDENTITY_TOLERANCE = 0.05
 #: ... and its shape's MAC with the model's is at least this.
 IDENTITY_MAC = 0.6
+#: A change may move a pole further than :data:`IDENTITY_TOLERANCE` (a guide bearing's damping moves the
+#: first mode by a fifth): a measured mode is still the tracked one's when its shape's MAC is at least
+#: :data:`IDENTITY_MAC_FAR` and its pole is closer than half the way to the nearest other tracked pole,
+#: and within :data:`IDENTITY_REACH` of the prediction. Without this the chart would lose a mode exactly
+#: when it changes most.
+IDENTITY_MAC_FAR = 0.9
+IDENTITY_REACH = 0.5
 #: The diagnosis and the followed changes use the measured damping (the poles' real parts) beside the
 #: frequencies; the chart watches the frequencies alone. See the decision log's "tracking-damping" page.
 DIAGNOSE_WITH_DAMPING = True
@@ -52,8 +59,31 @@ DIAGNOSE_WITH_DAMPING = True
 MIN_FOUND = 0.5
 
 
+def reach(predicted: np.ndarray) -> np.ndarray:
+    """How far (relative to its modulus) a tracked pole may have moved and still be recognised by a
+    close shape: half the way to the nearest other tracked pole, at least :data:`IDENTITY_TOLERANCE` and
+    at most :data:`IDENTITY_REACH`.
+
+    Examples
+    --------
+    >>> np.round(reach(np.array([-0.05 + 7.0j, -1.3 + 17.2j, -0.6 + 324.7j, -0.6 + 333.5j])), 3)
+    array([0.5  , 0.298, 0.05 , 0.05 ])
+    """
+    p = np.asarray(predicted)
+    if p.size < 2:
+        return np.full(p.shape, IDENTITY_REACH)
+    gap = np.abs(p[:, None] - p[None, :])
+    np.fill_diagonal(gap, np.inf)
+    return np.clip(0.5 * gap.min(axis=1) / np.abs(p), IDENTITY_TOLERANCE, IDENTITY_REACH)
+
+
 def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Measured pole and its standard errors (real, imag) for each tracked mode, NaN where none matches."""
+    """Measured pole and its standard errors (real, imag) for each tracked mode, NaN where none matches.
+
+    A measured mode is a tracked one's when its pole is within :data:`IDENTITY_TOLERANCE` of the
+    prediction with a MAC of :data:`IDENTITY_MAC`, or within :func:`reach` with a MAC of
+    :data:`IDENTITY_MAC_FAR`; each measured mode serves one tracked mode, the best pairs first.
+    """
     m = len(predicted)
     pole = np.full(m, np.nan + 1j * np.nan)
     sigma = np.full((m, 2), np.nan)
@@ -61,7 +91,9 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
         return pole, sigma
     cost, mac = pairing_cost(predicted, shapes, meas.pole, meas.shape)
     dist = np.abs(meas.pole[None, :] - predicted[:, None]) / np.abs(predicted)[:, None]
-    cost = np.where((dist < IDENTITY_TOLERANCE) & (mac >= IDENTITY_MAC), cost, np.inf)
+    near = (dist < IDENTITY_TOLERANCE) & (mac >= IDENTITY_MAC)
+    far = (dist < reach(predicted)[:, None]) & (mac >= IDENTITY_MAC_FAR)
+    cost = np.where(near | far, cost, np.inf)
     taken: set[int] = set()
     for flat in np.argsort(cost, axis=None):
         i, j = np.unravel_index(flat, cost.shape)
@@ -169,6 +201,9 @@ def track(
     chart = detect.learn_baseline(residual[base], sig[base])
     watch = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
     records_per_year = 365.25 * len(records) / max(days[-1] - days[0], 1e-9) if len(records) > 1 else 365.25
+    if int(base.sum()) <= m + 1:
+        raise TwinError(f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
+                        f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)")  # fmt: skip
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
     cands = explain.candidates(learned, tracked)
     statistic, alarms, followers, current = _watch(learned, tracked, records, days, y, sig, residual, laws, chart,

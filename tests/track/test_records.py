@@ -1,0 +1,44 @@
+"""A tracker's folder of records: each record's modes extracted once, and again when the record changed."""
+
+import os
+import shutil
+
+import xarray as xr
+
+from twin.fem.operation import operation_of
+from twin.track import campaign, read_schedule
+from twin.track.records import extract_new, is_fresh, records_in
+
+SCHEDULE = "days = 1\nrecords_per_day = 2\nduration = 60.0\n"
+
+
+def _made(paths):
+    return [p.stat().st_mtime_ns for p in paths]
+
+
+def test_a_cache_answers_only_for_the_record_and_options_it_was_made_from(tmp_path, hydro_unit):
+    (tmp_path / "schedule.toml").write_text(SCHEDULE)
+    folder = tmp_path / "records"
+    campaign(hydro_unit, read_schedule(tmp_path / "schedule.toml", hydro_unit), folder, seed=3, progress=False)
+    records = records_in(folder, operation_of(hydro_unit))
+    cache = tmp_path / "modes"
+    targets = extract_new(records, cache, progress=False)
+    first = _made(targets)
+    assert all(is_fresh(t, r.path, {}) for t, r in zip(targets, records))
+
+    # called again, or on the same bytes under a new time stamp (a copied folder): nothing is extracted
+    os.utime(records[0].path, ns=(1, 1))
+    assert _made(extract_new(records, cache, progress=False)) == first
+
+    # a record replaced by other data under the same name is extracted again; the other is kept
+    other = tmp_path / "other.nc"
+    with xr.open_dataset(records[1].path) as ds:
+        changed = ds.load()
+    changed["displacement"] = changed.displacement * 1.5 + 1e-7 * changed.displacement.shift(time=1).fillna(0.0)
+    changed.to_netcdf(other)
+    shutil.move(other, records[1].path)
+    again = _made(extract_new(records, cache, progress=False))
+    assert again[0] == first[0] and again[1] != first[1]
+
+    # other extraction options make every cache file stale
+    assert not is_fresh(targets[0], records[0].path, {"fmax_hz": 40.0})
