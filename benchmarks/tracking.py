@@ -10,12 +10,14 @@ seeds no test uses (from 5000):
     for ``--after-days``. The six cases of an effect share one seed (the same baseline and noise, so they
     differ by the change alone); the modes of their records before the onset, the same signals, are
     extracted once and shared. Per case: the delay of the first alarm after the onset [days], the effect named,
-    and the followed parameters against the truth at the last record. Per effect: the smallest size
+    the days after the onset when the records told it from the runner-up (``alarm_named_day``; "not yet" if
+    they had not by the last record), and the followed parameters against the truth at the last record. Per effect: the smallest size
     detected within 7 days, beside the size the identifiability stage predicts before any data
     (:func:`twin.design.identify.identifiability` for one record of the campaign's length at the
     reference point, pooled over the records of 7 days, at three standard deviations).
 ``false-alarms``
-    ``--runs`` campaigns of ``--days`` without change: the alarms, as a rate per unit-year.
+    ``--runs`` campaigns of ``--days`` without change: the alarms, as a rate per unit-year; each campaign's
+    wall time (simulation, then one ``twin track`` call over all its records) and the track's size on disk.
 ``throughput``
     One campaign tracked on a Dask ``LocalCluster`` of 1 and of 2 workers: records per minute, the ratio;
     the track's memory (peak RSS) and its size on disk, scaled to a year.
@@ -144,8 +146,8 @@ def detection(args, model, root: Path, client) -> list[str]:
     chosen = args.effects or list(effects)
     start = args.baseline_days + 1.0
     days = start + args.after_days
-    rows = ["| effect | seed | size | onset | delay [d] | named | followed at the end (truth) |",
-            "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    rows = ["| effect | seed | size | onset | delay [d] | named | named after [d] | followed at the end (truth) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     smallest: dict[str, float] = {}
     for label in chosen:
         ref = effects[label]
@@ -169,7 +171,8 @@ def detection(args, model, root: Path, client) -> list[str]:
                 delay = float(after[0] - start) if len(after) else float("nan")
                 first = int(np.argmax(table.alarm_day.values >= start)) if len(after) else None
                 named = str(table.alarm_effect.values[first]) if first is not None else "-"
-                ok = named == label
+                settled = float(table.alarm_named_day.values[first]) - start if first is not None else np.nan
+                ok = named == label and settled <= 7.0
                 follow = "-"
                 if "tracked_parameter" in table.dims:
                     names = [str(n) for n in table.tracked_parameter.values]
@@ -180,9 +183,11 @@ def detection(args, model, root: Path, client) -> list[str]:
                         f"{float(table.parameter_high.sel(tracked_parameter=n).values[-1]):.3g}] "
                         f"({float(truth.get(n, np.zeros(1))[-1]):.3g})" for n in names)  # fmt: skip
                 early = int((table.alarm_day.values < start).sum()) if table.sizes.get("alarm") else 0
-                rows.append(f"| {label} | {seed} | {size:g} | {shape} | {delay:.2f} | {named}{'' if ok else ' (wrong)'}"
-                            f"{f' ({early} alarm(s) before the onset)' if early else ''} | {follow} |")  # fmt: skip
-                if ok and delay <= 7.0 and shape == "step":
+                wrong = "" if named in (label, "-") else " (wrong)"
+                rows.append(f"| {label} | {seed} | {size:g} | {shape} | {delay:.2f} | {named}{wrong}"
+                            f"{f' ({early} alarm(s) before the onset)' if early else ''} | "
+                            f"{'not yet' if np.isnan(settled) else f'{settled:.2f}'} | {follow} |")  # fmt: skip
+                if ok and shape == "step":
                     smallest[label] = min(smallest.get(label, np.inf), size)
                 print(rows[-1], flush=True)
         if not args.keep:
@@ -198,17 +203,21 @@ def detection(args, model, root: Path, client) -> list[str]:
 
 
 def false_alarms(args, model, root: Path, client) -> list[str]:
-    rows = ["| campaign | days | records | alarms | limit | largest statistic |", "| --- | --- | --- | --- | --- | --- |"]
+    rows = ["| campaign | days | records | alarms | limit | largest statistic | campaign [s] | track [s] | track on disk [MB] |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     total_alarms, total_days = 0, 0.0
     for i in range(args.runs):
         case = root / f"none_{i}"
         text = schedule_text(args.days, args.records_per_day, args.duration, None)
-        table, _, _ = run_case(model, case, text, SEED + 900 + i, args.baseline_days, client, args.false_alarms)
+        table, t_campaign, t_track = run_case(model, case, text, SEED + 900 + i, args.baseline_days, client,
+                                              args.false_alarms)  # fmt: skip
+        track_bytes = sum(p.stat().st_size for p in (case / "out").rglob("*") if p.is_file())
         n_alarms = int(table.sizes.get("alarm", 0))
         total_alarms += n_alarms
         total_days += args.days - args.baseline_days
         rows.append(f"| seed {SEED + 900 + i} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
-                    f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} |")  # fmt: skip
+                    f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} | "
+                    f"{t_campaign:.0f} | {t_track:.0f} | {track_bytes / 1e6:.0f} |")  # fmt: skip
         print(rows[-1], flush=True)
         if not args.keep:
             shutil.rmtree(case, ignore_errors=True)

@@ -62,6 +62,7 @@ def test_a_step_is_detected_within_two_days_and_named(step):
     first = summary["alarms"][0]
     assert 7.0 <= first["day"] <= 9.0
     assert first["effects"] == ["bearing_change:UGB"]
+    assert first["named_day"] is not None and first["day"] <= first["named_day"] <= 9.0
     assert abs(first["onset_day"] - 7.0) <= 0.5
     # the followed damping change: its 5-95% interval at the last record holds the truth (3e7 N s/m)
     last = table.isel(time=-1).sel(tracked_parameter="UGB.damping_change")

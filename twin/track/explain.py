@@ -34,6 +34,9 @@ from twin.track.physics import Tracked, parts, tracked_indices
 PROCESS_NOISE = 0.02
 #: The evidence (natural log) a named change needs over no change at all.
 MIN_LOG_EVIDENCE = 3.0
+#: ... and over the runner-up, for the name to stand (a Bayes factor of 20); below it the records cannot
+#: yet tell the two apart, and the tracker weighs them again as records come (``twin.track.tracker``).
+MIN_MARGIN = 3.0
 
 
 @dataclass(frozen=True)
@@ -168,17 +171,20 @@ def update(model: RotorModel, tracked: Tracked, cand: Candidate, observed: list[
     return mean, np.linalg.inv(A)
 
 
-def named(verdict: Verdict, cand: Candidate, mean: np.ndarray, cov: np.ndarray) -> Verdict:
-    """The verdict with the change's values updated (:func:`update`) in place of the screening's linear ones."""
-    return dataclasses.replace(verdict, mean=mean, covariance=cov,
-                               text=_text(cand, mean, cov, verdict.log_evidence, verdict.runner_up,
-                                          verdict.runner_up_evidence))  # fmt: skip
+def named(verdict: Verdict, cand: Candidate, mean: np.ndarray, cov: np.ndarray, note: str = "") -> Verdict:
+    """The verdict with the change's values updated (:func:`update`) in place of the screening's linear ones,
+    and a ``note`` added to its text."""
+    text = _text(cand, mean, cov, verdict.log_evidence, verdict.runner_up, verdict.runner_up_evidence)
+    return dataclasses.replace(verdict, mean=mean, covariance=cov, text=f"{text}; {note}" if note else text)
 
 
 def _text(cand: Candidate, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float) -> str:
     values = ", ".join(f"{n} = {m:.3g} ± {np.sqrt(v):.2g}" for n, m, v in zip(cand.parameters, mean, cov.diagonal()))
     if evidence < MIN_LOG_EVIDENCE:
         return f"no change the model can name stands out (best: {cand.label}, log evidence {evidence:.1f})"
+    if evidence - second_ev < MIN_MARGIN:
+        return (f"{cand.label} or {second}: the records cannot yet tell them apart (log evidence {evidence:.1f} "
+                f"and {second_ev:.1f}); followed as {cand.label}: {values}")  # fmt: skip
     if cand.library:
         return f"{cand.label} changed: {values} (log evidence {evidence:.1f}; next {second}, {second_ev:.1f})"
     return (f"a change outside the library: {cand.where} ({cand.label}: {values}; log evidence {evidence:.1f}; "

@@ -18,6 +18,7 @@ the folder later give the same alarms as one run over all of them.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -236,45 +237,85 @@ def _observation(y: np.ndarray, offsets: np.ndarray, center: np.ndarray, m: int)
 def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start):
     """The chart over the records after the baseline; at each alarm the change named, updated and followed.
 
-    Returns the chart's statistic, the alarms ``(record, onset record, verdict)``, the followers (each with
-    its ``history``: value, 5% and 95% quantile per record) and each record's residual against the model
-    with the changes followed so far.
+    A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
+    than :data:`twin.track.explain.MIN_MARGIN`) is a reading: its change is followed, so the chart goes on
+    watching what it does not explain, and the records since the onset are weighed again as each one comes,
+    until one name stands out; the change is then updated anew if the name changed
+    (:class:`_Reading`). A change that grows (a ramp) alarms while it is small, when the records cannot
+    yet say which it is.
+
+    Returns the chart's statistic, the alarms ``[record, onset record, verdict, record named]``, the
+    followers (each with its ``history``: value, 5% and 95% quantile per record) and each record's
+    residual against the model with the changes followed so far.
     """
     n, m = len(records), len(tracked.poles)
     statistic = np.full(n, np.nan)
     current = residual.copy()
     followers: list[explain.Follower] = []
-    alarms = []
+    alarms: list[list] = []
+    reading: _Reading | None = None
     smooth = detect.MEWMA(watch)
+
+    def observed(k: int, t: int) -> list:
+        return [(records[i].point, _observation(y[i], laws.offsets, chart.center, m),
+                 detect.record_covariance(sig[i], chart)) for i in range(k, t + 1)]  # fmt: skip
+
+    def follow(cand, k: int, t: int) -> explain.Follower:
+        others = [(f.cand, f.mean) for f in followers]
+        value, value_cov = explain.update(learned, tracked, cand, observed(k, t), others)
+        f = explain.Follower(learned, tracked, cand, value, value_cov, days[t])
+        f.history = np.full((n, len(value), 3), np.nan)
+        followers.append(f)
+        return f
+
+    def settle(t: int, force: bool) -> None:
+        """Weigh the reading's records again; name the change when one stands out (or ``force``)."""
+        nonlocal reading
+        verdict = _diagnosis(reading.without[reading.onset:t + 1], sig[reading.onset:t + 1], chart, cands, m)
+        if verdict.log_evidence - verdict.runner_up_evidence < explain.MIN_MARGIN and not force:
+            return
+        if verdict.log_evidence < explain.MIN_LOG_EVIDENCE:
+            verdict = reading.verdict  # the evidence went: keep what the alarm said
+        f = reading.follower
+        if verdict.label != f.cand.label:
+            followers.remove(f)
+            f = follow(next(c for c in cands if c.label == verdict.label), reading.onset, t)
+        note = "" if verdict.label == reading.verdict.label else \
+            f"first read as {reading.verdict.label} on day {days[reading.alarm_record]:.2f}"  # fmt: skip
+        verdict = explain.named(verdict, f.cand, f.mean, f.cov, note=note)
+        alarms[reading.alarm][2:] = [verdict, t]
+        log.info("the change since %s named on %s: %s", records[reading.onset].start.isoformat(),
+                 records[t].start.isoformat(), verdict.text)  # fmt: skip
+        reading = None
+
     for t in range(start, n):
         point, cov = records[t].point, detect.record_covariance(sig[t], chart)
         obs = _observation(y[t], laws.offsets, chart.center, m)
         for f in followers:
             f.update(point, obs, cov, days[t], [(g.cand, g.mean) for g in followers if g is not f])
+        if reading is not None:
+            others = [(f.cand, f.mean) for f in followers if f is not reading.follower]
+            g = explain.changed_poles(learned, tracked, point, others)[0] if others else None
+            reading.without[t] = residual[t] if g is None else y[t] - laws.offsets - g
+            settle(t, force=False)
         if followers:
             g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
             current[t] = y[t] - laws.offsets - g
         z = detect.standardised(current[t, m:], sig[t, m:], watch)
         statistic[t] = smooth.add(z)
         if statistic[t] > limit:
+            if reading is not None:
+                settle(t, force=True)
             k = start + detect.onset(detect.standardised(current[start:t + 1, m:], sig[start:t + 1, m:], watch), watch)
-            mean, pooled_cov = detect.pooled(current[k:t + 1], sig[k:t + 1], chart)
-            if not DIAGNOSE_WITH_DAMPING:
-                mean[:m] = np.nan
-            verdict = explain.diagnose(mean, pooled_cov, cands)
+            verdict = _diagnosis(current[k:t + 1], sig[k:t + 1], chart, cands, m)
+            alarms.append([t, k, verdict, None])
             if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
-                cand = next(c for c in cands if c.label == verdict.label)
-                others = [(f.cand, f.mean) for f in followers]
-                observed = []
-                for i in range(k, t + 1):
-                    o = _observation(y[i], laws.offsets, chart.center, m)
-                    observed.append((records[i].point, o, detect.record_covariance(sig[i], chart)))
-                value, value_cov = explain.update(learned, tracked, cand, observed, others)
-                verdict = explain.named(verdict, cand, value, value_cov)
-                f = explain.Follower(learned, tracked, cand, value, value_cov, days[t])
-                f.history = np.full((n, len(value), 3), np.nan)
-                followers.append(f)
-            alarms.append((t, k, verdict))
+                f = follow(next(c for c in cands if c.label == verdict.label), k, t)
+                verdict = explain.named(verdict, f.cand, f.mean, f.cov)
+                clear = verdict.log_evidence - verdict.runner_up_evidence >= explain.MIN_MARGIN
+                alarms[-1][2:] = [verdict, t if clear else None]
+                if not clear:
+                    reading = _Reading(f, k, len(alarms) - 1, t, verdict, current.copy())
             log.info("alarm at %s (onset %s): %s", records[t].start.isoformat(), records[k].start.isoformat(),
                      verdict.text)  # fmt: skip
             smooth.reset()
@@ -282,7 +323,30 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
         for f in followers:
             half = 1.645 * np.sqrt(f.cov.diagonal())  # the 5-95% interval
             f.history[t] = np.stack([f.mean, f.mean - half, f.mean + half], axis=1)
-    return statistic, alarms, followers, current
+    return statistic, [tuple(a) for a in alarms], followers, current
+
+
+@dataclass
+class _Reading:
+    """A change followed under a name the records could not yet tell from another's: its follower, the
+    onset, the alarm it answers (its index and record), the alarm's verdict, and each record's residual
+    without it."""
+
+    follower: explain.Follower
+    onset: int
+    alarm: int
+    alarm_record: int
+    verdict: explain.Verdict
+    without: np.ndarray
+
+
+def _diagnosis(residuals: np.ndarray, se: np.ndarray, chart: detect.Baseline, cands, m: int) -> explain.Verdict:
+    """The candidates weighed on records' residuals pooled (the damping's parts left out unless
+    :data:`DIAGNOSE_WITH_DAMPING`)."""
+    mean, pooled_cov = detect.pooled(residuals, se, chart)
+    if not DIAGNOSE_WITH_DAMPING:
+        mean[:m] = np.nan
+    return explain.diagnose(mean, pooled_cov, cands)
 
 
 def _dataset(records, days, tracked, poles, predicted, residual, statistic, limit, alarms, values, laws, op,
@@ -307,12 +371,14 @@ def _dataset(records, days, tracked, poles, predicted, residual, statistic, limi
             "slope": ("slope_key", laws.slopes, {"long_name": "learned slopes of the laws (SI per condition unit)"}),
             "slope_std": ("slope_key", np.sqrt(laws.covariance.diagonal())),
             "slope_declared": ("slope_key", laws.declared),
-            "alarm_time": ("alarm", np.array([times[t] for t, _, _ in alarms], dtype="datetime64[ns]")),
-            "alarm_day": ("alarm", [float(days[t]) for t, _, _ in alarms], {"units": "d"}),
-            "alarm_onset_day": ("alarm", [float(days[k]) for _, k, _ in alarms], {"units": "d"}),
-            "alarm_effect": ("alarm", [v.label for _, _, v in alarms]),
-            "alarm_named": ("alarm", [bool(v.log_evidence >= explain.MIN_LOG_EVIDENCE) for _, _, v in alarms]),
-            "alarm_verdict": ("alarm", [v.text for _, _, v in alarms]),
+            "alarm_time": ("alarm", np.array([times[t] for t, _, _, _ in alarms], dtype="datetime64[ns]")),
+            "alarm_day": ("alarm", [float(days[t]) for t, _, _, _ in alarms], {"units": "d"}),
+            "alarm_onset_day": ("alarm", [float(days[k]) for _, k, _, _ in alarms], {"units": "d"}),
+            "alarm_named_day": ("alarm", [np.nan if w is None else float(days[w]) for _, _, _, w in alarms],
+                                {"units": "d", "long_name": "day the records told the change from the others"}),
+            "alarm_effect": ("alarm", [v.label for _, _, v, _ in alarms]),
+            "alarm_named": ("alarm", [bool(v.log_evidence >= explain.MIN_LOG_EVIDENCE) for _, _, v, _ in alarms]),
+            "alarm_verdict": ("alarm", [v.text for _, _, v, _ in alarms]),
         },
         coords={
             "time": times, "mode": np.arange(1, m + 1), "part": ["real", "imag"],
@@ -339,7 +405,9 @@ def alarms_json(table: xr.Dataset) -> dict:
     for i in range(table.sizes.get("alarm", 0)):
         time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
         effects = [str(table.alarm_effect.values[i])] if bool(table.alarm_named.values[i]) else []
+        named = float(table.alarm_named_day.values[i])
         out.append({"time": time, "day": round(float(table.alarm_day.values[i]), 4),
-                    "onset_day": round(float(table.alarm_onset_day.values[i]), 4), "effects": effects,
+                    "onset_day": round(float(table.alarm_onset_day.values[i]), 4),
+                    "named_day": None if np.isnan(named) else round(named, 4), "effects": effects,
                     "verdict": str(table.alarm_verdict.values[i])})  # fmt: skip
     return {"records": int(table.sizes["time"]), "alarms": out}
