@@ -167,13 +167,16 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
     if table.sizes.get("alarm", 0) == 0:
         lines.append("No alarm: what the operating conditions do not explain stayed within the control limit.")
     else:
-        lines += ["| time (UTC) | day | onset day | effect | verdict |", "| --- | --- | --- | --- | --- |"]
+        lines += ["| time (UTC) | day | onset day | effect | named on day | verdict |",
+                  "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        named_day = table.get("alarm_named_day", xr.full_like(table.alarm_day, np.nan)).values
         for i in range(table.sizes["alarm"]):
             t = np.datetime_as_string(table.alarm_time.values[i], unit="s")
             effect = str(table.alarm_effect.values[i]) if bool(table.alarm_named.values[i]) else "(not named)"
             verdict = html.escape(str(table.alarm_verdict.values[i])).replace("|", "\\|")
+            named = "not yet" if np.isnan(named_day[i]) else f"{named_day[i]:.2f}"
             lines.append(f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
-                         f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {verdict} |")  # fmt: skip
+                         f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {named} | {verdict} |")  # fmt: skip
     lines += ["", f"## Trends, coloured by {colour_by}", "", '<img src="frequency.png">', "",
               '<img src="damping.png">', "", "## What the operating conditions do not explain", "",
               ("Frequency residuals after the learned laws and the followed changes, and the chart's statistic "

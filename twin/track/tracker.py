@@ -242,7 +242,9 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     watching what it does not explain, and the records since the onset are weighed again as each one comes,
     until one name stands out; the change is then updated anew if the name changed
     (:class:`_Reading`). A change that grows (a ramp) alarms while it is small, when the records cannot
-    yet say which it is.
+    yet say which it is. An alarm that names a change already followed (one that grew faster than its
+    filter's process noise lets it follow) re-estimates that change as a whole on the records since the
+    new onset, so one change has one follower.
 
     Returns the chart's statistic, the alarms ``[record, onset record, verdict, record named]``, the
     followers (each with its ``history``: value, 5% and 95% quantile per record) and each record's
@@ -261,8 +263,14 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
                  detect.record_covariance(sig[i], chart)) for i in range(k, t + 1)]  # fmt: skip
 
     def follow(cand, k: int, t: int) -> explain.Follower:
-        others = [(f.cand, f.mean) for f in followers]
+        """The change ``cand`` updated on the records ``k..t``: a new follower, or, for a change already
+        followed (a ramp that outran its filter), the same one re-estimated as a whole."""
+        same = next((f for f in followers if f.cand.label == cand.label), None)
+        others = [(f.cand, f.mean) for f in followers if f is not same]
         value, value_cov = explain.update(learned, tracked, cand, observed(k, t), others)
+        if same is not None:
+            same.mean, same.cov, same.day = value, value_cov, days[t]
+            return same
         f = explain.Follower(learned, tracked, cand, value, value_cov, days[t])
         f.history = np.full((n, len(value), 3), np.nan)
         followers.append(f)
@@ -278,7 +286,10 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             verdict = reading.verdict  # the evidence went: keep what the alarm said
         f = reading.follower
         if verdict.label != f.cand.label:
-            followers.remove(f)
+            if reading.before is None:
+                followers.remove(f)
+            else:  # a change followed before the alarm: back to what it was
+                f.mean, f.cov, f.day = reading.before
             f = follow(next(c for c in cands if c.label == verdict.label), reading.onset, t)
         note = "" if verdict.label == reading.verdict.label else \
             f"first read as {reading.verdict.label} on day {days[reading.alarm_record]:.2f}"  # fmt: skip
@@ -295,6 +306,8 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             f.update(point, obs, cov, days[t], [(g.cand, g.mean) for g in followers if g is not f])
         if reading is not None:
             others = [(f.cand, f.mean) for f in followers if f is not reading.follower]
+            if reading.before is not None:
+                others.append((reading.follower.cand, reading.before[0]))
             g = explain.changed_poles(learned, tracked, point, others)[0] if others else None
             reading.without[t] = residual[t] if g is None else y[t] - laws.offsets - g
             settle(t, force=False)
@@ -310,12 +323,15 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             verdict = _diagnosis(current[k:t + 1], sig[k:t + 1], chart, cands, m)
             alarms.append([t, k, verdict, None])
             if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
-                f = follow(next(c for c in cands if c.label == verdict.label), k, t)
+                cand = next(c for c in cands if c.label == verdict.label)
+                same = next((f for f in followers if f.cand is cand), None)
+                before = None if same is None else (same.mean.copy(), same.cov.copy(), same.day)
+                f = follow(cand, k, t)
                 verdict = explain.named(verdict, f.cand, f.mean, f.cov)
                 clear = verdict.log_evidence - verdict.runner_up_evidence >= explain.MIN_MARGIN
                 alarms[-1][2:] = [verdict, t if clear else None]
                 if not clear:
-                    reading = _Reading(f, k, len(alarms) - 1, t, verdict, current.copy())
+                    reading = _Reading(f, k, len(alarms) - 1, t, verdict, current.copy(), before)
             log.info("alarm at %s (onset %s): %s", records[t].start.isoformat(), records[k].start.isoformat(),
                      verdict.text)  # fmt: skip
             smooth.reset()
@@ -329,8 +345,9 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
 @dataclass
 class _Reading:
     """A change followed under a name the records could not yet tell from another's: its follower, the
-    onset, the alarm it answers (its index and record), the alarm's verdict, and each record's residual
-    without it."""
+    onset, the alarm it answers (its index and record), the alarm's verdict, each record's residual
+    without it, and the follower's state (mean, covariance, day) before the alarm if it was followed
+    already."""
 
     follower: explain.Follower
     onset: int
@@ -338,6 +355,7 @@ class _Reading:
     alarm_record: int
     verdict: explain.Verdict
     without: np.ndarray
+    before: tuple | None = None
 
 
 def _diagnosis(residuals: np.ndarray, se: np.ndarray, chart: detect.Baseline, cands, m: int) -> explain.Verdict:
