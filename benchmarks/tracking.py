@@ -16,7 +16,7 @@ seeds no test uses (from 5000):
     (:func:`twin.design.identify.identifiability` for one record of the campaign's length at the
     reference point, pooled over the records of 7 days, at three standard deviations).
 ``false-alarms``
-    ``--runs`` campaigns of ``--days`` without change: the alarms, as a rate per unit-year; each campaign's
+    ``--runs`` campaigns of ``--days`` without change (seeds from ``--seed``, 5900): the alarms, as a rate per unit-year; each campaign's
     wall time (simulation, then one ``twin track`` call over all its records) and the track's size on disk.
 ``throughput``
     One campaign tracked on a Dask ``LocalCluster`` of 1 and of 2 workers: records per minute, the ratio;
@@ -209,13 +209,14 @@ def false_alarms(args, model, root: Path, client) -> list[str]:
     for i in range(args.runs):
         case = root / f"none_{i}"
         text = schedule_text(args.days, args.records_per_day, args.duration, None)
-        table, t_campaign, t_track = run_case(model, case, text, SEED + 900 + i, args.baseline_days, client,
+        seed = args.seed + i
+        table, t_campaign, t_track = run_case(model, case, text, seed, args.baseline_days, client,
                                               args.false_alarms)  # fmt: skip
         track_bytes = sum(p.stat().st_size for p in (case / "out").rglob("*") if p.is_file())
         n_alarms = int(table.sizes.get("alarm", 0))
         total_alarms += n_alarms
         total_days += args.days - args.baseline_days
-        rows.append(f"| seed {SEED + 900 + i} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
+        rows.append(f"| seed {seed} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
                     f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} | "
                     f"{t_campaign:.0f} | {t_track:.0f} | {track_bytes / 1e6:.0f} |")  # fmt: skip
         print(rows[-1], flush=True)
@@ -264,6 +265,7 @@ def main() -> None:
     parser.add_argument("--ramp-days", type=float, default=3.0)
     parser.add_argument("--days", type=float, default=90.0, help="false-alarms and throughput campaigns [days]")
     parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=SEED + 900, help="false-alarms: the first campaign's seed")
     parser.add_argument("--effects", nargs="*")
     parser.add_argument("--sizes", type=float, nargs="*", default=list(SIZES))
     parser.add_argument("--false-alarms", type=float, default=0.1, help="the chart's rate [per unit-year]")

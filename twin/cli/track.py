@@ -43,7 +43,7 @@ def add_commands(sub, command, add_scheduler) -> None:
     p.add_argument("--false-alarms", type=float, default=0.1, metavar="PER_YEAR",
                    help="false-alarm rate the control limit is set for, per unit-year")
     p.add_argument("--json", action="store_true",
-                   help='print {"records": N, "alarms": [{"time", "day", "onset_day", "effects", "verdict"}]}')
+                   help='print {"records": N, "alarms": [{"time", "day", "onset_day", "named_day", "effects", "verdict"}]}')
     add_scheduler(p, "extractions")
 
 
