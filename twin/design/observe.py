@@ -42,6 +42,7 @@ the paper's truth) only 97.06 and 97.22 Hz (0.17% apart) stay together.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 from dataclasses import replace
@@ -323,7 +324,8 @@ def record_observability(attrs: dict, channels: list[str], duration_s: float,
     The model file (``model_source``), the excitation (``settings``: turbulence ASD, noise std [m],
     sampling rate) and the truth the record was simulated from, judged on ``channels`` over
     ``duration_s``. None, with the reason logged, when the attrs do not say (a measured record)
-    or the model file is not there any more.
+    or the model file is not there any more. The records of a campaign share all of these: the
+    judgement is computed once per distinct set (and model file version) and reused.
     """
     source = attrs.get("model_source")
     if not source or not Path(str(source)).is_file() or "settings" not in attrs:
@@ -331,18 +333,35 @@ def record_observability(attrs: dict, channels: list[str], duration_s: float,
         return None
     try:
         settings = json.loads(attrs["settings"])
-        model = load_model(str(source))
+        excitation = (float(settings["turbulence_asd"]), float(settings["noise_std_m"]), float(settings["fs_hz"]))
+    except (KeyError, ValueError, TypeError) as exc:
+        log.warning("observability of the target modes not judged: the record's settings do not say %s", exc)
+        return None
+    key = (str(source), Path(str(source)).stat().st_mtime_ns, excitation,
+           None if "truth" not in attrs else str(attrs["truth"]), tuple(channels), float(duration_s),
+           None if fmax_hz is None else float(fmax_hz))  # fmt: skip
+    obs = _judged(*key)
+    return None if obs is None else obs.copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _judged(source: str, _mtime_ns: int, excitation: tuple[float, float, float], truth_json: str | None,
+            channels: tuple[str, ...], duration_s: float, fmax_hz: float | None) -> xr.Dataset | None:  # fmt: skip
+    """:func:`record_observability` of one set of its inputs (the model file's modification time in the key;
+    ``excitation``: turbulence ASD [N/√Hz], noise std [m], sampling rate [Hz])."""
+    turbulence_asd, noise_std_m, fs_hz = excitation
+    try:
+        model = load_model(source)
         sensors = {s.name: s for s in model.sensors}
         if any(c not in sensors for c in channels):
             log.info("observability not judged: channels %s are not sensors of %s",
                      [c for c in channels if c not in sensors], source)
             return None
         model = replace(model, sensors=[sensors[c] for c in channels])
-        truth = truth_from_json(attrs["truth"]) if "truth" in attrs else None
-        excitation = Excitation(turbulence_asd=float(settings["turbulence_asd"]),
-                                noise_std_m=float(settings["noise_std_m"]) or None,
-                                duration_s=float(duration_s), fs_hz=float(settings["fs_hz"]))  # fmt: skip
-        return observability(model, excitation, truth=truth, fmax_hz=fmax_hz, crb=False)
+        truth = None if truth_json is None else truth_from_json(truth_json)
+        return observability(model, Excitation(turbulence_asd=turbulence_asd, noise_std_m=noise_std_m or None,
+                                               duration_s=duration_s, fs_hz=fs_hz),
+                             truth=truth, fmax_hz=fmax_hz, crb=False)  # fmt: skip
     except (TwinError, KeyError, ValueError, TypeError) as exc:
         log.warning("observability of the target modes not judged: %s", exc)
         return None

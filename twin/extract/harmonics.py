@@ -204,17 +204,20 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
     bins = np.fft.rfftfreq(n, 1.0 / fs_hz)
     out = y.copy()
     removed = []
+    step = np.exp(-2j * np.pi * f1 * t)
+    wave = np.ones(n, dtype=complex)  # exp(-2 pi i k f1 t), one multiplication a line: no exponential per line
     for k in range(1, int(fmax_hz // f1) + 1):
         f = k * f1
+        wave *= step
         centre = int(round(f * T))
         near = np.r_[centre - 30:centre - 1, centre + 2:centre + 31]
         near = near[(near > 0) & (near < len(bins))]
         if near.size == 0:
             continue
-        ratio = _line_power(out, t, f) / float(np.median(spectrum[near]))
+        ratio = float(np.sum(np.abs(wave @ out) ** 2)) / float(np.median(spectrum[near]))
         if not ratio > LINE_TO_FLOOR:
             continue
-        basis = np.column_stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)])
+        basis = np.column_stack([wave.real, -wave.imag])  # cos and sin of 2 pi f t
         coef, *_ = np.linalg.lstsq(basis, out, rcond=None)
         out -= basis @ coef
         removed.append({"frequency_hz": float(f), "running_speed_multiple": k, "removed": True,
