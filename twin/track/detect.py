@@ -7,17 +7,11 @@ per pole part learned over the baseline (near 1 where the model and the standard
 their correlation is estimated over the baseline, shrunk towards the identity for the few records a
 baseline has. The chart smooths the standardised residuals,
 ``w_r = lam z_r + (1 - lam) w_{r-1}`` (a record without a mode adds nothing for it), and alarms when
-``T2_r = w_r' S_w^-1 w_r`` exceeds the chi-square quantile of the false-alarm probability per record
-(:func:`threshold`). ``S_w`` is the smoothed residuals' covariance: ``lam / (2 - lam) R`` from the records'
-own scatter, plus what the baseline itself leaves uncertain, which every record after it shares and which
-smoothing does not average away: the centre (a median of ``n`` records, variance ``pi / (2 n)`` of one
-record's, :func:`level_variance`) and, where the caller gives them, the learned laws' slopes through each
-record's sensitivity to them (``MEWMA.add``'s ``g``). Without these the limit holds for a chart whose
-baseline is known exactly; with a baseline of a few weeks the centre's error alone is a quarter of the
-smoothed scatter (``lam = 0.2``, 56 records), and the chart alarms on it. In control, ``T2_r`` is then
-chi-square distributed record by record, and successive records are correlated, so the false-alarm rate
-is at most the one stated. A small persistent shift builds up over a few records; a large one alarms at
-once.
+``T2_r = w_r' S_w^-1 w_r``, with ``S_w = lam / (2 - lam) R`` the smoothed residuals' covariance, exceeds
+the chi-square quantile of the false-alarm probability per record (:func:`threshold`). In control, ``T2_r``
+is chi-square distributed record by record, and successive records are correlated, so the false-alarm
+rate is at most the one stated. A small persistent shift builds up over a few records; a large one
+alarms at once.
 
 The onset of a change is the start of the window whose mean residual is most unlike zero (the generalised
 likelihood ratio of a mean shift, :func:`onset`).
@@ -118,17 +112,6 @@ def pooled(residuals: np.ndarray, se: np.ndarray, baseline: Baseline) -> tuple[n
     return mean, np.outer(d, d) * baseline.correlation
 
 
-def level_variance(n_records: int) -> float:
-    """Variance of a baseline's centre, a median of ``n_records`` records, in units of one record's: ``pi / (2 n)``.
-
-    Examples
-    --------
-    >>> round(level_variance(56), 4)
-    0.028
-    """
-    return float(np.pi / (2 * max(int(n_records), 1)))
-
-
 def record_covariance(se: np.ndarray, baseline: Baseline) -> np.ndarray:
     """One record's residual covariance: its standard errors times the factors, with the baseline's correlation."""
     d = np.nan_to_num(baseline.scale * se, nan=1.0)
@@ -139,48 +122,34 @@ class MEWMA:
     """The chart's recursion record by record: ``add`` smooths one standardised residual and returns ``T2``;
     ``reset`` starts again from zero (after an alarm).
 
-    ``uncertain`` is the covariance of parameters the baseline learned (the laws' slopes) whose error
-    moves every later record's residual alike; ``add``'s ``g`` is the record's standardised residual's
-    sensitivity to them (``(p, K)``, zero rows where a mode was not found). Their error, smoothed as the
-    residuals are, is added to the statistic's covariance, beside the centre's (:func:`level_variance`).
-
     Examples
     --------
     >>> chart = MEWMA(Baseline(np.zeros(2), np.ones(2), np.eye(2), 100), lam=0.5)
     >>> round(chart.add(np.zeros(2)), 2), round(chart.add(np.array([3.0, 0.0])), 2)
-    (0.0, 6.45)
+    (0.0, 6.75)
     """
 
-    def __init__(self, baseline: Baseline, lam: float = LAMBDA, uncertain: np.ndarray | None = None) -> None:
+    def __init__(self, baseline: Baseline, lam: float = LAMBDA) -> None:
         self.lam = lam
-        self.cov = (lam / (2.0 - lam) + level_variance(baseline.n_records)) * baseline.correlation
-        self.inverse = np.linalg.inv(self.cov)
-        self.uncertain = None if uncertain is None else np.atleast_2d(np.asarray(uncertain, dtype=float))
+        self.inverse = np.linalg.inv(lam / (2.0 - lam) * baseline.correlation)
         self.w = np.zeros(len(baseline.correlation))
-        self.g: np.ndarray | None = None
 
-    def add(self, z: np.ndarray, g: np.ndarray | None = None) -> float:
+    def add(self, z: np.ndarray) -> float:
         self.w = self.lam * z + (1.0 - self.lam) * self.w
-        if self.uncertain is None or g is None:
-            return float(self.w @ self.inverse @ self.w)
-        self.g = self.lam * g + (1.0 - self.lam) * (0.0 if self.g is None else self.g)
-        total = self.cov + self.g @ self.uncertain @ self.g.T
-        return float(self.w @ np.linalg.solve(total, self.w))
+        return float(self.w @ self.inverse @ self.w)
 
     def reset(self) -> None:
         self.w = np.zeros_like(self.w)
-        self.g = None
 
 
 def mewma(z: np.ndarray, baseline: Baseline, lam: float = LAMBDA) -> np.ndarray:
-    """The chart's statistic ``T2`` for each record (``z`` standardised, ``(n, p)``), from zero, with the
-    baseline centre's uncertainty (:class:`MEWMA` without slopes).
+    """The chart's statistic ``T2`` for each record (``z`` standardised, ``(n, p)``), from zero.
 
     Examples
     --------
     >>> b = Baseline(np.zeros(2), np.ones(2), np.eye(2), 100)
     >>> np.round(mewma(np.array([[0.0, 0.0], [3.0, 0.0]]), b, lam=0.5), 2)
-    array([0.  , 6.45])
+    array([0.  , 6.75])
     """
     chart = MEWMA(baseline, lam)
     return np.array([chart.add(zi) for zi in z])

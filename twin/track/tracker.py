@@ -195,12 +195,7 @@ def track(
     with stage(f"learn the laws over {int(base.sum())} baseline records"):
         laws = fit_laws(model, tracked, [r.point for r, b in zip(records, base) if b], y[base], sig[base])
     learned = with_slopes(model, laws.slopes)
-    predicted, by_slopes = zip(*(predict(learned, tracked, r.point) for r in records))
-    predicted = np.array(predicted)
-    # how each record's predicted frequencies move with the slopes, less the baseline's mean (which the
-    # offsets absorb): with the slopes' covariance, the chart's share of the laws' uncertainty
-    by_slopes = np.array(by_slopes).imag.reshape(len(records), len(tracked.poles), -1)
-    drift = by_slopes - by_slopes[base].mean(axis=0)
+    predicted = np.array([predict(learned, tracked, r.point, with_jacobian=False)[0] for r in records])
     residual = y - parts(predicted) - laws.offsets
 
     # the chart watches the frequencies (the imaginary parts): the damping ratios scatter far more from record
@@ -215,7 +210,7 @@ def track(
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
     cands = explain.candidates(learned, tracked)
     statistic, alarms, followers, current = _watch(learned, tracked, records, days, y, sig, residual, laws, chart,
-                                                   watch, limit, cands, int(base.sum()), drift)  # fmt: skip
+                                                   watch, limit, cands, int(base.sum()))  # fmt: skip
     values: dict[str, np.ndarray] = {}
     for f in followers:
         for j, name in enumerate(f.cand.parameters):
@@ -241,7 +236,7 @@ def _observation(y: np.ndarray, offsets: np.ndarray, center: np.ndarray, m: int)
     return obs
 
 
-def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start, drift):
+def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start):
     """The chart over the records after the baseline; at each alarm the change named, updated and followed.
 
     A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
@@ -253,9 +248,6 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     filter's process noise lets it follow) re-estimates that change as a whole on the records since the
     new onset, so one change has one follower.
 
-    ``drift`` holds each record's frequency parts' sensitivity to the laws' slopes less the baseline's mean
-    (``(n, m, K)``): the chart counts the slopes' uncertainty (:class:`twin.track.detect.MEWMA`).
-
     Returns the chart's statistic, the alarms ``[record, onset record, verdict, record named]``, the
     followers (each with its ``history``: value, 5% and 95% quantile per record) and each record's
     residual against the model with the changes followed so far.
@@ -266,7 +258,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     followers: list[explain.Follower] = []
     alarms: list[list] = []
     reading: _Reading | None = None
-    smooth = detect.MEWMA(watch, uncertain=laws.covariance if drift.shape[2] else None)
+    smooth = detect.MEWMA(watch)
 
     def observed(k: int, t: int) -> list:
         return [(records[i].point, _observation(y[i], laws.offsets, chart.center, m),
@@ -325,8 +317,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
             current[t] = y[t] - laws.offsets - g
         z = detect.standardised(current[t, m:], sig[t, m:], watch)
-        g = np.nan_to_num(drift[t] / (watch.scale * sig[t, m:])[:, None])  # 0 where the mode was not found
-        statistic[t] = smooth.add(z, g)
+        statistic[t] = smooth.add(z)
         if statistic[t] > limit:
             if reading is not None:
                 settle(t, force=True)
