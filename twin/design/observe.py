@@ -328,7 +328,8 @@ def record_observability(attrs: dict, channels: list[str], duration_s: float,
     judgement is computed once per distinct set (and model file version) and reused.
     """
     source = attrs.get("model_source")
-    if not source or not Path(str(source)).is_file() or "settings" not in attrs:
+    path = Path(str(source)) if source else None
+    if path is None or not path.is_file() or "settings" not in attrs:
         log.info("observability of the target modes not judged: the record does not name its model file and excitation")
         return None
     try:
@@ -337,11 +338,11 @@ def record_observability(attrs: dict, channels: list[str], duration_s: float,
     except (KeyError, ValueError, TypeError) as exc:
         log.warning("observability of the target modes not judged: the record's settings do not say %s", exc)
         return None
-    key = (str(source), Path(str(source)).stat().st_mtime_ns, excitation,
+    key = (str(path), path.stat().st_mtime_ns, excitation,
            None if "truth" not in attrs else str(attrs["truth"]), tuple(channels), float(duration_s),
            None if fmax_hz is None else float(fmax_hz))  # fmt: skip
     obs = _judged(*key)
-    return None if obs is None else obs.copy()
+    return None if obs is None else obs.copy(deep=True)  # the cached one stays as judged
 
 
 @functools.lru_cache(maxsize=8)

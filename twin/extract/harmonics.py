@@ -123,10 +123,14 @@ LINE_TO_FLOOR = 10.0
 SPEED_SEARCH = 0.005
 
 
+def _wave_power(wave: np.ndarray, y: np.ndarray) -> float:
+    """Power of the record's channels along ``wave`` = ``exp(-2 pi i f t)`` (periodogram, summed over channels)."""
+    return float(np.sum(np.abs(wave @ y) ** 2))
+
+
 def _line_power(y: np.ndarray, t: np.ndarray, f_hz: float) -> float:
     """Power of the record's channels at one frequency (periodogram, summed over channels)."""
-    e = np.exp(-2j * np.pi * f_hz * t)
-    return float(np.sum(np.abs(e @ y) ** 2))
+    return _wave_power(np.exp(-2j * np.pi * f_hz * t), y)
 
 
 def grid_power(y: np.ndarray, fs_hz: float, grid_hz: np.ndarray) -> np.ndarray:
@@ -214,7 +218,7 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
         near = near[(near > 0) & (near < len(bins))]
         if near.size == 0:
             continue
-        ratio = float(np.sum(np.abs(wave @ out) ** 2)) / float(np.median(spectrum[near]))
+        ratio = _wave_power(wave, out) / float(np.median(spectrum[near]))
         if not ratio > LINE_TO_FLOOR:
             continue
         basis = np.column_stack([wave.real, -wave.imag])  # cos and sin of 2 pi f t
