@@ -223,7 +223,8 @@ def false_alarms(args, model, root: Path, client) -> list[str]:
         if not args.keep:
             shutil.rmtree(case, ignore_errors=True)
     rate = total_alarms / (total_days / 365.25)
-    rows += ["", (f"{total_alarms} alarms in {total_days:g} monitored days (after the baselines): "
+    alarms = f"{total_alarms} alarm{'' if total_alarms == 1 else 's'}"
+    rows += ["", (f"{alarms} in {total_days:g} monitored days (after the baselines): "
              f"{rate:.2g} per unit-year, for a limit set at {args.false_alarms:g} per unit-year")]  # fmt: skip
     return rows
 

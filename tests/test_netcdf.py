@@ -25,3 +25,14 @@ def test_failed_write_leaves_nothing(tmp_path):
     assert not list(tmp_path.iterdir())
     with pytest.raises(TwinError, match="it is a folder"):
         write_netcdf(bad, tmp_path)
+
+
+def test_global_attrs_reads_the_attrs_alone_and_refuses_what_is_not_netcdf(tmp_path):
+    from twin.netcdf import global_attrs
+
+    path = write_netcdf(xr.Dataset({"x": ("t", np.arange(3.0))}, attrs={"a": "text", "n": 3}), tmp_path / "f.nc")
+    got = global_attrs(path)
+    assert got["a"] == "text" and int(got["n"]) == 3
+    (tmp_path / "bad.nc").write_text("not NetCDF")
+    with pytest.raises(OSError):
+        global_attrs(tmp_path / "bad.nc")

@@ -203,11 +203,15 @@ def dask_client(
         # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers, which makes glibc hand every freed
         # temporary back to the system: the Gibbs sweeps, made of many medium-sized temporaries, run 1.4x
         # slower under it (measured). The local workers keep glibc's default and one BLAS thread each.
+        # Dask's statistical profiler samples each worker's running task every 10 ms and takes the GIL to
+        # do it: a record's extraction, much of it Python-level loops, ran 13% slower under it (measured on
+        # two workers); the local workers run without it (their dashboard's profile page stays empty).
         environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}  # fmt: skip
+        settings = {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False}
         from twin.progress import stage
 
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}), stage(f"start {workers} Dask workers"):
+        with dask.config.set(settings), stage(f"start {workers} Dask workers"):
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                    dashboard_address=":0", silence_logs=logging.ERROR)  # fmt: skip
         client = Client(cluster)

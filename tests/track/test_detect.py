@@ -40,6 +40,25 @@ def test_in_control_the_statistic_is_chi_square_and_a_shift_builds_up():
     assert 47 <= detect.onset(shifted, b) <= 53
 
 
+def test_what_the_baseline_leaves_uncertain_is_counted_so_the_statistic_stays_chi_square():
+    # each campaign learns its centre (Hodges-Lehmann) over a short baseline, and shares a slope error that moves
+    # its records' residuals by g_r @ delta, with g_r varying from record to record (the operating point)
+    rng = np.random.default_rng(11)
+    p, n, lam, k = 3, 40, 0.2, 2
+    slope_cov = np.diag([0.04, 0.01])
+    t2 = []
+    for _ in range(300):
+        center = detect.hodges_lehmann(rng.normal(size=(n, p)))
+        b = detect.Baseline(center, np.ones(p), np.eye(p), n)
+        delta = rng.multivariate_normal(np.zeros(k), slope_cov)
+        g = rng.normal(size=(120, p, k))
+        z = rng.normal(size=(120, p)) + g @ delta - center
+        chart = detect.MEWMA(b, lam, uncertain=slope_cov)
+        t2.append([chart.add(zi, gi) for zi, gi in zip(z, g)][40:])
+    assert np.mean(t2) == pytest.approx(p, rel=0.1)
+    assert np.mean(np.array(t2) > stats.chi2.isf(0.01, p)) < 0.02
+
+
 def test_pooled_residuals_weigh_each_record_by_its_standard_error():
     b = detect.Baseline(np.zeros(2), np.ones(2), np.eye(2), 100)
     r = np.array([[1.0, np.nan], [3.0, 2.0]])

@@ -63,7 +63,11 @@ def read_modes(path: str | Path) -> xr.Dataset:
     SignalError
         When the file is missing, not NetCDF, or lacks the pole and shape variables.
     """
-    ds = load_netcdf(path, "modes", SignalError)
+    return modes_from(load_netcdf(path, "modes", SignalError), path)
+
+
+def modes_from(ds: xr.Dataset, path: str | Path) -> xr.Dataset:
+    """The modes Dataset held by ``ds``, loaded from the file ``path`` (:func:`read_modes` without the read)."""
     missing = [v for v in ("pole_real", "pole_imag", "shape_real", "shape_imag") if v not in ds]
     if missing:
         raise SignalError(f"{path}: not a modes file: no variable {', '.join(missing)}")

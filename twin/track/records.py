@@ -27,7 +27,7 @@ import xarray as xr
 
 from twin.errors import NoModeError, SignalError, TwinError, TwinWarning
 from twin.fem.operation import Operation
-from twin.netcdf import check_folder, write_netcdf
+from twin.netcdf import check_folder, global_attrs, load_netcdf, write_netcdf
 from twin.tasks import mapper
 
 log = logging.getLogger(__name__)
@@ -147,8 +147,8 @@ def is_fresh(target: Path, record: Path, settings: dict[str, Any]) -> bool:
     if not target.exists():
         return False
     try:
-        with xr.open_dataset(target) as ds:
-            made = {k: str(ds.attrs.get(k, "")) for k in ("record_stamp", "record_sha256", "extract_settings")}
+        attrs = global_attrs(target)
+        made = {k: str(attrs.get(k, "")) for k in ("record_stamp", "record_sha256", "extract_settings")}
     except (OSError, ValueError):
         return False  # a damaged cache file is made again
     if made["extract_settings"] != settings_key(settings):
@@ -212,9 +212,7 @@ def extract_new(records: list[RecordInfo], cache: str | Path, *, settings: dict[
 
 def read_cached(path: Path) -> xr.Dataset | None:
     """A record's cached modes (None for a record without any mode)."""
-    from twin.modes.modesfile import read_modes
+    from twin.modes.modesfile import modes_from
 
-    with xr.open_dataset(path) as ds:
-        if "no_mode" in ds.attrs:
-            return None
-    return read_modes(path)
+    ds = load_netcdf(path, "modes", SignalError)
+    return None if "no_mode" in ds.attrs else modes_from(ds, path)

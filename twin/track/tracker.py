@@ -32,8 +32,8 @@ from twin.fem.operation import operation_of
 from twin.modes.measured import measured_modes
 from twin.modes.pairing import pairing_cost
 from twin.netcdf import check_folder, write_netcdf
-from twin.progress import bar, stage
-from twin.tasks import one_blas_thread
+from twin.progress import stage
+from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
@@ -108,6 +108,26 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
     return pole, sigma
 
 
+#: Records per task when the model's predictions go to Dask workers (each is one eigen-solution, ~0.1 s).
+PREDICTIONS_PER_TASK = 40
+
+
+def _predict_points(points: list[dict[str, float]], *, model: RotorModel, tracked: Any,
+                    with_jacobian: bool) -> list:  # fmt: skip
+    return [predict(model, tracked, p, with_jacobian=with_jacobian) for p in points]
+
+
+def _predictions(model: RotorModel, tracked: Any, records: list, tasks: Any, progress: bool, *,
+                 with_jacobian: bool) -> list:  # fmt: skip
+    """:func:`twin.track.physics.predict` at each record's operating point, in order: the records in
+    batches of :data:`PREDICTIONS_PER_TASK`, as independent tasks (``tasks``, :func:`twin.tasks.mapper`)."""
+    points = [r.point for r in records]
+    batches = [points[k:k + PREDICTIONS_PER_TASK] for k in range(0, len(points), PREDICTIONS_PER_TASK)]
+    done = mapper(tasks, progress=progress, desc="predict")(_predict_points, batches, model=model, tracked=tracked,
+                                                             with_jacobian=with_jacobian)  # fmt: skip
+    return [p for batch in done for p in batch]
+
+
 @one_blas_thread  # many 232-state eigen-solutions: faster on one BLAS thread (twin.tasks.one_blas_thread)
 def track(
     model: RotorModel,
@@ -174,8 +194,8 @@ def track(
 
     with stage("find the tracked modes in each record"):
         poles, sigmas = [], []
-        for r, md in zip(bar(records, desc="identify", progress=progress, leave=False), measured):
-            predicted, _ = predict(model, tracked, r.point, with_jacobian=False)
+        expected = _predictions(model, tracked, records, tasks, progress, with_jacobian=False)
+        for r, md, (predicted, _) in zip(records, measured, expected):
             meas = None if md is None else measured_modes(md)
             if meas is not None and list(meas.channels) != list(tracked.channels):
                 raise TwinError(f"{r.path}: channels {meas.channels} differ from the first record's {tracked.channels}")
@@ -195,7 +215,13 @@ def track(
     with stage(f"learn the laws over {int(base.sum())} baseline records"):
         laws = fit_laws(model, tracked, [r.point for r, b in zip(records, base) if b], y[base], sig[base])
     learned = with_slopes(model, laws.slopes)
-    predicted = np.array([predict(learned, tracked, r.point, with_jacobian=False)[0] for r in records])
+    with stage(f"predict the tracked modes of {len(records)} records with the laws learned"):
+        predicted, by_slopes = zip(*_predictions(learned, tracked, records, tasks, progress, with_jacobian=True))
+    predicted = np.array(predicted)
+    # how each record's predicted frequencies move with the slopes, less the baseline's mean (which the
+    # offsets absorb): with the slopes' covariance, the chart's share of the laws' uncertainty
+    by_slopes = np.array(by_slopes).imag.reshape(len(records), len(tracked.poles), -1)
+    drift = by_slopes - by_slopes[base].mean(axis=0)
     residual = y - parts(predicted) - laws.offsets
 
     # the chart watches the frequencies (the imaginary parts): the damping ratios scatter far more from record
@@ -210,7 +236,7 @@ def track(
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
     cands = explain.candidates(learned, tracked)
     statistic, alarms, followers, current = _watch(learned, tracked, records, days, y, sig, residual, laws, chart,
-                                                   watch, limit, cands, int(base.sum()))  # fmt: skip
+                                                   watch, limit, cands, int(base.sum()), drift)  # fmt: skip
     values: dict[str, np.ndarray] = {}
     for f in followers:
         for j, name in enumerate(f.cand.parameters):
@@ -236,7 +262,7 @@ def _observation(y: np.ndarray, offsets: np.ndarray, center: np.ndarray, m: int)
     return obs
 
 
-def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start):
+def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start, drift):
     """The chart over the records after the baseline; at each alarm the change named, updated and followed.
 
     A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
@@ -248,6 +274,9 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     filter's process noise lets it follow) re-estimates that change as a whole on the records since the
     new onset, so one change has one follower.
 
+    ``drift`` holds each record's frequency parts' sensitivity to the laws' slopes less the baseline's mean
+    (``(n, m, K)``): the chart counts the slopes' uncertainty (:class:`twin.track.detect.MEWMA`).
+
     Returns the chart's statistic, the alarms ``[record, onset record, verdict, record named]``, the
     followers (each with its ``history``: value, 5% and 95% quantile per record) and each record's
     residual against the model with the changes followed so far.
@@ -258,7 +287,7 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
     followers: list[explain.Follower] = []
     alarms: list[list] = []
     reading: _Reading | None = None
-    smooth = detect.MEWMA(watch)
+    smooth = detect.MEWMA(watch, uncertain=laws.covariance if drift.shape[2] else None)
 
     def observed(k: int, t: int) -> list:
         return [(records[i].point, _observation(y[i], laws.offsets, chart.center, m),
@@ -317,7 +346,8 @@ def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch
             g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
             current[t] = y[t] - laws.offsets - g
         z = detect.standardised(current[t, m:], sig[t, m:], watch)
-        statistic[t] = smooth.add(z)
+        g = np.nan_to_num(drift[t] / (watch.scale * sig[t, m:])[:, None])  # 0 where the mode was not found
+        statistic[t] = smooth.add(z, g)
         if statistic[t] > limit:
             if reading is not None:
                 settle(t, force=True)
