@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 
 from twin.errors import TwinError
-from twin.netcdf import write_netcdf
+from twin.netcdf import global_attrs, write_netcdf
 
 
 def test_written_file_has_umask_permissions_and_no_leftovers(tmp_path):
@@ -28,8 +28,6 @@ def test_failed_write_leaves_nothing(tmp_path):
 
 
 def test_global_attrs_reads_the_attrs_alone_and_refuses_what_is_not_netcdf(tmp_path):
-    from twin.netcdf import global_attrs
-
     path = write_netcdf(xr.Dataset({"x": ("t", np.arange(3.0))}, attrs={"a": "text", "n": 3}), tmp_path / "f.nc")
     got = global_attrs(path)
     assert got["a"] == "text" and int(got["n"]) == 3

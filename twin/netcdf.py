@@ -12,9 +12,9 @@ import logging
 import os
 import tempfile
 from collections.abc import Iterator
-from typing import Any
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import xarray as xr
 

@@ -35,7 +35,7 @@ from twin.netcdf import check_folder, write_netcdf
 from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
-from twin.track.physics import fit_laws, parts, predict, tracked_modes, with_slopes
+from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
 from twin.track.report import write_report
 
@@ -112,12 +112,12 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
 PREDICTIONS_PER_TASK = 40
 
 
-def _predict_points(points: list[dict[str, float]], *, model: RotorModel, tracked: Any,
+def _predict_points(points: list[dict[str, float]], *, model: RotorModel, tracked: Tracked,
                     with_jacobian: bool) -> list:  # fmt: skip
     return [predict(model, tracked, p, with_jacobian=with_jacobian) for p in points]
 
 
-def _predictions(model: RotorModel, tracked: Any, records: list, tasks: Any, progress: bool, *,
+def _predictions(model: RotorModel, tracked: Tracked, records: list, tasks: Any, progress: bool, *,
                  with_jacobian: bool) -> list:  # fmt: skip
     """:func:`twin.track.physics.predict` at each record's operating point, in order: the records in
     batches of :data:`PREDICTIONS_PER_TASK`, as independent tasks (``tasks``, :func:`twin.tasks.mapper`)."""
