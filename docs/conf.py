@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
-import shutil
+import sys
 from pathlib import Path
 
 import twin
+
+# docs/_ext: the notebooks executed at build time (executed_notebooks), the parser as the command-line page
+# renders it (cli_reference)
+sys.path.insert(0, str(Path(__file__).parent / "_ext"))
 
 project = "twin"
 author = "the twin developers"
@@ -19,18 +23,14 @@ extensions = [
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
     "sphinxarg.ext",
+    "executed_notebooks",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 
-# The notebooks of notebooks/ are pages of the docs, executed at every build (their outputs are never
-# committed): copied into docs/examples/ (generated, not in git), where they write their output folders.
-EXAMPLES = Path(__file__).parent / "examples"
-EXAMPLES.mkdir(exist_ok=True)
-for notebook in sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb")):
-    shutil.copyfile(notebook, EXAMPLES / notebook.name)
-nb_execution_mode = "force"
-nb_execution_timeout = 900
-nb_execution_raise_on_error = True
+# The notebooks of notebooks/ are pages of the docs, executed at every build by executed_notebooks (docs/_ext)
+# into docs/examples/ (generated, not in git), where they write their output folders; myst-nb renders them as
+# executed. Their outputs are never committed.
+nb_execution_mode = "off"
 nb_merge_streams = True
 exclude_patterns = ["_build", "examples/*-output"]
 myst_enable_extensions = ["dollarmath", "deflist"]
