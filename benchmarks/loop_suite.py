@@ -43,7 +43,9 @@ def group(spec: str) -> str:
     """The suite group of a scenario spec."""
     if spec == "none":
         return "nothing hidden"
-    if spec.split(":")[0] in ("shaft_stiffness", "disk_mass", "disk_inertia"):
+    from twin.fem.effects import effect_classes, parse_label
+
+    if parse_label(spec).key in effect_classes(local=True):
         return "outside the library"
     return "two effects" if "+" in spec else "one effect, three sizes"
 

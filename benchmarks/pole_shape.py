@@ -94,12 +94,12 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s) and extract one dataset
     (``extraction``: options of :func:`twin.extract.extract`); the linearised terms and the two updates; one row
     per parameter."""
-    from twin.loop.compare import PER_MODE_NAME
+    from twin.fem.effects import is_per_mode_name
     from twin.loop.demo import posterior_table
 
     name, seed = job
     tw, names, truth = scenario_record(job, duration_s, extraction, streams)
-    if any(PER_MODE_NAME.match(n) for n in names):
+    if any(is_per_mode_name(n) for n in names):
         raise ValueError(f"{name}: per-mode parameters are not one shared direction; choose another scenario")
     tables = {}
     with warnings.catch_warnings():

@@ -74,7 +74,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     options of :func:`twin.extract.extract`) and update one dataset the five ways; one row per parameter."""
     from jackknife import mode_spread
 
-    from twin.loop.compare import PER_MODE_NAME
+    from twin.fem.effects import is_per_mode_name
     from twin.loop.demo import posterior_table
     from twin.loop.twin import Twin
     from twin.update.marginal import marginal_problem
@@ -92,7 +92,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
             post = Twin(tw.model, modes).update(names, seed=seed, progress=False)
             tables[variant] = posterior_table(post, tw.model)
         tables["poles only"] = posterior_table(Twin(tw.model, tw.modes).update(names, method="laplace"), tw.model)
-        shared = [n for n in names if not PER_MODE_NAME.match(n)]
+        shared = [n for n in names if not is_per_mode_name(n)]
         fsi = len(shared) < len(names)
         problem = build_problem(tw.model, tw.modes, shared, fsi=fsi, pole_model="marginal")
         marg = marginal_problem(problem, tw.modes["pole"].transpose("mode", "sample").values)

@@ -47,7 +47,7 @@ import xarray as xr
 
 from twin.fem import load_model
 from twin.fem.effects import effect_label, scaled
-from twin.fem.local import ShaftStiffnessChange
+from twin.fem.effects import ShaftStiffnessChange
 from twin.fem.operation import at_operating_point, with_parameters
 from twin.loop.scenarios import REFERENCE_EFFECTS
 from twin.tasks import dask_client

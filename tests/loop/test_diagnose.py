@@ -9,12 +9,13 @@ import pytest
 
 from twin.fem.effects import (
     BearingChange,
+    DiskMassChange,
     FluidAddedMass,
     MagneticPull,
     SealCrossCoupling,
+    ShaftStiffnessChange,
     ThrustTilt,
 )
-from twin.fem.local import DiskMassChange, ShaftStiffnessChange
 from twin.fem.truthfile import Truth
 from twin.loop.diagnose import consistent, diagnose
 from twin.modes.measured import measured_modes

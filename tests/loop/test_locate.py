@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from twin.fem.local import ShaftStiffnessChange
+from twin.fem.effects import ShaftStiffnessChange
 from twin.fem.truthfile import Truth
 from twin.loop.locate import locate, screen
 from twin.modes.measured import measured_modes

@@ -3,7 +3,7 @@
 import pytest
 
 from twin.errors import TwinError
-from twin.fem.local import DiskInertiaChange, DiskMassChange, ShaftStiffnessChange
+from twin.fem.effects import DiskInertiaChange, DiskMassChange, ShaftStiffnessChange
 from twin.loop.scenarios import REFERENCE_EFFECTS, parse_scenario
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from twin import ModelFileError
-from twin.fem.local import ShaftStiffnessChange
+from twin.fem.effects import ShaftStiffnessChange
 from twin.track.profile import DEFAULT_VARIATION, Variation, operating_points
 from twin.track.schedule import Change, read_schedule
 

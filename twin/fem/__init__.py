@@ -1,12 +1,12 @@
 """Stage 1: the rotor FEM (elements, linear parameters, effects, model files)."""
 
-from twin.fem.effects import EFFECTS
+from twin.fem.effects import Effect, effect_classes, register
 from twin.fem.elements import Bearing, Disk, Material, ShaftElement, ThrustBearing
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.modelfile import load_model, shipped_model
 from twin.fem.parameters import Parameter, Term
 
 __all__ = [
-    "EFFECTS", "Bearing", "Disk", "Material", "Parameter", "RotorModel", "Sensor", "ShaftElement",
-    "Term", "ThrustBearing", "load_model", "shipped_model",
+    "Bearing", "Disk", "Effect", "Material", "Parameter", "RotorModel", "Sensor", "ShaftElement",
+    "Term", "ThrustBearing", "effect_classes", "load_model", "register", "shipped_model",
 ]  # fmt: skip

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.errors import ModelError, ModelFileError
-from twin.fem.effects import EFFECTS, effect_fields, effect_label
+from twin.fem.effects import effect_classes, effect_fields, effect_label, parse_label
 from twin.fem.elements import (
     BEARING_COEFFICIENTS,
     Bearing,
@@ -153,7 +153,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     regions = _read_regions(top, n_nodes)
     rayleigh = _read_damping(top)
     tables: list[str] = []
-    effects = _read_effects(top, regions, element_names(bearings, thrusts), tables)
+    effects = _read_effects(top, regions, effect_elements(bearings, thrusts), tables)
     model = RotorModel(
         name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
         speed_rpm=speed_rpm, regions=regions, effects=(), rayleigh=rayleigh, source=source,
@@ -298,8 +298,8 @@ def _read_damping(top: Table) -> tuple[float, float]:
     return (a, b)
 
 
-def element_names(bearings, thrusts) -> dict[str, list[str]]:
-    """Names of the elements effects can act on, by element kind (``bearing_change``, ``thrust_tilt``)."""
+def effect_elements(bearings, thrusts) -> dict[str, list[str]]:
+    """Names of the elements a model file's effects can act on, by element kind (``bearing``, ``thrust``)."""
     return {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
 
 
@@ -319,7 +319,8 @@ def read_effect_tables(
     tables_read: list[str] | None = None,
     local_allowed: bool = False,
 ) -> list:
-    """Effects from tables keyed by effect label (``[prefix + label]``), validated against :data:`EFFECTS`.
+    """Effects from tables keyed by effect label (``[prefix + label]``), validated against the registered
+    effects (:func:`twin.fem.effects.effect_classes`).
 
     A table is named as ``twin params`` and ``--effect`` name the effect: ``[magnetic_pull]``, or, for an
     element effect, ``["bearing_change:UGB"]`` (quoted: TOML keys hold no colon otherwise; the older
@@ -329,23 +330,22 @@ def read_effect_tables(
     ``"thrust"`` to the model's element names, against which element effects are checked.
     ``tables_read``, if given, gets each effect's table name, for the messages of later checks.
     With ``local_allowed`` (truth files), local changes outside the library are read too
-    (:data:`twin.fem.local.LOCAL_CHANGES`: ``["shaft_stiffness:18"]``, ``["disk_mass:generator"]`` with
+    (``["shaft_stiffness:18"]``, ``["disk_mass:generator"]`` with
     ``change``, the relative change); their element is named in the table's name and checked against the
     model by :func:`check_effect_bounds`.
     """
-    from twin.fem.local import LOCAL_CHANGES
-
-    known = {**EFFECTS, **LOCAL_CHANGES} if local_allowed else EFFECTS
+    known = effect_classes(local=None if local_allowed else False)
     out = []
     for key in tables.data:
         tables.used.add(key)
-        base, _, element = key.partition(":")
+        base, element = parse_label(key)
+        element = element or ""
         if base not in known:
             close = difflib.get_close_matches(base, known, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else f"; known: {', '.join(known)}"
             raise tables.error(key, f"unknown effect{hint}")
         cls = known[base]
-        if base in LOCAL_CHANGES and not element:
+        if cls.local and not element:
             raise tables.error(key, f"a local change names its element: ['{base}:<{cls.element}>']")
         t = Table(tables.path, f"[{prefix}{key}]" if ":" not in key else f'[{prefix}"{key}"]', tables.data[key])
         if element and cls.element is None:
@@ -367,10 +367,11 @@ def read_effect_tables(
                     raise t.error(name, f"{t.data[name]!r} contradicts the table's name, which says {element!r}")
                 values[name] = element if element else t.string(name)
                 t.used.add(name)
-                names = elements.get(cls.element) if elements is not None else None
+                kind = cls.element_kind or cls.element
+                names = elements.get(kind) if elements is not None else None
                 if names is not None and values[name] not in names:
-                    raise t.error(name, f"no {cls.element} named {values[name]!r} in the model "
-                                        f"(its {cls.element}s: {', '.join(map(repr, names)) or 'none'})")
+                    raise t.error(name, f"no {kind} named {values[name]!r} in the model "
+                                        f"(its {kind}s: {', '.join(map(repr, names)) or 'none'})")
             elif kind is tuple:
                 items = t.array(name)
                 for v in items:

@@ -31,9 +31,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from twin.errors import ModelFileError
-from twin.fem.effects import EFFECTS, FluidAddedMassPerMode, effect_fields, effect_label
+from twin.fem.effects import FluidAddedMassPerMode, effect_classes, effect_fields, effect_label, parse_label
 from twin.fem.model import RotorModel
-from twin.fem.modelfile import check_effect_bounds, element_names, read_effect_tables
+from twin.fem.modelfile import check_effect_bounds, effect_elements, read_effect_tables
 from twin.fem.tables import Table, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
@@ -80,25 +80,23 @@ _RENAMED = {("bearing_change", "stiffness"): "stiffness_change", ("bearing_chang
 def truth_from_json(text: str) -> Truth:
     """The truth a file's ``truth`` attr describes (:meth:`Truth.to_json`'s inverse).
 
-    Library effects (:data:`twin.fem.effects.EFFECTS`) and local changes outside the library
-    (:data:`twin.fem.local.LOCAL_CHANGES`, as a scenario such as ``shaft_stiffness:18@0.5`` hides).
+    Library effects and local changes outside the library (:func:`twin.fem.effects.effect_classes`, as a
+    scenario such as ``shaft_stiffness:18@0.5`` hides).
 
     Examples
     --------
     >>> truth_from_json(paper_truth().to_json()) == paper_truth()
     True
-    >>> from twin.fem.local import ShaftStiffnessChange
+    >>> from twin.fem.effects import ShaftStiffnessChange
     >>> truth_from_json(Truth((ShaftStiffnessChange(18, -0.5),)).to_json()).effects
     (ShaftStiffnessChange(index=18, change=-0.5),)
     """
-    from twin.fem.local import LOCAL_CHANGES
-
-    known = {**EFFECTS, **LOCAL_CHANGES}
+    known = effect_classes()
     try:
         data = json.loads(text)
         effects = []
         for label, fields in data["effects"].items():
-            cls = known[label.split(":", 1)[0]]
+            cls = known[parse_label(label).key]
             fields = {_RENAMED.get((cls.key, k), k): v for k, v in fields.items()}
             kinds = effect_fields(cls)
             effects.append(cls(**{k: tuple(v) if kinds.get(k) is tuple else v for k, v in fields.items()}))
@@ -150,7 +148,7 @@ def truth_from_tables(data: dict, model: RotorModel, path: str, where: str = "(t
     >>> truth_from_tables({"shaft_stiffness:18": {"change": -0.3}}, unit, "schedule.toml").effects
     (ShaftStiffnessChange(index=18, change=-0.3),)
     """
-    elements = element_names(model.bearings, model.thrusts)
+    elements = effect_elements(model.bearings, model.thrusts)
     tables: list[str] = []
     effects = read_effect_tables(Table(path, where, data), model.regions, prefix=prefix, elements=elements,
                                  tables_read=tables, local_allowed=True)  # fmt: skip

@@ -9,9 +9,11 @@ for a model with the matching regions and elements:
 * ``magnetic_pull``: negative radial stiffness at the generator;
 * ``seal_cross_coupling``: cross-coupled stiffness at the runner seals;
 * ``bearing_change:<B>``: direct stiffness and damping change of each guide bearing;
-* ``thrust_tilt:<T>``: tilt stiffness change of each thrust bearing.
+* ``thrust_tilt:<T>``: tilt stiffness change of each thrust bearing;
 
-Effects the model already has are not candidates.
+and any other registered library effect (:func:`twin.fem.effects.effect_classes`).
+Effects the model already has are not candidates, nor effects that one the model
+has holds as a special case (a model with per-mode FSI tries no mode-independent FSI).
 """
 
 from __future__ import annotations
@@ -22,13 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from twin.errors import ModelError
-from twin.fem.effects import (
-    EFFECTS,
-    FluidAddedMass,
-    FluidAddedMassPerMode,
-    effect_label,
-    library_effects,
-)
+from twin.fem.effects import effect_classes, effect_label, holds, library_effects
 from twin.fem.model import RotorModel
 
 
@@ -57,20 +53,18 @@ def library(model: RotorModel) -> list[Candidate]:
     --------
     >>> from twin.loop import library
     >>> from twin import load_model, shipped_model
-    >>> [c.label for c in library(load_model(shipped_model("hydro_unit")))]  # doctest: +NORMALIZE_WHITESPACE
-    ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB',
-     'bearing_change:LGB', 'thrust_tilt:thrust']
+    >>> [c.label for c in library(load_model(shipped_model("hydro_unit")))][:5]
+    ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB']
     """
-    effects = library_effects(model)
-    present = {effect_label(e) for e in model.effects}
-    has_fsi = any(isinstance(e, (FluidAddedMass, FluidAddedMassPerMode)) for e in model.effects)
+    present = [effect_label(e) for e in model.effects]
     out = []
-    for e in effects:
-        if effect_label(e) in present or (e.per_mode and any(x.per_mode for x in model.effects)):
+    for e in library_effects(model):
+        label = effect_label(e)
+        if label in present or (e.per_mode and model.per_mode_effect is not None):
             continue
-        if isinstance(e, FluidAddedMass) and has_fsi:
+        if any(holds(p, label) for p in present):
             continue
-        out.append(Candidate(effect_label(e), e))
+        out.append(Candidate(label, e))
     return out
 
 
@@ -87,23 +81,8 @@ def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
     unknown = [lab for lab in labels if lab not in by_label and lab not in present]
     if unknown:
         raise ModelError(f"no candidate effect {unknown} for model '{model.name}'; available: "
-                         f"{', '.join(by_label) or 'none'} (library keys: {', '.join(EFFECTS)})")  # fmt: skip
+                         f"{', '.join(by_label) or 'none'} (library keys: {', '.join(effect_classes(local=False))})")  # fmt: skip
     return [by_label[lab] for lab in labels if lab in by_label]
-
-
-#: Effects that hold another as a special case, by label: the one comes in, the other goes.
-REPLACES = {"fsi_per_mode": "fsi"}
-
-
-def replaces(new: str, old: str) -> bool:
-    """Whether the effect labelled ``new`` holds the one labelled ``old`` (per-mode FSI holds the mode-independent).
-
-    Examples
-    --------
-    >>> replaces("fsi_per_mode", "fsi"), replaces("fsi", "fsi_per_mode")
-    (True, False)
-    """
-    return REPLACES.get(new) == old
 
 
 def with_effect(model: RotorModel, effect) -> RotorModel:
@@ -124,7 +103,7 @@ def sized(candidate: Candidate, labels: Sequence[int]) -> Candidate:
     if not candidate.per_mode:
         return candidate
     n = int(max(labels))
-    return Candidate(candidate.label, FluidAddedMassPerMode((0.0,) * n, (0.0,) * n))
+    return Candidate(candidate.label, candidate.effect.with_modes(n))
 
 
 def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[int] | None = None) -> RotorModel:

@@ -41,7 +41,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.errors import CompareError, ModelError
-from twin.fem.effects import PER_MODE_NAME, per_mode_values, with_shared_fsi
+from twin.fem.effects import is_per_mode_name, per_mode_values, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.modes.analysis import damping_ratio
 from twin.modes.measured import (
@@ -119,7 +119,7 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
 
 def _shared_values(values: Mapping[str, float] | None) -> dict[str, float]:
     """The values of a per-mode model's single-FEM parameters (the per-mode ones left out)."""
-    return {k: v for k, v in dict(values or {}).items() if not PER_MODE_NAME.match(k)}
+    return {k: v for k, v in dict(values or {}).items() if not is_per_mode_name(k)}
 
 
 def _shape_error(model_shape: np.ndarray, measured_shape: np.ndarray) -> np.ndarray:

@@ -28,9 +28,10 @@ from twin.defaults import DEMO_RECORDS, SAMPLES  # noqa: F401 (shared with the C
 from twin.design.observe import target_lines
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
+from twin.fem.effects import is_per_mode_name
 from twin.fem.model import RotorModel
 from twin.loop.bootstrap import check_records
-from twin.loop.compare import ERROR_WEIGHTS, PER_MODE_NAME, error_text
+from twin.loop.compare import ERROR_WEIGHTS, error_text
 from twin.loop.diagnose import LN_B_KEY, Diagnosis
 from twin.loop.history import HISTORY_KEY, INTERVAL_DRAWS, interval_text, write_history
 from twin.loop.html import write_html_report
@@ -84,7 +85,7 @@ def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: lis
     >>> truth_for_measured({"FSI.added_mass_3": 7.0, "MAG.stiffness": -1.0}, meas, modes)
     {'MAG.stiffness': -1.0, 'FSI.added_mass_2': 7.0}
     """
-    out = {k: v for k, v in truth.items() if not PER_MODE_NAME.match(k)}
+    out = {k: v for k, v in truth.items() if not is_per_mode_name(k)}
     if not truth_modes or len(out) == len(truth):
         return out
     f = np.array([m["frequency_hz"] for m in truth_modes])

@@ -51,9 +51,9 @@ import numpy as np
 import scipy.stats
 import xarray as xr
 
-from twin.fem.effects import describe, free_names
+from twin.fem.effects import describe, free_names, holds
 from twin.fem.model import RotorModel
-from twin.loop.candidates import Candidate, replaces, select, sized
+from twin.loop.candidates import Candidate, select, sized
 from twin.loop.compare import compare
 from twin.loop.coverage import Coverage, coverage
 from twin.loop.locate import Location, locate
@@ -210,7 +210,7 @@ def _fit_set(extra: Sequence[Candidate], model: RotorModel, meas: Measured, own:
 def _fit_with(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
               included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
     """One candidate fitted jointly with the effects already chosen (less any it replaces); labelled by it."""
-    rest = [c for c in included if not replaces(candidate.label, c.label)]
+    rest = [c for c in included if not holds(candidate.label, c.label)]
     return _fit_set([*rest, candidate], model, meas, own, start, reference, label=candidate.label)
 
 
@@ -288,7 +288,7 @@ def diagnose(
         # alone) only when none of them is strongly supported any more, so it never stands in for simpler ones.
         # Once max_effects are chosen, only a candidate that replaces one of them may still come in.
         eligible = [c for c in remaining
-                    if len(included) < max_effects or any(replaces(c.label, i.label) for i in included)]  # fmt: skip
+                    if len(included) < max_effects or any(holds(c.label, i.label) for i in included)]  # fmt: skip
         tiers = [[c for c in eligible if not c.per_mode], [c for c in eligible if c.per_mode]]
         fitted: dict[str, Fit] = {}
         if first is None:  # every candidate alone, for the ranking
@@ -308,14 +308,14 @@ def diagnose(
         if pick is None:
             break
         added, fit_added = pick, fitted[pick.label]
-        for replaced in [c for c in included if replaces(added.label, c.label)]:
+        for replaced in [c for c in included if holds(added.label, c.label)]:
             included.remove(replaced)
             path.append(("replace", replaced.label, fit_added.log_bayes_factor))
         included.append(added)
         path.append(("add", added.label, fit_added.log_bayes_factor))
         current, current_lnz = fit_added, fit_added.log_evidence
         # per-mode FSI stays a candidate after the mode-independent one (it may replace it), not the other way
-        remaining = [c for c in remaining if c is not added and not replaces(added.label, c.label)]
+        remaining = [c for c in remaining if c is not added and not holds(added.label, c.label)]
         current, current_lnz = _drop_unneeded(included, path, current, model, meas, own, run)
     first = first or []
     by_label = {c.label: c for c in chosen}

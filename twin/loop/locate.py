@@ -1,9 +1,9 @@
 """Where a model fails when no library effect explains it: a scan of local changes.
 
-The hypotheses are the local changes of :mod:`twin.fem.local`: each shaft
+The hypotheses are the local changes (:func:`twin.fem.effects.local_changes`): each shaft
 element's bending stiffness, each disk's mass, each disk's moments of
 inertia, one relative change ``δ`` each with the prior ``N(0, s²)``,
-``s =`` :data:`twin.fem.local.LOCAL_CHANGE_SCALE`. Two passes:
+``s =`` :data:`twin.fem.effects.LOCAL_CHANGE_SCALE`. Two passes:
 
 1. **Screening**, linearised at the hypothesis already fitted: with ``J`` the
    residuals' derivative in ``δ`` (scaled by ``s``) and ``r`` the residuals,
@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.fem.effects import effect_label
-from twin.fem.local import LOCAL_CHANGE_SCALE, local_changes
+from twin.fem.effects import LOCAL_CHANGE_SCALE, effect_label, local_changes, parse_label
 from twin.fem.model import RotorModel
 from twin.modes.measured import Measured, channel_dofs, pair_with_measured
 from twin.modes.sensitivity import footprint_jacobian, solve_modes
@@ -66,7 +65,7 @@ class Location:
     @property
     def element(self) -> int:
         """The shaft element of a stiffness change (-1 for a disk)."""
-        key, _, where = self.label.partition(":")
+        key, where = parse_label(self.label)
         return int(where) if key == "shaft_stiffness" else -1
 
     def text(self) -> str:
@@ -119,7 +118,7 @@ def locate(
     Examples
     --------
     >>> from twin import load_model, shipped_model
-    >>> from twin.fem.local import DiskMassChange
+    >>> from twin.fem.effects import DiskMassChange
     >>> from twin.fem.truthfile import Truth
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update.laplace import log_evidence_as_is

@@ -23,17 +23,20 @@ import dataclasses
 import re
 from dataclasses import dataclass
 
-from twin.errors import TwinError
+from twin.errors import ModelError, TwinError
 from twin.fem.effects import (
     BearingChange,
     FluidAddedMass,
     MagneticPull,
     SealCrossCoupling,
     ThrustTilt,
+    effect_classes,
     effect_label,
+    exclusive,
+    from_label,
+    parse_label,
     scaled,
 )
-from twin.fem.local import LOCAL_CHANGES, DiskInertiaChange, DiskMassChange, ShaftStiffnessChange
 from twin.fem.truthfile import PAPER_TABLE2, Truth
 
 #: Library effects a scenario can hide, at their reference sizes (SI). Each changes the modes well
@@ -55,21 +58,16 @@ DEFAULT_FACTORS = {"shaft_stiffness": 0.5, "disk_mass": 1.1, "disk_inertia": 1.2
 NOTHING = "none"
 #: Older names of specs.
 ALIASES = {"shaft_stiffness_loss": "shaft_stiffness:18@0.5"}
-#: Effects that describe the same physics: a scenario hides at most one of them.
-EXCLUSIVE = ({"fsi", "fsi_per_mode"},)
 
 _TERM = re.compile(r"^(?P<label>[A-Za-z_]+(?::[A-Za-z0-9_]+)?)(?:@(?P<factor>[-+0-9.eE]+))?$")
 
 
 def _local(label: str, factor: float):
-    key, _, where = label.partition(":")
-    if key == "shaft_stiffness":
-        try:
-            return ShaftStiffnessChange(int(where), round(factor - 1.0, 12))
-        except ValueError:
-            raise TwinError(f"'{label}': a shaft element is a number, e.g. shaft_stiffness:18") from None
-    cls = {"disk_mass": DiskMassChange, "disk_inertia": DiskInertiaChange}[key]
-    return cls(where, round(factor - 1.0, 12))
+    """The local change ``label`` at ``factor`` times the element's own value."""
+    try:
+        return from_label(label, change=round(factor - 1.0, 12))
+    except ModelError as exc:
+        raise TwinError(str(exc)) from None
 
 
 @dataclass(frozen=True)
@@ -187,16 +185,18 @@ def parse_scenario(spec: str) -> Scenario:
             raise TwinError(f"hidden change '{spec}': the factor of '{label}' must be positive, got {value:g}")
         if label in REFERENCE_EFFECTS:
             effects.append(scaled(REFERENCE_EFFECTS[label], 1.0 if value is None else value))
-        elif label.partition(":")[0] in LOCAL_CHANGES and ":" in label:
-            changes.append(_local(label, DEFAULT_FACTORS[label.partition(":")[0]] if value is None else value))
+        elif parse_label(label).key in effect_classes(local=True) and parse_label(label).element:
+            key = parse_label(label).key
+            changes.append(_local(label, DEFAULT_FACTORS.get(key, 1.0) if value is None else value))
         else:
             raise TwinError(f"hidden change '{spec}': unknown '{label}'; choose from {', '.join(known_terms())}")
         if label in seen:
             raise TwinError(f"hidden change '{spec}': '{label}' appears twice")
         seen.add(label)
-    for group in EXCLUSIVE:
-        if len(group & seen) > 1:
-            raise TwinError(f"hidden change '{spec}': {' and '.join(sorted(group))} describe the same physics; hide one")
+    for a in sorted(seen):
+        for b in sorted(seen):
+            if a < b and exclusive(a, b):
+                raise TwinError(f"hidden change '{spec}': {a} and {b} describe the same physics; hide one")
     return Scenario(spec, tuple(effects), tuple(changes))
 
 

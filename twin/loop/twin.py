@@ -20,10 +20,10 @@ from typing import Any
 import xarray as xr
 
 from twin.errors import TwinError, TwinWarning
-from twin.fem.effects import effect_label, free_names
+from twin.fem.effects import effect_label, free_names, holds, is_per_mode_name
 from twin.fem.model import RotorModel
-from twin.loop.candidates import add_effects, replaces
-from twin.loop.compare import PER_MODE_NAME, compare
+from twin.loop.candidates import add_effects
+from twin.loop.compare import compare
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.history import error_interval, history_dataset, plot_history
 from twin.modes.measured import TOLERANCE, Measured, measured_modes
@@ -126,10 +126,10 @@ class Twin:
 
     def _drop_replaced(self, label: str) -> None:
         """Before an effect comes in, the effects the loop added that it holds go (per-mode FSI holds the
-        mode-independent FSI: :func:`twin.loop.candidates.replaces`)."""
+        mode-independent FSI: :func:`twin.fem.effects.holds`)."""
         import dataclasses
 
-        for old in [a for a in self.added if replaces(label, a)]:
+        for old in [a for a in self.added if holds(label, a)]:
             gone = [e for e in self.model.effects if effect_label(e) == old]
             names = {p.name for e in gone for p in e.parameters(self.model)}
             model = dataclasses.replace(self.model, effects=tuple(e for e in self.model.effects if e not in gone),
@@ -245,7 +245,7 @@ class Twin:
         """
         from twin.update.problem import select_parameters
 
-        per_mode = [] if isinstance(params, str) else [n for n in params if PER_MODE_NAME.match(n)]
+        per_mode = [] if isinstance(params, str) else [n for n in params if is_per_mode_name(n)]
         names = select_parameters(self.model, [n for n in ([params] if isinstance(params, str) else params)
                                                if n not in per_mode]) + per_mode  # fmt: skip
         label = params if isinstance(params, str) else (", ".join(params) if len(params) <= 4

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twin.fem.effects import effect_label, library_effects
-from twin.fem.local import local_changes
+from twin.fem.effects import effect_label, library_effects, local_changes
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, with_change, with_parameters
 from twin.modes.sensitivity import pole_jacobian, solve_modes

@@ -50,10 +50,10 @@ import xarray as xr
 from twin.errors import ModelError, UpdateError
 from twin.fem.effects import (
     CHANGE_FRACTION,
-    PER_MODE_NAME,
     FluidAddedMassPerMode,
     effect_label,
     free_names,
+    is_per_mode_name,
     library_effects,
     per_mode_values,
     plausible_scales,
@@ -213,7 +213,7 @@ class PoleModel:
         return sol, k
 
     def _per_mode_at(self, values: Mapping[str, float], names: Sequence[str]) -> Poles:
-        shared = {k: v for k, v in values.items() if not PER_MODE_NAME.match(k)}
+        shared = {k: v for k, v in values.items() if not is_per_mode_name(k)}
         all_values = {**self.model.values, **dict(values)}
         n = len(self.meas.mode)
         poles, macs = np.empty(n, complex), np.empty(n)
@@ -228,7 +228,7 @@ class PoleModel:
             if jac is None:
                 continue
             own = {f"FSI.added_mass_{label}": 0, f"FSI.added_damping_{label}": 1}
-            cols = [j for j, nm in enumerate(names) if not PER_MODE_NAME.match(nm)]
+            cols = [j for j, nm in enumerate(names) if not is_per_mode_name(nm)]
             if cols:
                 jac[r, cols] = pole_jacobian(self.base, sol, [names[j] for j in cols], [k])[0]
             mine = [(j, own[nm]) for j, nm in enumerate(names) if nm in own]
@@ -430,7 +430,7 @@ def fit(
 def _best_start(pm: PoleModel, prior: BoundedPrior, u0: np.ndarray, meas: Measured) -> np.ndarray:
     """``u0`` or the point of :data:`START_POINTS` along one shared parameter with the lowest objective."""
     best, best_cost = u0, np.inf
-    shared = [k for k, n in enumerate(prior.names) if not PER_MODE_NAME.match(n)]
+    shared = [k for k, n in enumerate(prior.names) if not is_per_mode_name(n)]
     points = [u0]
     for k in shared:
         for x in START_POINTS:

@@ -49,7 +49,7 @@ import scipy.linalg as sla
 import xarray as xr
 
 from twin.defaults import HMC_MIN_WARMUP, HMC_WARMUP
-from twin.fem.effects import PER_MODE_NAME
+from twin.fem.effects import is_per_mode_name
 from twin.fem.model import RotorModel
 from twin.progress import bar
 from twin.tasks import mapper, one_blas_thread
@@ -196,7 +196,7 @@ def marginal_setup(model: RotorModel, modes: xr.Dataset, settings: Mapping[str, 
     priors = settings.get("priors", "flat")
     priors = {} if priors == "flat" else {k: (float(v[0]), float(v[1])) for k, v in priors.items()}
     labels = set(problem.parameter_labels)
-    priors = {k: v for k, v in priors.items() if k in labels or not PER_MODE_NAME.match(k)}
+    priors = {k: v for k, v in priors.items() if k in labels or not is_per_mode_name(k)}
     return marginal_of(problem, modes, options), build_prior(problem, priors, "full", 0.0)
 
 

@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from twin.fem.local import LOCAL_CHANGES, DiskInertiaChange, DiskMassChange, ShaftStiffnessChange, local_changes
+from twin.fem.effects import DiskInertiaChange, DiskMassChange, ShaftStiffnessChange, effect_classes, local_changes
 
 
 def test_shaft_stiffness_change_equals_weakening_the_material(hydro_unit):
@@ -36,4 +36,4 @@ def test_every_change_is_relative_bounded_and_scanned(hydro_unit):
     for c in changes:
         (p,) = c.parameters(hydro_unit)
         assert p.unit == "1" and p.bounds[0] == -1.0 and c.plausible_scale(hydro_unit)[p.name] == 0.5
-        assert c.key in LOCAL_CHANGES and c.where(hydro_unit)
+        assert c.key in effect_classes(local=True) and c.local and c.where(hydro_unit)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from twin import ModelError, modal
-from twin.fem.effects import EFFECTS, FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling
+from twin.fem.effects import FluidAddedMass, FluidAddedMassPerMode, MagneticPull, SealCrossCoupling, effect_classes
 
 
 def _with(model, effect):
@@ -84,8 +84,8 @@ def test_seal_cross_coupling_destabilises_forward_whirl(ross_model):
     assert K[12, 13] == 1.0 and K[13, 12] == -1.0
 
 
-def test_every_effect_has_a_region_or_an_element_and_an_explanation():
-    for key, cls in EFFECTS.items():
+def test_every_library_effect_has_a_region_or_an_element_and_an_explanation():
+    for key, cls in effect_classes(local=False).items():
         assert cls.key == key and (cls.region is None) != (cls.element is None) and len(cls.explanation) > 20
 
 
@@ -113,12 +113,11 @@ def test_element_effect_on_a_missing_element_names_it(hydro_unit):
 
 
 def test_every_effect_states_a_positive_scale_for_each_parameter(hydro_unit):
-    from twin.fem.effects import BearingChange, ThrustTilt
-
-    for cls in EFFECTS.values():
-        effect = {"bearing": BearingChange("UGB"), "thrust": ThrustTilt("thrust")}.get(cls.element) or (
-            cls((0.0,), (0.0,)) if cls.per_mode else cls()
-        )
-        scales = effect.plausible_scale(hydro_unit)
-        assert set(scales) == {p.name for p in effect.parameters(hydro_unit)}
-        assert all(v > 0 for v in scales.values())
+    for cls in effect_classes().values():
+        effects = cls.instances(hydro_unit)
+        assert effects, cls.key
+        for effect in effects:
+            effect = effect.with_modes(2) if effect.per_mode else effect
+            scales = effect.plausible_scale(hydro_unit)
+            assert set(scales) == {p.name for p in effect.parameters(hydro_unit)} != set()
+            assert all(v > 0 for v in scales.values())
