@@ -152,7 +152,7 @@ def region_mass(model, region: str) -> float:
 
 
 def direct_stiffness(model) -> float:
-    """Geometric mean of the guide bearings' direct stiffnesses |kxx|, |kyy| [N/m]."""
+    """Geometric mean of the absolute direct stiffnesses ``kxx`` and ``kyy`` of the guide bearings [N/m]."""
     values = [abs(model.parameter(f"{b.name}.{k}").nominal) for b in model.bearings for k in ("kxx", "kyy")]
     values = [v for v in values if v > 0]
     if not values:
