@@ -48,3 +48,26 @@ def test_an_element_the_model_lacks_is_named(hydro_unit):
         parse_scenario("shaft_stiffness:40").check(hydro_unit)
     with pytest.raises(TwinError, match="no disk 'rotor'"):
         parse_scenario("disk_inertia:rotor").check(hydro_unit)
+
+
+def test_a_local_change_without_a_default_size_asks_for_its_factor(monkeypatch):
+    """A local change a plug-in adds has no default size here: hiding it needs LABEL@FACTOR, not silently none."""
+    from dataclasses import dataclass
+    from typing import ClassVar
+
+    from twin.fem.effects import RelativeChange, register, registry
+
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    monkeypatch.setattr(registry, "_ORDERED", None)
+
+    @register
+    @dataclass(frozen=True)
+    class PadStiffness(RelativeChange):
+        key: ClassVar[str] = "pad_stiffness_test"
+        element: ClassVar[str | None] = "bearing"
+        bearing: str = ""
+        change: float = 0.0
+
+    with pytest.raises(TwinError, match="'pad_stiffness_test:UGB' has no default size; give it as"):
+        parse_scenario("pad_stiffness_test:UGB")
+    assert parse_scenario("pad_stiffness_test:UGB@0.8").changes == (PadStiffness("UGB", -0.2),)

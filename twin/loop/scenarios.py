@@ -20,6 +20,7 @@ says "nothing missing" with nothing hidden (:meth:`Scenario.expected`).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import re
 from dataclasses import dataclass
 
@@ -183,20 +184,21 @@ def parse_scenario(spec: str) -> Scenario:
             raise TwinError(f"hidden change '{spec}': '{factor}' is not a number") from None
         if value is not None and not value > 0:
             raise TwinError(f"hidden change '{spec}': the factor of '{label}' must be positive, got {value:g}")
+        key, element = parse_label(label)
         if label in REFERENCE_EFFECTS:
             effects.append(scaled(REFERENCE_EFFECTS[label], 1.0 if value is None else value))
-        elif parse_label(label).key in effect_classes(local=True) and parse_label(label).element:
-            key = parse_label(label).key
-            changes.append(_local(label, DEFAULT_FACTORS.get(key, 1.0) if value is None else value))
+        elif key in effect_classes(local=True) and element:
+            if value is None and key not in DEFAULT_FACTORS:
+                raise TwinError(f"hidden change '{spec}': '{label}' has no default size; give it as {label}@FACTOR")
+            changes.append(_local(label, DEFAULT_FACTORS[key] if value is None else value))
         else:
             raise TwinError(f"hidden change '{spec}': unknown '{label}'; choose from {', '.join(known_terms())}")
         if label in seen:
             raise TwinError(f"hidden change '{spec}': '{label}' appears twice")
         seen.add(label)
-    for a in sorted(seen):
-        for b in sorted(seen):
-            if a < b and exclusive(a, b):
-                raise TwinError(f"hidden change '{spec}': {a} and {b} describe the same physics; hide one")
+    for a, b in itertools.combinations(sorted(seen), 2):
+        if exclusive(a, b):
+            raise TwinError(f"hidden change '{spec}': {a} and {b} describe the same physics; hide one")
     return Scenario(spec, tuple(effects), tuple(changes))
 
 

@@ -61,6 +61,7 @@ class HousingMass(Effect):
 def fresh_registry(monkeypatch):
     """The registry as a new process finds it, restored afterwards."""
     monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    monkeypatch.setattr(registry, "_ORDERED", None)
     monkeypatch.setattr(registry, "_loaded", False)
     return registry
 

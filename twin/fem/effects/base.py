@@ -9,7 +9,8 @@ declares, once:
   disk, a shaft element; by default the kind the field is called after: a
   field ``bearing`` names a bearing), or neither (the whole machine);
 * ``explanation``: its physics in one line;
-* ``per_mode``: whether each mode has its own values (then not one FEM);
+* ``per_mode``: whether each mode has its own values (then not one FEM), and
+  then ``name_pattern``, the names of its parameters for any number of modes;
 * ``local``: a local change outside the library (the localisation scan's
   hypotheses) rather than a library effect the diagnosis names;
 * ``replaces``: the keys of effects it holds as a special case (the per-mode
@@ -25,6 +26,7 @@ through :func:`twin.fem.effects.register` (see :mod:`twin.fem.effects`).
 from __future__ import annotations
 
 import dataclasses
+import re
 import typing
 from collections.abc import Sequence
 from typing import ClassVar
@@ -62,6 +64,7 @@ class Effect:
     element: ClassVar[str | None] = None
     element_kind: ClassVar[str | None] = None
     per_mode: ClassVar[bool] = False
+    name_pattern: ClassVar[re.Pattern | None] = None
     local: ClassVar[bool] = False
     replaces: ClassVar[frozenset[str]] = frozenset()
 
@@ -83,20 +86,9 @@ class Effect:
             return [cls()] if cls.region in model.regions else []
         return [cls()]
 
-    @classmethod
-    def owns(cls, name: str, model) -> bool:
-        """Whether a parameter called ``name`` would come with an effect of this kind on ``model``."""
-        return any(name in {p.name for p in e.parameters(model)} for e in cls.instances(model))
-
     def with_modes(self, n_modes: int) -> Effect:
         """A per-mode effect with ``n_modes`` zero values (per-mode effects only)."""
         raise ModelError(f"effect '{self.key}' has no per-mode values")
-
-    def where(self, model) -> str:
-        """The place the effect acts on, in words."""
-        if self.element is not None:
-            return f"{self.element_kind or self.element} {getattr(self, self.element)}"
-        return f"region '{self.region}'" if self.region is not None else "the whole machine"
 
 
 def element_names(model, kind: str) -> list:
@@ -169,6 +161,10 @@ class RelativeChange(Effect):
     def plausible_scale(self, model) -> dict[str, float]:
         """:data:`LOCAL_CHANGE_SCALE` (a relative change)."""
         return {p.name: LOCAL_CHANGE_SCALE for p in self.parameters(model)}
+
+    def where(self, model) -> str:
+        """The place in words (the diagnosis's and the tracker's reports name it)."""
+        return f"{self.element_kind or self.element} {getattr(self, self.element)}"
 
 
 def effect_fields(cls: type) -> dict[str, type]:

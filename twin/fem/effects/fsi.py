@@ -69,7 +69,7 @@ class FluidAddedMassPerMode(Effect):
     explanation: ClassVar[str] = (
         "the water around the runner adds a different mass and damping to each mode"
     )
-    #: Names of its parameters (``FSI.added_mass_3``).
+    #: Names of its parameters for any number of modes (``FSI.added_mass_3``); every per-mode effect has one.
     name_pattern: ClassVar[re.Pattern] = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
     per_mode_text: ClassVar[str] = "FSI.added_mass_<i> [kg] and FSI.added_damping_<i> [N s/m] per mode i: >= 0"
     added_mass: tuple[float, ...] = ()  # kg, one per mode
@@ -88,11 +88,6 @@ class FluidAddedMassPerMode(Effect):
     def n_modes(self) -> int:
         """Number of modes the effect gives values for."""
         return len(self.added_mass)
-
-    @classmethod
-    def owns(cls, name: str, model) -> bool:
-        """Whether ``name`` is one of its per-mode parameters (for any number of modes)."""
-        return bool(cls.name_pattern.match(name))
 
     def with_modes(self, n_modes: int) -> FluidAddedMassPerMode:
         """Zero added mass and damping for modes 1..``n_modes``."""

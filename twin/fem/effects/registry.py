@@ -38,6 +38,8 @@ ENTRY_POINT_GROUP = "twin.effects"
 _NOT_EFFECTS = {"base", "registry"}
 
 _REGISTRY: dict[str, type[Effect]] = {}
+#: The registry in the library's order, made once after the last registration.
+_ORDERED: dict[str, type[Effect]] | None = None
 _loaded = False
 
 
@@ -68,11 +70,15 @@ def register(cls: type[Effect]) -> type[Effect]:
     if cls.element is not None and (cls.element_kind or cls.element) not in ELEMENT_KINDS:
         raise ValueError(f"{cls.__name__}: element kind {cls.element_kind or cls.element!r} is none of "
                          f"{', '.join(ELEMENT_KINDS)}")  # fmt: skip
+    if cls.per_mode and cls.name_pattern is None:
+        raise ValueError(f"{cls.__name__}: a per-mode effect declares name_pattern, the names of its parameters")
     other = _REGISTRY.get(cls.key)
     if other is not None and other is not cls and other.__qualname__ != cls.__qualname__:
         raise ValueError(f"two effects with the key '{cls.key}': {other.__module__}.{other.__qualname__} and "
                          f"{cls.__module__}.{cls.__qualname__}")  # fmt: skip
+    global _ORDERED
     _REGISTRY[cls.key] = cls
+    _ORDERED = None
     return cls
 
 
@@ -108,18 +114,27 @@ def effect_classes(local: bool | None = None) -> dict[str, type[Effect]]:
     >>> list(effect_classes(local=True))
     ['shaft_stiffness', 'disk_mass', 'disk_inertia']
     """
+    return {k: c for k, c in _ordered().items() if local is None or c.local == local}
+
+
+def _ordered() -> dict[str, type[Effect]]:
+    """Every registered class: the built-in modules' in :data:`BUILTIN` order, then the folder's other
+    modules', then other packages', each group in the order of registration."""
+    global _ORDERED
     _load()
-    package = __name__.rpartition(".")[0] + "."
-    order = list(_REGISTRY)
+    if _ORDERED is None:
+        package = __name__.rpartition(".")[0] + "."
+        order = {key: i for i, key in enumerate(_REGISTRY)}
 
-    def rank(key: str) -> tuple:
-        module = _REGISTRY[key].__module__
-        name = module[len(package):] if module.startswith(package) else None
-        if name in BUILTIN:
-            return (0, BUILTIN.index(name), order.index(key))
-        return (1, 0, order.index(key)) if name is not None else (2, 0, order.index(key))
+        def rank(key: str) -> tuple[int, int, int]:
+            module = _REGISTRY[key].__module__
+            name = module[len(package):] if module.startswith(package) else None
+            if name in BUILTIN:
+                return (0, BUILTIN.index(name), order[key])
+            return (1 if name is not None else 2, 0, order[key])
 
-    return {k: _REGISTRY[k] for k in sorted(_REGISTRY, key=rank) if local is None or _REGISTRY[k].local == local}
+        _ORDERED = {k: _REGISTRY[k] for k in sorted(_REGISTRY, key=rank)}
+    return _ORDERED
 
 
 def effect_class(key: str, local: bool | None = None) -> type[Effect]:
@@ -226,7 +241,7 @@ def is_per_mode_name(name: str) -> bool:
     >>> is_per_mode_name("FSI.added_damping_12"), is_per_mode_name("FSI.added_mass")
     (True, False)
     """
-    return any(cls.owns(name, None) for cls in effect_classes().values() if cls.per_mode)
+    return any(cls.name_pattern.match(name) for cls in _ordered().values() if cls.per_mode)
 
 
 def effect_providing(model, name: str) -> str | None:
@@ -241,7 +256,7 @@ def effect_providing(model, name: str) -> str | None:
     """
     for cls in effect_classes(local=False).values():
         if cls.per_mode:
-            if cls.owns(name, model):
+            if cls.name_pattern.match(name):
                 return cls.key
             continue
         for effect in cls.instances(model):
