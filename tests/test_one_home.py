@@ -38,3 +38,23 @@ def test_effect_classes_live_in_the_effects_package():
                     "EFFECTS", "LOCAL_CHANGES", "REPLACES", "EXCLUSIVE", "PER_MODE_NAME") for t in node.targets):  # fmt: skip
                 found.append(f"{name}:{node.lineno} {ast.unparse(node.targets[0])}")
     assert found == []
+
+
+def _class_names() -> list[tuple[str, int, str]]:
+    return [(name, node.lineno, node.name) for name, text in _sources() for node in ast.walk(ast.parse(text))
+            if isinstance(node, ast.ClassDef)]  # fmt: skip
+
+
+def test_one_candidate_for_the_loop_and_the_tracker():
+    """A change a diagnosis can name is twin.loop.candidates.Candidate, for one record and for the tracker."""
+    found = [f"{name}:{n}" for name, n, cls in _class_names() if cls == "Candidate"]
+    assert len(found) == 1 and found[0].startswith("twin/loop/candidates.py:")
+
+
+def test_evidence_is_computed_in_one_place():
+    """ln Z of a hypothesis (Laplace's formula and its exact linear-Gaussian case) is twin.update.evidence's:
+    no other module of the diagnosis, the locating scan or the tracker takes a log-determinant of its own."""
+    weighing = ["twin/loop/", "twin/track/", "twin/update/laplace.py"]
+    found = [f"{name}:{n}" for name, text in _sources() if any(name.startswith(w) for w in weighing)
+             for n, line in enumerate(text.splitlines(), 1) if "slogdet" in line or "log1p(" in line]  # fmt: skip
+    assert found == []

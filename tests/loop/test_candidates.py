@@ -4,23 +4,23 @@ import pytest
 
 from twin import ModelError
 from twin.fem.effects import effect_label, library_effects, parse_label
-from twin.loop.candidates import add_effects, library, select
+from twin.loop.candidates import add_effects, candidates, select
 
 
 def test_library_follows_the_model(hydro_unit, ross_model):
-    labels = [c.label for c in library(hydro_unit)]
+    labels = [c.label for c in candidates(hydro_unit)]
     assert labels[:7] == ["fsi", "fsi_per_mode", "magnetic_pull", "seal_cross_coupling", "bearing_change:UGB",
                           "bearing_change:LGB", "thrust_tilt:thrust"]  # fmt: skip
     assert labels == [effect_label(e) for e in library_effects(hydro_unit)]
     # the ROSS rotor declares no regions and no thrust bearing: only its bearings can change
-    ross = [parse_label(c.label) for c in library(ross_model)]
+    ross = [parse_label(c.label) for c in candidates(ross_model)]
     assert ("bearing_change", "B0") in ross and ("bearing_change", "B6") in ross
     assert {element for _, element in ross} == {"B0", "B6"}
 
 
 def test_effects_already_in_the_model_are_no_candidates(hydro_unit):
     model = add_effects(hydro_unit, ["magnetic_pull", "fsi"])
-    labels = [c.label for c in library(model)]
+    labels = [c.label for c in candidates(model)]
     assert "magnetic_pull" not in labels and "fsi" not in labels and "fsi_per_mode" in labels
 
 

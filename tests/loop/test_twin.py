@@ -42,7 +42,7 @@ def test_laplace_update_identifies_the_added_effect_and_refuses_bad_method(hydro
                             pole_variance=(0.01, 0.01))  # fmt: skip
     tw = Twin(hydro_unit, data)
     tw.add_effect("magnetic_pull")
-    post = tw.update("MAG.stiffness", method="laplace")
+    post = tw.update("MAG.stiffness", method="laplace")["constant_data"]
     assert [s.action for s in tw.history][-1] == "update MAG.stiffness (Laplace)"
     # the truth lies within the Laplace posterior (std from the pole uncertainty)
     assert abs(float(post["map"][0]) + 1e8) < 3 * float(post["std"][0])
@@ -82,7 +82,7 @@ def test_per_mode_effect_is_sized_to_the_measured_modes(hydro_unit):
     tw.add_effect("fsi_per_mode")
     names = tw.added_parameters()
     assert names == [f"FSI.{k}_{m}" for m in (1, 3, 4, 5, 10) for k in ("added_mass", "added_damping")]
-    post = tw.update(names, method="laplace")
+    post = tw.update(names, method="laplace")["constant_data"]
     assert tw.history[-1].error < 0.2 * tw.history[0].error
     mass = post["map"].sel(parameter="FSI.added_mass_4")  # paper Table 2: 6.09e4 kg
     assert abs(float(mass) - 6.09e4) < 3 * float(post["std"].sel(parameter="FSI.added_mass_4"))

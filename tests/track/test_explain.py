@@ -2,11 +2,14 @@
 
 import numpy as np
 
+from twin.fem.effects import MagneticPull
+from twin.loop.candidates import Candidate
 from twin.track import explain
 
 
-def _candidate(label: str, column: list[float]) -> explain.Candidate:
-    return explain.Candidate(label, True, (f"{label}.x",), np.array([1.0]), np.array(column)[:, None])
+def _candidate(label: str, column: list[float]) -> explain.Linearised:
+    return explain.Linearised(Candidate(label, MagneticPull()), (f"{label}.x",), np.array([1.0]),
+                              np.array(column)[:, None])  # fmt: skip
 
 
 def test_a_change_the_records_can_tell_is_named_and_one_they_cannot_is_a_reading():

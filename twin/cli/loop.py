@@ -68,24 +68,25 @@ def _update(args: argparse.Namespace) -> int:
 
 
 def _update_laplace(args: argparse.Namespace, model, modes) -> int:
-    """``twin update --method laplace``: the Gaussian posterior of the pole fit, in the posterior.nc layout."""
-    from twin.update.laplace import laplace_posterior
-    from twin.netcdf import write_netcdf
-    from twin.update.problem import select_parameters
+    """``twin update --method laplace``: :func:`twin.update.update`'s Laplace fit, its table printed."""
+    from twin.update import LaplaceOptions, update
+    from twin.update.posterior import write_posterior
 
     given = [f for f in SAMPLER_OPTIONS if getattr(args, f, None) is not None and f != "seed"]
     if given:
         raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in given)})")
-    _, post, tree = laplace_posterior(model, modes, select_parameters(model, args.params), fsi=args.fsi,
-                                      seed=args.seed if args.seed is not None else 0)  # fmt: skip
+    options = LaplaceOptions(seed=args.seed if args.seed is not None else 0)
+    tree = update(model, modes, args.params, fsi=args.fsi, method="laplace", options=options)
     tree.attrs["command"] = " ".join(sys.argv)
-    write_netcdf(tree, args.output)
-    names = [str(n) for n in post["parameter"].values]
-    print(f"Laplace update of {len(names)} parameters: chi2 {post.attrs['chi2_before']:.1f} -> {post.attrs['chi2_after']:.1f}")
+    write_posterior(tree, args.output)
+    fit = tree["constant_data"].to_dataset()
+    names = [str(n) for n in fit["parameter"].values]
+    at_bound = tree.attrs["at_bound"].split(", ")
+    print(f"Laplace update of {len(names)} parameters: chi2 {tree.attrs['chi2_before']:.1f} -> {tree.attrs['chi2_after']:.1f}")
     print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
     for k, n in enumerate(names):
-        bound = " (on its physical bound)" if n in post.attrs["at_bound"].split(", ") else ""
-        print(f"{n:<22} {float(post['map'][k]):>11.4g} {float(post['std'][k]):>10.3g} {str(post['unit'].values[k]):<8}{bound}")
+        bound = " (on its physical bound)" if n in at_bound else ""
+        print(f"{n:<22} {float(fit['map'][k]):>11.4g} {float(fit['std'][k]):>10.3g} {model.parameter(n).unit:<8}{bound}")
     print(f"wrote {args.output}")
     return 0
 

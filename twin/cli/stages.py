@@ -186,7 +186,7 @@ def _params(args: argparse.Namespace) -> int:
 
     from twin.cli.loop import _model_with_effects
     from twin.fem.effects import describe, effect_label
-    from twin.loop.candidates import library
+    from twin.loop.candidates import candidates as library_candidates
     from twin.update.problem import PARAMETER_GROUPS
 
     model = _model_with_effects(args.model, args.effect)
@@ -198,12 +198,13 @@ def _params(args: argparse.Namespace) -> int:
              "low": finite(p.bounds[0]), "high": finite(p.bounds[1]), "bounds": p.bounds_text() or "either sign",
              "description": p.description} for p in model.parameters]  # fmt: skip
     effects = [describe(e, model) for e in model.effects]
-    candidates = [describe(c.effect, model) for c in library(model)]
+    library = library_candidates(model)
+    candidates = [describe(c.effect, model) for c in library]
     if args.json:
         print(json.dumps({"model": model.name, "n_dof": model.n_dof, "speed_rpm": model.speed_rpm,
                           "channels": list(model.channels), "parameters": rows, "groups": list(PARAMETER_GROUPS),
                           "effects": [effect_label(e) for e in model.effects],
-                          "library": [c.label for c in library(model)]}, indent=2))  # fmt: skip
+                          "library": [c.label for c in library]}, indent=2))  # fmt: skip
         return 0
     print(f"{model.name}: {model.n_dof} DOF, {model.speed_rpm:g} rpm, sensors {', '.join(model.channels)}")
     print(f"\n{len(rows)} parameters (SI units; --params takes names, globs such as 'LGB.c*', or the groups "

@@ -1,4 +1,4 @@
-"""The candidate effects a diagnosis tries: every library effect the model can take.
+"""The candidates of a diagnosis: the changes it can name for a model.
 
 A candidate is an effect of :mod:`twin.fem.effects` with zero values, added to
 the model: its parameters are what the diagnosis fits. The library offers,
@@ -12,8 +12,15 @@ for a model with the matching regions and elements:
 * ``thrust_tilt:<T>``: tilt stiffness change of each thrust bearing;
 
 and any other registered library effect (:func:`twin.fem.effects.effect_classes`).
-Effects the model already has are not candidates, nor effects that one the model
-has holds as a special case (a model with per-mode FSI tries no mode-independent FSI).
+Outside the library, the local changes (each shaft element's stiffness, each
+disk's mass and inertia) say where a model fails that no effect explains.
+
+:func:`candidates` lists them for the single-record diagnosis
+(:mod:`twin.loop.diagnose`, :mod:`twin.loop.locate`) and for the tracker
+(:mod:`twin.track.explain`). Effects the model already has are no library
+candidates (the diagnosis refits them), nor effects that one the model has
+holds as a special case (a model with per-mode FSI tries no mode-independent
+FSI); the tracker, which asks what changed since its baseline, keeps them.
 """
 
 from __future__ import annotations
@@ -23,14 +30,24 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from twin.errors import ModelError
-from twin.fem.effects import effect_classes, effect_label, holds, library_effects
+from twin.fem.effects import effect_classes, effect_label, holds, library_effects, local_changes
 from twin.fem.model import RotorModel
 
 
 @dataclass(frozen=True)
 class Candidate:
-    """One effect to try: its label, the zero-valued effect, and a plain-words explanation."""
+    """One change to try: its label and the zero-valued effect (a library effect or a local change).
+
+    Examples
+    --------
+    >>> from twin import load_model, shipped_model
+    >>> c = candidates(load_model(shipped_model("hydro_unit")), local=True)[-1]
+    >>> c.label, c.library
+    ('disk_inertia:runner', False)
+    """
 
     label: str
     effect: object
@@ -45,26 +62,55 @@ class Candidate:
         """Whether each mode has its own parameters."""
         return self.effect.per_mode
 
+    @property
+    def library(self) -> bool:
+        """Whether the candidate is a library effect (not a local change)."""
+        return not self.effect.local
 
-def library(model: RotorModel) -> list[Candidate]:
-    """Every library effect that ``model`` can take and does not have yet.
+    def where(self, model: RotorModel) -> str:
+        """The place of a local change in words (empty for a library effect)."""
+        return "" if self.library else self.effect.where(model)
+
+    def with_values(self, values: Sequence[float]):
+        """The effect with its number fields (in their order: its parameters' order) set to ``values``."""
+        numbers = [f.name for f in dataclasses.fields(self.effect) if isinstance(getattr(self.effect, f.name), float)]
+        return dataclasses.replace(self.effect, **{k: float(v) for k, v in zip(numbers, np.ravel(values))})
+
+
+def candidates(model: RotorModel, *, present: bool = False, per_mode: bool = True, local: bool = False
+               ) -> list[Candidate]:  # fmt: skip
+    """The changes a diagnosis of ``model`` can name: library effects first, in the library's order.
+
+    Parameters
+    ----------
+    model : RotorModel
+    present : bool
+        Keep the effects the model has (a change of their values is a candidate) and those they hold;
+        by default they are left out (a diagnosis refits them with every candidate).
+    per_mode : bool
+        Include effects with one value per mode.
+    local : bool
+        Add the local changes outside the library (:func:`twin.fem.effects.local_changes`).
 
     Examples
     --------
-    >>> from twin.loop import library
+    >>> from twin.loop import candidates
     >>> from twin import load_model, shipped_model
-    >>> [c.label for c in library(load_model(shipped_model("hydro_unit")))][:5]
+    >>> [c.label for c in candidates(load_model(shipped_model("hydro_unit")))][:5]
     ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB']
     """
-    present = [effect_label(e) for e in model.effects]
+    have = [effect_label(e) for e in model.effects]
     out = []
     for e in library_effects(model):
         label = effect_label(e)
-        if label in present or (e.per_mode and model.per_mode_effect is not None):
+        if e.per_mode and not per_mode:
             continue
-        if any(holds(p, label) for p in present):
+        known = label in have or any(holds(p, label) for p in have) or (e.per_mode and model.per_mode_effect)
+        if known and not present:
             continue
         out.append(Candidate(label, e))
+    if local:
+        out += [Candidate(effect_label(c), c) for c in local_changes(model)]
     return out
 
 
@@ -73,7 +119,7 @@ def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
 
     Labels of effects the model already has are no candidates (a diagnosis refits them) and are skipped.
     """
-    available = library(model)
+    available = candidates(model)
     if labels is None:
         return available
     by_label = {c.label: c for c in available}

@@ -39,6 +39,7 @@ from twin.loop.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.modes.measured import Measured
 from twin.netcdf import atomic_output, check_folder
+from twin.update.posterior import is_laplace
 
 log = logging.getLogger(__name__)
 
@@ -100,20 +101,19 @@ def truth_for_measured(truth: dict[str, float], meas: Measured, truth_modes: lis
     return out
 
 
-def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> xr.Dataset:
+def posterior_table(posterior: xr.DataTree, model: RotorModel) -> xr.Dataset:
     """``map``, ``std``, the 90% interval ``q05``-``q95``, ``r_hat``, ``ess_bulk``, ``unit`` and ``determined`` over ``parameter``.
 
     ``determined`` is False for the parameters the update reports as not determined by the data
     (the posterior's ``undetermined`` attr; the Laplace fit reports none).
 
     From a sampler's posterior (:func:`twin.update.update`'s DataTree: its
-    :func:`twin.update.summary`) or a Laplace one
-    (:func:`twin.update.laplace.laplace_update`'s Dataset: Gaussian quantiles, no
-    R-hat or ESS, which are NaN). The attr ``method`` says which.
+    :func:`twin.update.summary`) or a Laplace one (the fit's exact MAP and std in ``constant_data``:
+    Gaussian quantiles, no R-hat or ESS, which are NaN). The attr ``method`` says which.
     """
     from twin.update import summary
 
-    if isinstance(posterior, xr.DataTree):
+    if not is_laplace(posterior):
         table = summary(posterior["posterior"].to_dataset())
         for key in ("r_hat", "ess_bulk"):
             if key not in table:  # one chain has no R-hat
@@ -130,12 +130,14 @@ def posterior_table(posterior: xr.DataTree | xr.Dataset, model: RotorModel) -> x
         determined = [str(n) not in undetermined for n in table["parameter"].values]
         return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(
             unit=("parameter", units), determined=("parameter", determined)).assign_attrs(method=method)
+    fit = posterior["constant_data"].to_dataset()
+    units = [model.parameter(str(n)).unit for n in fit["parameter"].values]
     z = 1.6448536269514722  # the 95% point of the standard normal
-    nan = np.full(posterior.sizes["parameter"], np.nan)
+    nan = np.full(fit.sizes["parameter"], np.nan)
     return xr.Dataset(
-        {"map": posterior["map"], "std": posterior["std"], "q05": posterior["map"] - z * posterior["std"],
-         "q95": posterior["map"] + z * posterior["std"], "r_hat": ("parameter", nan), "ess_bulk": ("parameter", nan),
-         "unit": posterior["unit"], "determined": ("parameter", np.full(posterior.sizes["parameter"], True))},
+        {"map": fit["map"], "std": fit["std"], "q05": fit["map"] - z * fit["std"],
+         "q95": fit["map"] + z * fit["std"], "r_hat": ("parameter", nan), "ess_bulk": ("parameter", nan),
+         "unit": ("parameter", units), "determined": ("parameter", np.full(fit.sizes["parameter"], True))},
         attrs={"method": posterior.attrs["method"]},
     )  # fmt: skip
 
@@ -167,8 +169,8 @@ class DemoResult:
         return tuple(self.twin.added)
 
     @property
-    def posterior(self) -> xr.DataTree | xr.Dataset | None:
-        """The posterior of the last update: a Gibbs DataTree or a Laplace Dataset (None when nothing was added)."""
+    def posterior(self) -> xr.DataTree | None:
+        """The posterior of the last update, a sampler's or the Laplace fit's (None when nothing was added)."""
         return self.twin.posterior
 
     def hidden_text(self) -> str:

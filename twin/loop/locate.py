@@ -5,10 +5,11 @@ element's bending stiffness, each disk's mass, each disk's moments of
 inertia, one relative change ``δ`` each with the prior ``N(0, s²)``,
 ``s =`` :data:`twin.fem.effects.LOCAL_CHANGE_SCALE`. Two passes:
 
-1. **Screening**, linearised at the hypothesis already fitted: with ``J`` the
-   residuals' derivative in ``δ`` (scaled by ``s``) and ``r`` the residuals,
-   the change removes ``(Jᵀr)² / JᵀJ`` of the χ² and its log Bayes factor is
-   ``½ (Jᵀr)² / (1 + JᵀJ) − ½ ln(1 + JᵀJ)``;
+1. **Screening**, linearised at the hypothesis already fitted: each change
+   weighed as a linear-Gaussian hypothesis on the residuals
+   (:func:`twin.update.evidence.linear_fit`; with ``J`` the residuals'
+   derivative in ``δ`` scaled by ``s`` and ``r`` the residuals, its log
+   Bayes factor is ``½ (Jᵀr)² / (1 + JᵀJ) − ½ ln(1 + JᵀJ)``);
 2. **Refit** of the best :data:`REFIT` of them with the fitted hypothesis's
    parameters (nonlinear, :func:`twin.update.laplace.fit`), whose log Bayes factor
    against that hypothesis is what the diagnosis compares with the library's.
@@ -31,6 +32,7 @@ from twin.fem.model import RotorModel
 from twin.modes.measured import Measured, channel_dofs, pair_with_measured
 from twin.modes.sensitivity import footprint_jacobian, solve_modes
 from twin.tasks import mapper, one_blas_thread
+from twin.update.evidence import linear_fit
 from twin.update.laplace import Fit, fit, residual, scaled_rows
 
 #: How many of the best-screened local changes are refitted.
@@ -82,9 +84,9 @@ def screen(model: RotorModel, meas: Measured, values: Mapping[str, float] | None
     _, cols = pair_with_measured(sol, meas, channel_dofs(model, meas.channels))
     r = -residual(sol.poles[cols], meas)
     terms = [list(c.parameters(model)[0].terms) for c in changes]
-    J = LOCAL_CHANGE_SCALE * scaled_rows(footprint_jacobian(sol, terms, cols), meas)
-    jr, jj = J.T @ r, np.sum(J**2, axis=0)
-    ln_b = 0.5 * jr**2 / (1 + jj) - 0.5 * np.log1p(jj)
+    J = scaled_rows(footprint_jacobian(sol, terms, cols), meas)
+    scale = np.array([LOCAL_CHANGE_SCALE])
+    ln_b = np.array([linear_fit(r, J[:, [k]], scale).log_bayes_factor for k in range(len(changes))])
     order = np.argsort(-ln_b)
     return [(changes[k], float(ln_b[k])) for k in order]
 

@@ -27,7 +27,7 @@ from twin.loop.compare import compare
 from twin.loop.diagnose import Diagnosis, diagnose
 from twin.loop.history import error_interval, history_dataset, plot_history
 from twin.modes.measured import TOLERANCE, Measured, measured_modes
-from twin.update.laplace import laplace_update
+from twin.update.posterior import is_laplace
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +88,7 @@ class Twin:
         self.history: list[Step] = []
         self.added: list[str] = []  # labels of the effects the loop added
         self.diagnoses: list[Diagnosis] = []
-        self.posterior: xr.Dataset | xr.DataTree | None = None  # of the last update
+        self.posterior: xr.DataTree | None = None  # of the last update
         self._record("start", model)
 
     @property
@@ -202,7 +202,8 @@ class Twin:
                 self.update(self.added_parameters(), method=method, bootstrap=0, tasks=tasks, **kwargs, **extra)
             progress_log.info("round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error,
                               100 * self.history[-1].error)  # fmt: skip
-        if bootstrap and isinstance(self.posterior, xr.DataTree) and self.history[-1].action.startswith("update"):
+        if bootstrap and self.posterior is not None and not is_laplace(self.posterior) and \
+                self.history[-1].action.startswith("update"):  # fmt: skip
             with stage(f"calibrate the posterior on {bootstrap} simulated records"):
                 self._calibrate_or_keep(bootstrap, seed=kwargs.get("seed"), tasks=tasks, progress=progress)
         return d
@@ -223,7 +224,7 @@ class Twin:
     def update(
         self, params: str | Sequence[str], *, method: str = "hmc", options: Any = None, estimate: str = "map",
         bootstrap: int | None = None, priors: Any = "plausible", tasks: Any = None, **fields: Any,
-    ) -> xr.DataTree | xr.Dataset:  # fmt: skip
+    ) -> xr.DataTree:  # fmt: skip
         """Bayesian update of ``params``, then the model at the posterior estimate.
 
         Parameters
@@ -233,8 +234,9 @@ class Twin:
         method : {"hmc", "gibbs", "paper", "laplace"}
             One of the samplers of :func:`twin.update.update` on pole and shape samples (``"hmc"``, the
             default; ``options``, ``priors`` and ``tasks`` go to it, and ``fields`` are fields of its
-            options), which returns its posterior DataTree; or ``"laplace"``: the Gaussian posterior of
-            the pole fit (:func:`twin.update.laplace.laplace_update`), which returns a Dataset of MAP and std.
+            options); or ``"laplace"``: the Gaussian posterior of the pole fit (:mod:`twin.update.laplace`,
+            its exact MAP and std in the group ``constant_data``). Either way the posterior DataTree of
+            :func:`twin.update.update` is returned.
         estimate : {"map", "mean"}
             Which estimate of a sampler's posterior the model takes.
         bootstrap : int, optional
@@ -253,24 +255,26 @@ class Twin:
         from twin.loop.bootstrap import records_for
 
         bootstrap = records_for(bootstrap, self.modes, method)
+        from twin.update import LaplaceOptions, apply_posterior, sampler, update
+
         if method == "laplace":
             if fields or options is not None:
                 raise TypeError(f"method 'laplace' takes no sampler options, got {sorted(fields) or options}")
-            model, post = laplace_update(self.model, self.measured, names)
-            self._record(f"update {label} (Laplace)", model)
-            self.posterior = post
-            return post
-        from twin.update import apply_posterior, sampler, update
-
-        opts = sampler(method).options(options, **fields)
-        if per_mode:  # the sampler's per-mode FSI covers every mode of the data
+            opts = LaplaceOptions(tolerance=self.tolerance)
+        else:
+            opts = sampler(method).options(options, **fields)
+        if per_mode:  # the update's per-mode FSI covers every mode of the data
             every = [f"FSI.{k}_{int(m)}" for m in self.modes["mode"].values for k in ("added_mass", "added_damping")]
             if sorted(per_mode) != sorted(every):
-                raise ValueError("the samplers update the per-mode FSI of every measured mode at once: give "
-                                 f"all of {', '.join(every)}, or use method='laplace'")  # fmt: skip
+                raise ValueError("the update fits the per-mode FSI of every measured mode at once: give all of "
+                                 f"{', '.join(every)}")  # fmt: skip
         shared = [n for n in names if n not in per_mode]
         tree = update(self.model, self.modes, shared, fsi=bool(per_mode), method=method, options=opts, priors=priors,
                       tasks=tasks)  # fmt: skip
+        if method == "laplace":  # the fit's Gaussian, no spread of E over it in the history
+            self._record(f"update {label} (Laplace)", apply_posterior(self.model, tree, "map"))
+            self.posterior = tree
+            return tree
         # a calibration replaces this step at once, with the interval of its own posterior
         self._record(f"update {label}", apply_posterior(self.model, tree, estimate), None if bootstrap else tree)
         self.posterior = tree
@@ -295,7 +299,7 @@ class Twin:
         from twin.update import apply_posterior
 
         last = self.history[-1]
-        if not isinstance(self.posterior, xr.DataTree) or not last.action.startswith("update"):
+        if self.posterior is None or is_laplace(self.posterior) or not last.action.startswith("update"):
             raise ValueError("calibrate needs the HMC sampler's update (method='hmc') as the twin's last step")
         before, tree = self.history[-2].model, self.posterior
         labels = posterior_labels(tree)
@@ -312,15 +316,10 @@ class Twin:
         return tree
 
     def posterior_tree(self) -> xr.DataTree:
-        """The last update's posterior in the ``posterior.nc`` layout: a sampler's as it is, a Laplace fit's
-        drawn from its Gaussian (:func:`twin.update.laplace.laplace_file`)."""
+        """The last update's posterior in the ``posterior.nc`` layout (:func:`twin.update.update`'s)."""
         if self.posterior is None:
             raise ValueError("the twin has no posterior yet: update it first")
-        if isinstance(self.posterior, xr.DataTree):
-            return self.posterior
-        from twin.update.laplace import laplace_file
-
-        return laplace_file(self.posterior, self.model, self.modes)
+        return self.posterior
 
     def history_table(self) -> xr.Dataset:
         """The error after each step: ``action``, ``error`` and ``chi2`` over dimension ``step``."""

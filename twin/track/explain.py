@@ -1,11 +1,12 @@
 """What changed at an alarm, and how it goes on: the candidates' evidence and the changed parameter followed.
 
 At an alarm the residuals since the onset (what the operating conditions do not explain) are pooled and
-set against every change the model can name: the library's effects (:mod:`twin.fem.effects`) and the
-local changes outside it (:mod:`twin.fem.local`). Each candidate moves the tracked poles along its
+set against every change the model can name (:func:`twin.loop.candidates.candidates`: the library's
+effects and the local changes outside it). Each candidate moves the tracked poles along its
 sensitivities at the reference point; with its plausible scale as a Gaussian prior, its evidence is that
-of a linear Gaussian model, ``r ~ N(0, C + J D J')``, against the evidence of no change, ``r ~ N(0, C)``,
-as the single-record loop's diagnosis weighs effects (the Occam factor in the prior). The best library
+of a linear Gaussian model, ``r ~ N(0, C + J D J')``, against the evidence of no change, ``r ~ N(0, C)``
+(:func:`twin.update.evidence.linear_fit`, the formula the single-record diagnosis weighs effects with:
+the Occam factor in the prior). The best library
 effect is named when its evidence is the best of all; when a local change outside the library explains
 the residual better, the verdict says so and where.
 
@@ -23,11 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twin.fem.effects import effect_label, library_effects, local_changes
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, with_change, with_parameters
+from twin.loop.candidates import Candidate
+from twin.loop.candidates import candidates as all_candidates
 from twin.modes.sensitivity import pole_jacobian, solve_modes
 from twin.track.physics import Tracked, parts, tracked_indices
+from twin.update.evidence import linear_fit
 
 #: Random walk of a followed change per square-root day, as a fraction of its plausible scale.
 PROCESS_NOISE = 0.02
@@ -39,57 +42,43 @@ MIN_MARGIN = 3.0
 
 
 @dataclass(frozen=True)
-class Candidate:
-    """A change the tracker can name: its label, parameters, prior scales and pole-part sensitivities."""
+class Linearised:
+    """A candidate change (:class:`twin.loop.candidates.Candidate`) with its parameters, their plausible
+    scales and the tracked pole parts' sensitivities to them at the reference point."""
 
-    label: str
-    library: bool
+    candidate: Candidate
     parameters: tuple[str, ...]
     scale: np.ndarray
     jacobian: np.ndarray  # (2m, k)
     where: str = ""
-    effect: object = None
+
+    @property
+    def label(self) -> str:
+        return self.candidate.label
+
+    @property
+    def library(self) -> bool:
+        return self.candidate.library
 
     def with_values(self, values: np.ndarray):
-        """The candidate's effect at ``values`` (its parameters' order: the effect's number fields in order)."""
-        numbers = [f.name for f in dataclasses.fields(self.effect) if isinstance(getattr(self.effect, f.name), float)]
-        return dataclasses.replace(self.effect, **{k: float(v) for k, v in zip(numbers, values)})
+        """The candidate's effect at ``values`` (in its parameters' order)."""
+        return self.candidate.with_values(values)
 
 
-def candidates(model: RotorModel, tracked: Tracked) -> list[Candidate]:
-    """Every library effect (one value for the whole machine) and every local change, at the reference point."""
+def candidates(model: RotorModel, tracked: Tracked) -> list[Linearised]:
+    """Every library effect (one value for the whole machine) and every local change, at the reference point
+    (:func:`twin.loop.candidates.candidates`: a change of an effect the model has is one too)."""
     ref = at_operating_point(model, {})
-    effects = [e for e in library_effects(ref) if not e.per_mode]
-    changes = local_changes(ref)
     out = []
-    for effect, library in [(e, True) for e in effects] + [(c, False) for c in changes]:
-        names = [p.name for p in effect.parameters(ref)]
-        m = with_parameters(ref, names) if library else ref.with_effects(effect)
+    for cand in all_candidates(ref, present=True, per_mode=False, local=True):
+        names = [p.name for p in cand.effect.parameters(ref)]
+        m = with_parameters(ref, names) if cand.library else ref.with_effects(cand.effect)
         sol = solve_modes(m)
         jac = pole_jacobian(m, sol, names, modes=tracked_indices(m, sol, tracked))
-        scales = effect.plausible_scale(m)
-        where = "" if library else effect.where(ref)
-        out.append(Candidate(effect_label(effect), library, tuple(names), np.array([scales[n] for n in names]),
-                             parts(jac.T).T, where, effect))  # fmt: skip
+        scales = cand.effect.plausible_scale(m)
+        out.append(Linearised(cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T,
+                              cand.where(ref)))  # fmt: skip
     return out
-
-
-def log_evidence(r: np.ndarray, cov: np.ndarray, jac: np.ndarray | None = None, scale: np.ndarray | None = None
-                 ) -> float:  # fmt: skip
-    """``log N(r; 0, C + J D J')`` with ``D = diag(scale^2)`` (no change when ``jac`` is None)."""
-    total = cov if jac is None else cov + (jac * scale**2) @ jac.T
-    _, logdet = np.linalg.slogdet(total)
-    return float(-0.5 * (r @ np.linalg.solve(total, r) + logdet + len(r) * np.log(2 * np.pi)))
-
-
-def fit(r: np.ndarray, cov: np.ndarray, cand: Candidate) -> tuple[np.ndarray, np.ndarray, float]:
-    """The candidate's values (posterior mean and covariance under its prior) and the fit's chi-square."""
-    J, D = cand.jacobian, cand.scale**2
-    ci = np.linalg.inv(cov)
-    post = np.linalg.inv(J.T @ ci @ J + np.diag(1.0 / D))
-    mean = post @ J.T @ ci @ r
-    e = r - J @ mean
-    return mean, post, float(e @ ci @ e)
 
 
 @dataclass(frozen=True)
@@ -109,25 +98,25 @@ class Verdict:
     text: str
 
 
-def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Candidate]) -> Verdict:
-    """The candidate that best explains the pooled residual ``r`` (``2m``, covariance ``cov``).
+def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict:
+    """The candidate that best explains the pooled residual ``r`` (``2m``, covariance ``cov``): each weighed as
+    a linear-Gaussian hypothesis against no change (:func:`twin.update.evidence.linear_fit`).
 
     Only pole parts measured since the onset take part (NaN elsewhere).
     """
     ok = np.isfinite(r)
     r, cov = r[ok], cov[np.ix_(ok, ok)]
-    null = log_evidence(r, cov)
-    scored = sorted(((log_evidence(r, cov, c.jacobian[ok], c.scale) - null, c) for c in cands),
-                    key=lambda t: -t[0])  # fmt: skip
-    (best_ev, best), (second_ev, second) = scored[0], scored[1]
-    sub = Candidate(best.label, best.library, best.parameters, best.scale, best.jacobian[ok], best.where)
-    mean, post, chi2 = fit(r, cov, sub)
-    return Verdict(best.label, best.library, best.parameters, mean, post, best_ev, second.label, second_ev, chi2,
-                   int(ok.sum()), _text(best, mean, post, best_ev, second.label, second_ev))  # fmt: skip
+    fits = [(linear_fit(r, c.jacobian[ok], c.scale, cov), c) for c in cands]
+    scored = sorted(fits, key=lambda t: -t[0].log_bayes_factor)
+    (best_fit, best), (second_fit, second) = scored[0], scored[1]
+    best_ev, second_ev = best_fit.log_bayes_factor, second_fit.log_bayes_factor
+    mean, post = best_fit.values, best_fit.covariance
+    return Verdict(best.label, best.library, best.parameters, mean, post, best_ev, second.label, second_ev,
+                   best_fit.chi2, int(ok.sum()), _text(best, mean, post, best_ev, second.label, second_ev))  # fmt: skip
 
 
 def changed_poles(model: RotorModel, tracked: Tracked, point: dict[str, float], changes: list,
-                  derive: Candidate | None = None) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+                  derive: Linearised | None = None) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
     """The tracked poles at ``point`` with ``changes`` (candidate, values) on the model, and their derivatives
     by ``derive``'s parameters (pole parts, ``(2m, k)``) when it is given."""
     m = at_operating_point(model, point)
@@ -144,7 +133,7 @@ def changed_poles(model: RotorModel, tracked: Tracked, point: dict[str, float], 
 UPDATE_STEPS = 5
 
 
-def update(model: RotorModel, tracked: Tracked, cand: Candidate, observed: list[tuple[dict, np.ndarray, np.ndarray]],
+def update(model: RotorModel, tracked: Tracked, cand: Linearised, observed: list[tuple[dict, np.ndarray, np.ndarray]],
            others: list) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The candidate's values after the records since the onset: the posterior mode and covariance under its
     prior (zero, its plausible scale), by Gauss-Newton on the full model at each record's operating point.
@@ -170,14 +159,14 @@ def update(model: RotorModel, tracked: Tracked, cand: Candidate, observed: list[
     return mean, np.linalg.inv(A)
 
 
-def named(verdict: Verdict, cand: Candidate, mean: np.ndarray, cov: np.ndarray, note: str = "") -> Verdict:
+def named(verdict: Verdict, cand: Linearised, mean: np.ndarray, cov: np.ndarray, note: str = "") -> Verdict:
     """The verdict with the change's values updated (:func:`update`) in place of the screening's linear ones,
     and a ``note`` added to its text."""
     text = _text(cand, mean, cov, verdict.log_evidence, verdict.runner_up, verdict.runner_up_evidence)
     return dataclasses.replace(verdict, mean=mean, covariance=cov, text=f"{text}; {note}" if note else text)
 
 
-def _text(cand: Candidate, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float) -> str:
+def _text(cand: Linearised, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float) -> str:
     values = ", ".join(f"{n} = {m:.3g} ± {np.sqrt(v):.2g}" for n, m, v in zip(cand.parameters, mean, cov.diagonal()))
     if evidence < MIN_LOG_EVIDENCE:
         return f"no change the model can name stands out (best: {cand.label}, log evidence {evidence:.1f})"
@@ -191,13 +180,23 @@ def _text(cand: Candidate, mean: np.ndarray, cov: np.ndarray, evidence: float, s
 
 
 class Follower:
-    """An extended Kalman filter on a named change: its values after each record, with a random walk between."""
+    """An extended Kalman filter on a named change: its values after each record, with a random walk between.
 
-    def __init__(self, model: RotorModel, tracked: Tracked, cand: Candidate, mean: np.ndarray, cov: np.ndarray,
-                 day: float) -> None:  # fmt: skip
+    ``history`` holds, for each of ``n_records`` records, each parameter's value and its 5% and 95%
+    quantiles as :meth:`keep` wrote them (NaN before the change was followed).
+    """
+
+    def __init__(self, model: RotorModel, tracked: Tracked, cand: Linearised, mean: np.ndarray, cov: np.ndarray,
+                 day: float, n_records: int = 0) -> None:  # fmt: skip
         self.model, self.tracked, self.cand = model, tracked, cand
         self.mean, self.cov, self.day = np.array(mean, float), np.array(cov, float), day
         self.walk = np.diag((PROCESS_NOISE * cand.scale) ** 2)
+        self.history = np.full((n_records, len(self.mean), 3), np.nan)
+
+    def keep(self, t: int) -> None:
+        """Write the values and their 5-95% interval after record ``t`` into :attr:`history`."""
+        half = 1.645 * np.sqrt(self.cov.diagonal())
+        self.history[t] = np.stack([self.mean, self.mean - half, self.mean + half], axis=1)
 
     def update(self, point: dict[str, float], y: np.ndarray, cov: np.ndarray, day: float, others: list) -> None:
         """One record: its measured pole parts less the offsets ``y`` (NaN where not used), covariance ``cov``."""

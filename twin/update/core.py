@@ -187,7 +187,8 @@ def _laplace(model: RotorModel, modes: xr.Dataset, names: list[str], fsi: bool, 
     """:func:`update` by the Laplace approximation (:func:`twin.update.laplace.laplace_posterior`)."""
     if not names and not fsi:
         raise UpdateError("nothing to update: name parameters (params) or update the per-mode FSI (fsi=True)")
-    _, fitted, tree = laplace_posterior(model, modes, names, fsi=fsi, seed=opts.seed, draws=opts.draws)
+    _, fitted, tree = laplace_posterior(model, modes, names, fsi=fsi, seed=opts.seed, draws=opts.draws,
+                                       tolerance=opts.tolerance)
     settings = {"method": LAPLACE, "params": names, "fsi": fsi, **opts.settings(), "priors": "plausible"}
     tree.attrs.update({"producer": f"twin {__version__}", **sources, "settings": json.dumps(settings),
                        "elapsed_s": time.perf_counter() - started})  # fmt: skip

@@ -20,7 +20,8 @@ partner: a strongly moved mode pairs with a wrong, nearby model mode at the
 start, and the first step towards its real partner looks worse. So the
 descent starts from the best of a few points along each shared parameter's
 prior (:data:`START_POINTS`), the others held at the start. The log evidence of the hypothesis is, to Laplace's
-approximation with the Gauss-Newton Hessian ``H = JᵀJ + I``,
+approximation with the Gauss-Newton Hessian ``H = JᵀJ + I``
+(:func:`twin.update.evidence.log_evidence`),
 
     ln Z = −½|r(u*)|² − ½|u*|² − ½ ln det H − Σ_k ln P_k,
 
@@ -61,6 +62,7 @@ from twin.fem.effects import (
 )  # fmt: skip
 from twin.fem.model import RotorModel
 from twin.modes.measured import (
+    TOLERANCE,
     Measured,
     channel_dofs,
     measured_modes,
@@ -76,6 +78,7 @@ from twin.modes.sensitivity import (
 )
 from twin.modes.shapes import mac
 from twin.tasks import one_blas_thread
+from twin.update.evidence import log_evidence
 
 log = logging.getLogger(__name__)
 
@@ -415,7 +418,7 @@ def fit(
                 converged = True  # no descent direction left: a (possibly constrained) minimum
                 break
     H = J.T @ J + np.eye(len(u))
-    ln_z = float(-0.5 * (r @ r + u @ u) - 0.5 * np.linalg.slogdet(H)[1] - prior.log_mass)
+    ln_z = log_evidence(r, u, H, prior.log_mass)
     ref = float(-0.5 * r0 @ r0) if reference is None else float(reference)
     cov = np.linalg.inv(H) * np.outer(prior.scale, prior.scale)
     std = np.sqrt(np.diag(cov))
@@ -510,7 +513,8 @@ def laplace_file(post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: i
 
     attrs = {"title": f"Laplace posterior of {model.name}", "command": command, "model": model.name,
              "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
-             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"]}  # fmt: skip
+             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"],
+             "at_bound": post.attrs["at_bound"]}  # fmt: skip
     return laplace_tree(post, modes, attrs, draws=draws, seed=seed)
 
 
@@ -532,11 +536,14 @@ def with_per_mode_fsi(model: RotorModel, labels: Sequence[int]) -> RotorModel:
 
 
 def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool = False,
-                      seed: int | None = 0, draws: int = 1000) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
+                      seed: int | None = 0, draws: int = 1000, tolerance: float = TOLERANCE
+                      ) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
     """The Laplace update of ``names`` (and with ``fsi`` each measured mode's added mass and damping) from the
-    measured poles of ``modes``: the model at the MAP, the fit's Dataset (:func:`laplace_update`) and the
-    posterior in the ``posterior.nc`` layout (:func:`laplace_file`: ``draws`` draws of the Gaussian, from
-    ``seed``). :func:`twin.update.update` with ``method="laplace"`` returns the last.
+    measured poles of ``modes`` (with ``tolerance`` the relative pole uncertainty accepted as model-form
+    error, :func:`twin.modes.measured_modes`): the model at the MAP, the fit's Dataset
+    (:func:`laplace_update`) and the posterior in the ``posterior.nc`` layout (:func:`laplace_file`:
+    ``draws`` draws of the Gaussian, from ``seed``). :func:`twin.update.update` with ``method="laplace"``
+    returns the last.
 
     Examples
     --------
@@ -551,7 +558,7 @@ def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str]
     >>> sorted(tree.children), round(updated.parameter("MAG.stiffness").nominal / -1e8, 2)
     (['constant_data', 'observed_data', 'posterior', 'sample_stats'], 1.0)
     """
-    meas = measured_modes(modes)
+    meas = measured_modes(modes, tolerance)
     names = list(names)
     if fsi:
         model = with_per_mode_fsi(model, meas.mode)
@@ -570,14 +577,20 @@ class LaplaceOptions:
         Draws of the Gaussian posterior written to ``posterior.nc`` (kept inside the physical bounds).
     seed : int, optional
         Seed of those draws.
+    tolerance : float
+        Relative pole uncertainty accepted as model-form error, added to the measured poles' own
+        (:func:`twin.modes.measured_modes`).
     """
 
     draws: int = 1000
     seed: int | None = 0
+    tolerance: float = TOLERANCE
 
     def __post_init__(self) -> None:
         if not (isinstance(self.draws, int) and self.draws >= 1):
             raise UpdateError(f"draws must be a whole number of at least 1, got {self.draws!r}")
+        if not (isinstance(self.tolerance, (int, float)) and self.tolerance >= 0):
+            raise UpdateError(f"tolerance must be a relative uncertainty of zero or more, got {self.tolerance!r}")
 
     def settings(self) -> dict:
         """The options as a JSON-ready dict."""

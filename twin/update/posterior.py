@@ -143,6 +143,12 @@ def read_posterior(path: str | Path) -> xr.DataTree:
     return tree
 
 
+def is_laplace(posterior: xr.DataTree | xr.Dataset) -> bool:
+    """Whether a posterior is the Laplace fit's Gaussian (:func:`laplace_tree`), not a sampler's draws."""
+    group = posterior["posterior"] if isinstance(posterior, xr.DataTree) else posterior
+    return "laplace_map" in group.attrs
+
+
 def estimates(posterior: xr.Dataset, estimate: str = "map") -> dict[str, float]:
     """Point estimate of every parameter (``"map"``: marginal posterior mode, or ``"mean"``), SI.
 

@@ -138,9 +138,9 @@ def test_a_plugin_through_an_entry_point_reaches_model_files_and_the_diagnosis(
 
     assert "housing_mass_test" in effect_classes(local=False)
     assert "housing_mass_test" in [effect_label(e) for e in library_effects(hydro_unit)]
-    from twin.loop.candidates import library
+    from twin.loop.candidates import candidates
 
-    assert "housing_mass_test" in [c.label for c in library(hydro_unit)]
+    assert "housing_mass_test" in [c.label for c in candidates(hydro_unit)]
     model = hydro_unit.with_effects(from_label("housing_mass_test", mass=5e3))
     assert model.parameter("HOUSING.mass").nominal == 5e3
     path = tmp_path / "unit.toml"
