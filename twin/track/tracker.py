@@ -9,7 +9,7 @@
 4. what the operating conditions do not explain goes to a control chart (:mod:`twin.track.detect`);
 5. at an alarm, the records since the onset name the change (:func:`twin.track.explain.diagnose`), which
    is then followed record by record (:class:`twin.track.explain.Follower`) and taken out of the residual,
-   so a further change alarms again.
+   so a further change alarms again (:class:`twin.track.watch.Watch`).
 
 Everything but the extraction is computed anew at each call from the cached modes, so records added to
 the folder later give the same alarms as one run over all of them.
@@ -18,7 +18,6 @@ the folder later give the same alarms as one run over all of them.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +37,7 @@ from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
 from twin.track.report import write_report
+from twin.track.watch import Alarm, Chart, Series, Watch
 
 log = logging.getLogger(__name__)
 
@@ -54,9 +54,6 @@ IDENTITY_MAC = 0.6
 #: when it changes most.
 IDENTITY_MAC_FAR = 0.9
 IDENTITY_REACH = 0.5
-#: The diagnosis and the followed changes use the measured damping (the poles' real parts) beside the
-#: frequencies; the chart watches the frequencies alone. See the decision log's "tracking-damping" page.
-DIAGNOSE_WITH_DAMPING = True
 #: A tracked mode found in fewer of the baseline's records than this fraction is not tracked.
 MIN_FOUND = 0.5
 
@@ -228,21 +225,21 @@ def track(
     # to record and drift with what no law describes, which a false-alarm rate cannot hold
     m = len(tracked.poles)
     chart = detect.learn_baseline(residual[base], sig[base])
-    watch = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
+    watched = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
     records_per_year = 365.25 * len(records) / max(days[-1] - days[0], 1e-9) if len(records) > 1 else 365.25
     if int(base.sum()) <= m + 1:
         raise TwinError(f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
                         f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)")  # fmt: skip
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
-    cands = explain.candidates(learned, tracked)
-    statistic, alarms, followers, current = _watch(learned, tracked, records, days, y, sig, residual, laws, chart,
-                                                   watch, limit, cands, int(base.sum()), drift)  # fmt: skip
+    series = Series(records, days, y, sig, residual, drift)
+    done = Watch(learned, tracked, explain.candidates(learned, tracked), series,
+                 Chart(chart, watched, limit, laws)).run(int(base.sum()))  # fmt: skip
     values: dict[str, np.ndarray] = {}
-    for f in followers:
+    for f in done.followers:
         for j, name in enumerate(f.cand.parameters):
             values[name] = f.history[:, j, :]
-    table = _dataset(records, days, tracked, poles, predicted, current, statistic, limit, alarms, values, laws, op,
-                     baseline_days)  # fmt: skip
+    table = _dataset(records, days, tracked, poles, predicted, done.current, done.statistic, limit, done.alarms,
+                     values, laws, op, baseline_days)  # fmt: skip
     table.attrs.update({"records": str(Path(folder).resolve()), "false_alarms_per_year": float(false_alarms_per_year)})
     table["pole_se"] = (("time", "mode", "part"), np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
                         {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"})
@@ -253,154 +250,8 @@ def track(
     return table
 
 
-def _observation(y: np.ndarray, offsets: np.ndarray, center: np.ndarray, m: int) -> np.ndarray:
-    """A record's pole parts less the laws' offsets and the baseline's centre, as the diagnosis and the
-    followers see them (the real parts NaN unless :data:`DIAGNOSE_WITH_DAMPING`)."""
-    obs = y - offsets - center
-    if not DIAGNOSE_WITH_DAMPING:
-        obs[:m] = np.nan
-    return obs
-
-
-def _watch(learned, tracked, records, days, y, sig, residual, laws, chart, watch, limit, cands, start, drift):
-    """The chart over the records after the baseline; at each alarm the change named, updated and followed.
-
-    A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
-    than :data:`twin.track.explain.MIN_MARGIN`) is a reading: its change is followed, so the chart goes on
-    watching what it does not explain, and the records since the onset are weighed again as each one comes,
-    until one name stands out; the change is then updated anew if the name changed
-    (:class:`_Reading`). A change that grows (a ramp) alarms while it is small, when the records cannot
-    yet say which it is. An alarm that names a change already followed (one that grew faster than its
-    filter's process noise lets it follow) re-estimates that change as a whole on the records since the
-    new onset, so one change has one follower.
-
-    ``drift`` holds each record's frequency parts' sensitivity to the laws' slopes less the baseline's mean
-    (``(n, m, K)``): the chart counts the slopes' uncertainty (:class:`twin.track.detect.MEWMA`).
-
-    Returns the chart's statistic, the alarms ``[record, onset record, verdict, record named]``, the
-    followers (each with its ``history``: value, 5% and 95% quantile per record) and each record's
-    residual against the model with the changes followed so far.
-    """
-    n, m = len(records), len(tracked.poles)
-    statistic = np.full(n, np.nan)
-    current = residual.copy()
-    followers: list[explain.Follower] = []
-    alarms: list[list] = []
-    reading: _Reading | None = None
-    smooth = detect.MEWMA(watch, uncertain=laws.covariance if drift.shape[2] else None)
-
-    def observed(k: int, t: int) -> list:
-        return [(records[i].point, _observation(y[i], laws.offsets, chart.center, m),
-                 detect.record_covariance(sig[i], chart)) for i in range(k, t + 1)]  # fmt: skip
-
-    def follow(cand, k: int, t: int) -> explain.Follower:
-        """The change ``cand`` updated on the records ``k..t``: a new follower, or, for a change already
-        followed (a ramp that outran its filter), the same one re-estimated as a whole."""
-        same = next((f for f in followers if f.cand.label == cand.label), None)
-        others = [(f.cand, f.mean) for f in followers if f is not same]
-        value, value_cov = explain.update(learned, tracked, cand, observed(k, t), others)
-        if same is not None:
-            same.mean, same.cov, same.day = value, value_cov, days[t]
-            return same
-        f = explain.Follower(learned, tracked, cand, value, value_cov, days[t])
-        f.history = np.full((n, len(value), 3), np.nan)
-        followers.append(f)
-        return f
-
-    def settle(t: int, force: bool) -> None:
-        """Weigh the reading's records again; name the change when one stands out (or ``force``)."""
-        nonlocal reading
-        verdict = _diagnosis(reading.without[reading.onset:t + 1], sig[reading.onset:t + 1], chart, cands, m)
-        if verdict.log_evidence - verdict.runner_up_evidence < explain.MIN_MARGIN and not force:
-            return
-        if verdict.log_evidence < explain.MIN_LOG_EVIDENCE:
-            verdict = reading.verdict  # the evidence went: keep what the alarm said
-        f = reading.follower
-        if verdict.label != f.cand.label:
-            if reading.before is None:
-                followers.remove(f)
-            else:  # a change followed before the alarm: back to what it was
-                f.mean, f.cov, f.day = reading.before
-            f = follow(next(c for c in cands if c.label == verdict.label), reading.onset, t)
-        note = "" if verdict.label == reading.verdict.label else \
-            f"first read as {reading.verdict.label} on day {days[reading.alarm_record]:.2f}"  # fmt: skip
-        verdict = explain.named(verdict, f.cand, f.mean, f.cov, note=note)
-        alarms[reading.alarm][2:] = [verdict, t]
-        log.info("the change since %s named on %s: %s", records[reading.onset].start.isoformat(),
-                 records[t].start.isoformat(), verdict.text)  # fmt: skip
-        reading = None
-
-    for t in range(start, n):
-        point, cov = records[t].point, detect.record_covariance(sig[t], chart)
-        obs = _observation(y[t], laws.offsets, chart.center, m)
-        for f in followers:
-            f.update(point, obs, cov, days[t], [(g.cand, g.mean) for g in followers if g is not f])
-        if reading is not None:
-            others = [(f.cand, f.mean) for f in followers if f is not reading.follower]
-            if reading.before is not None:
-                others.append((reading.follower.cand, reading.before[0]))
-            g = explain.changed_poles(learned, tracked, point, others)[0] if others else None
-            reading.without[t] = residual[t] if g is None else y[t] - laws.offsets - g
-            settle(t, force=False)
-        if followers:
-            g, _ = explain.changed_poles(learned, tracked, point, [(f.cand, f.mean) for f in followers])
-            current[t] = y[t] - laws.offsets - g
-        z = detect.standardised(current[t, m:], sig[t, m:], watch)
-        g = np.nan_to_num(drift[t] / (watch.scale * sig[t, m:])[:, None])  # 0 where the mode was not found
-        statistic[t] = smooth.add(z, g)
-        if statistic[t] > limit:
-            if reading is not None:
-                settle(t, force=True)
-            k = start + detect.onset(detect.standardised(current[start:t + 1, m:], sig[start:t + 1, m:], watch), watch)
-            verdict = _diagnosis(current[k:t + 1], sig[k:t + 1], chart, cands, m)
-            alarms.append([t, k, verdict, None])
-            if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
-                cand = next(c for c in cands if c.label == verdict.label)
-                same = next((f for f in followers if f.cand is cand), None)
-                before = None if same is None else (same.mean.copy(), same.cov.copy(), same.day)
-                f = follow(cand, k, t)
-                verdict = explain.named(verdict, f.cand, f.mean, f.cov)
-                clear = verdict.log_evidence - verdict.runner_up_evidence >= explain.MIN_MARGIN
-                alarms[-1][2:] = [verdict, t if clear else None]
-                if not clear:
-                    reading = _Reading(f, k, len(alarms) - 1, t, verdict, current.copy(), before)
-            log.info("alarm at %s (onset %s): %s", records[t].start.isoformat(), records[k].start.isoformat(),
-                     verdict.text)  # fmt: skip
-            smooth.reset()
-            start = t + 1
-        for f in followers:
-            half = 1.645 * np.sqrt(f.cov.diagonal())  # the 5-95% interval
-            f.history[t] = np.stack([f.mean, f.mean - half, f.mean + half], axis=1)
-    return statistic, [tuple(a) for a in alarms], followers, current
-
-
-@dataclass
-class _Reading:
-    """A change followed under a name the records could not yet tell from another's: its follower, the
-    onset, the alarm it answers (its index and record), the alarm's verdict, each record's residual
-    without it, and the follower's state (mean, covariance, day) before the alarm if it was followed
-    already."""
-
-    follower: explain.Follower
-    onset: int
-    alarm: int
-    alarm_record: int
-    verdict: explain.Verdict
-    without: np.ndarray
-    before: tuple | None = None
-
-
-def _diagnosis(residuals: np.ndarray, se: np.ndarray, chart: detect.Baseline, cands, m: int) -> explain.Verdict:
-    """The candidates weighed on records' residuals pooled (the damping's parts left out unless
-    :data:`DIAGNOSE_WITH_DAMPING`)."""
-    mean, pooled_cov = detect.pooled(residuals, se, chart)
-    if not DIAGNOSE_WITH_DAMPING:
-        mean[:m] = np.nan
-    return explain.diagnose(mean, pooled_cov, cands)
-
-
-def _dataset(records, days, tracked, poles, predicted, residual, statistic, limit, alarms, values, laws, op,
-             baseline_days) -> xr.Dataset:  # fmt: skip
+def _dataset(records, days, tracked, poles, predicted, residual, statistic, limit, alarms: list[Alarm], values,
+             laws, op, baseline_days) -> xr.Dataset:  # fmt: skip
     m = len(tracked.poles)
     times = np.array([r.start.replace(tzinfo=None) for r in records], dtype="datetime64[ns]")
     freq = poles.imag / (2 * np.pi)
@@ -421,14 +272,14 @@ def _dataset(records, days, tracked, poles, predicted, residual, statistic, limi
             "slope": ("slope_key", laws.slopes, {"long_name": "learned slopes of the laws (SI per condition unit)"}),
             "slope_std": ("slope_key", np.sqrt(laws.covariance.diagonal())),
             "slope_declared": ("slope_key", laws.declared),
-            "alarm_time": ("alarm", np.array([times[t] for t, _, _, _ in alarms], dtype="datetime64[ns]")),
-            "alarm_day": ("alarm", [float(days[t]) for t, _, _, _ in alarms], {"units": "d"}),
-            "alarm_onset_day": ("alarm", [float(days[k]) for _, k, _, _ in alarms], {"units": "d"}),
-            "alarm_named_day": ("alarm", [np.nan if w is None else float(days[w]) for _, _, _, w in alarms],
+            "alarm_time": ("alarm", np.array([times[a.record] for a in alarms], dtype="datetime64[ns]")),
+            "alarm_day": ("alarm", [float(days[a.record]) for a in alarms], {"units": "d"}),
+            "alarm_onset_day": ("alarm", [float(days[a.onset]) for a in alarms], {"units": "d"}),
+            "alarm_named_day": ("alarm", [np.nan if a.named is None else float(days[a.named]) for a in alarms],
                                 {"units": "d", "long_name": "day the records told the change from the others"}),
-            "alarm_effect": ("alarm", [v.label for _, _, v, _ in alarms]),
-            "alarm_named": ("alarm", [bool(v.log_evidence >= explain.MIN_LOG_EVIDENCE) for _, _, v, _ in alarms]),
-            "alarm_verdict": ("alarm", [v.text for _, _, v, _ in alarms]),
+            "alarm_effect": ("alarm", [a.verdict.label for a in alarms]),
+            "alarm_named": ("alarm", [bool(a.verdict.log_evidence >= explain.MIN_LOG_EVIDENCE) for a in alarms]),
+            "alarm_verdict": ("alarm", [a.verdict.text for a in alarms]),
         },
         coords={
             "time": times, "mode": np.arange(1, m + 1), "part": ["real", "imag"],

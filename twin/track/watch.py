@@ -1,0 +1,246 @@
+"""The watch after the baseline: the control chart record by record, and at each alarm the change named,
+updated and followed.
+
+:class:`Watch` holds the state a tracker carries from one record to the next: the chart's recursion, the
+followed changes (:class:`twin.track.explain.Follower`), the alarms (:class:`Alarm`) and the reading of
+an alarm whose name the records cannot yet tell (:class:`Reading`). :meth:`Watch.step` takes one record:
+
+1. every followed change is updated by the record (its extended Kalman filter);
+2. a reading weighs the records since its onset again, and names the change when one stands out;
+3. the record's residual against the model with the followed changes goes to the chart;
+4. above the limit, the records since the onset (:func:`twin.track.detect.onset`) name the change, which
+   is updated on them and followed; the chart starts again.
+
+A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
+than :data:`twin.track.explain.MIN_MARGIN`) is a reading: its change is followed, so the chart goes on
+watching what it does not explain, and the records since the onset are weighed again as each one comes,
+until one name stands out; the change is then updated anew if the name changed. A change that grows (a
+ramp) alarms while it is small, when the records cannot yet say which it is. An alarm that names a change
+already followed (one that grew faster than its filter's process noise lets it follow) re-estimates that
+change as a whole on the records since the new onset, so one change has one follower.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from twin.fem.model import RotorModel
+from twin.track import detect, explain
+from twin.track.physics import LawFit, Tracked
+
+log = logging.getLogger(__name__)
+
+#: The diagnosis and the followed changes use the measured damping (the poles' real parts) beside the
+#: frequencies; the chart watches the frequencies alone. See the decision log's "tracking-damping" page.
+DIAGNOSE_WITH_DAMPING = True
+
+
+@dataclass(frozen=True)
+class Series:
+    """The records as the watch reads them: ``n`` records, ``m`` tracked modes, pole parts real then imaginary.
+
+    Attributes
+    ----------
+    records : list of Record
+        The records (:func:`twin.track.records.records_in`), in time order.
+    days : (n,) float
+        Days after the first record.
+    y, sig : (n, 2m) float
+        Measured pole parts [1/s] and their standard errors (NaN where a mode was not found).
+    residual : (n, 2m) float
+        What the laws learned over the baseline do not explain (their prediction and offsets taken out).
+    drift : (n, m, K) float
+        Each record's frequency parts' sensitivity to the laws' ``K`` slopes, less the baseline's mean: the
+        chart counts the slopes' uncertainty (:class:`twin.track.detect.MEWMA`).
+    """
+
+    records: list
+    days: np.ndarray
+    y: np.ndarray
+    sig: np.ndarray
+    residual: np.ndarray
+    drift: np.ndarray
+
+
+@dataclass(frozen=True)
+class Chart:
+    """What the baseline taught the chart: every pole part's baseline, the watched (frequency) parts'
+    baseline, the control limit and the learned laws."""
+
+    baseline: detect.Baseline
+    watched: detect.Baseline
+    limit: float
+    laws: LawFit
+
+
+@dataclass
+class Alarm:
+    """An alarm: the record that raised it, the record its change began at (the onset), what it names, and
+    the record at which the records told that change from the others (None while they could not)."""
+
+    record: int
+    onset: int
+    verdict: explain.Verdict
+    named: int | None = None
+
+
+@dataclass
+class Reading:
+    """A change followed under a name the records could not yet tell from another's: its follower, the onset,
+    the alarm it answers, the alarm's own verdict, each record's residual without the change, and the
+    follower's state (mean, covariance, day) before the alarm if it was followed already."""
+
+    follower: explain.Follower
+    onset: int
+    alarm: Alarm
+    verdict: explain.Verdict
+    without: np.ndarray
+    before: tuple | None = None
+
+
+@dataclass
+class Watch:
+    """The chart and the followed changes over the records after the baseline (module docstring).
+
+    ``statistic`` (the chart's, per record), ``current`` (each record's residual against the model with
+    the changes followed so far), ``followers`` and ``alarms`` are what a track keeps.
+    """
+
+    model: RotorModel
+    tracked: Tracked
+    candidates: list[explain.Linearised]
+    series: Series
+    chart: Chart
+    statistic: np.ndarray = field(init=False)
+    current: np.ndarray = field(init=False)
+    followers: list[explain.Follower] = field(init=False, default_factory=list)
+    alarms: list[Alarm] = field(init=False, default_factory=list)
+    reading: Reading | None = field(init=False, default=None)
+
+    def __post_init__(self) -> None:
+        self.statistic = np.full(len(self.series.records), np.nan)
+        self.current = self.series.residual.copy()
+        drift = self.series.drift
+        self._smooth = detect.MEWMA(self.chart.watched, uncertain=self.chart.laws.covariance if drift.shape[2] else None)
+        self._m = len(self.tracked.poles)
+
+    def run(self, start: int) -> Watch:
+        """Every record from ``start`` (the first after the baseline) on."""
+        self._start = start
+        for t in range(start, len(self.series.records)):
+            self.step(t)
+        return self
+
+    def observation(self, t: int) -> np.ndarray:
+        """Record ``t``'s pole parts less the laws' offsets and the baseline's centre, as the diagnosis and the
+        followers see them (the real parts NaN unless :data:`DIAGNOSE_WITH_DAMPING`)."""
+        obs = self.series.y[t] - self.chart.laws.offsets - self.chart.baseline.center
+        if not DIAGNOSE_WITH_DAMPING:
+            obs[: self._m] = np.nan
+        return obs
+
+    def diagnosis(self, residuals: np.ndarray, se: np.ndarray) -> explain.Verdict:
+        """The candidates weighed on records' residuals pooled (the damping's parts left out unless
+        :data:`DIAGNOSE_WITH_DAMPING`)."""
+        mean, pooled_cov = detect.pooled(residuals, se, self.chart.baseline)
+        if not DIAGNOSE_WITH_DAMPING:
+            mean[: self._m] = np.nan
+        return explain.diagnose(mean, pooled_cov, self.candidates)
+
+    def step(self, t: int) -> None:
+        """One record: the followers updated, a reading weighed again, the chart, and an alarm if it rises."""
+        s, m, start = self.series, self._m, self._start
+        point, cov = s.records[t].point, detect.record_covariance(s.sig[t], self.chart.baseline)
+        obs = self.observation(t)
+        for f in self.followers:
+            f.update(point, obs, cov, s.days[t], [(g.cand, g.mean) for g in self.followers if g is not f])
+        if self.reading is not None:
+            reading = self.reading
+            others = [(f.cand, f.mean) for f in self.followers if f is not reading.follower]
+            if reading.before is not None:
+                others.append((reading.follower.cand, reading.before[0]))
+            g = explain.changed_poles(self.model, self.tracked, point, others)[0] if others else None
+            reading.without[t] = s.residual[t] if g is None else s.y[t] - self.chart.laws.offsets - g
+            self._settle(t, force=False)
+        if self.followers:
+            g, _ = explain.changed_poles(self.model, self.tracked, point, [(f.cand, f.mean) for f in self.followers])
+            self.current[t] = s.y[t] - self.chart.laws.offsets - g
+        watched = self.chart.watched
+        z = detect.standardised(self.current[t, m:], s.sig[t, m:], watched)
+        g = np.nan_to_num(s.drift[t] / (watched.scale * s.sig[t, m:])[:, None])  # 0 where the mode was not found
+        self.statistic[t] = self._smooth.add(z, g)
+        if self.statistic[t] > self.chart.limit:
+            self._alarm(t, start)
+            self._smooth.reset()
+            self._start = t + 1
+        for f in self.followers:
+            f.keep(t)
+
+    def _alarm(self, t: int, start: int) -> None:
+        """The alarm at record ``t`` of a chart started at record ``start``: the change named and followed."""
+        s, m = self.series, self._m
+        if self.reading is not None:
+            self._settle(t, force=True)
+        k = start + detect.onset(detect.standardised(self.current[start:t + 1, m:], s.sig[start:t + 1, m:],
+                                                     self.chart.watched), self.chart.watched)  # fmt: skip
+        verdict = self.diagnosis(self.current[k:t + 1], s.sig[k:t + 1])
+        alarm = Alarm(t, k, verdict)
+        self.alarms.append(alarm)
+        if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
+            cand = next(c for c in self.candidates if c.label == verdict.label)
+            same = next((f for f in self.followers if f.cand is cand), None)
+            before = None if same is None else (same.mean.copy(), same.cov.copy(), same.day)
+            f = self._follow(cand, k, t)
+            alarm.verdict = explain.named(verdict, f.cand, f.mean, f.cov)
+            clear = alarm.verdict.log_evidence - alarm.verdict.runner_up_evidence >= explain.MIN_MARGIN
+            alarm.named = t if clear else None
+            if not clear:
+                self.reading = Reading(f, k, alarm, alarm.verdict, self.current.copy(), before)
+        log.info("alarm at %s (onset %s): %s", s.records[t].start.isoformat(), s.records[k].start.isoformat(),
+                 alarm.verdict.text)  # fmt: skip
+
+    def _observed(self, k: int, t: int) -> list:
+        """``(point, observation, covariance)`` of the records ``k..t``."""
+        s = self.series
+        return [(s.records[i].point, self.observation(i), detect.record_covariance(s.sig[i], self.chart.baseline))
+                for i in range(k, t + 1)]  # fmt: skip
+
+    def _follow(self, cand: explain.Linearised, k: int, t: int) -> explain.Follower:
+        """The change ``cand`` updated on the records ``k..t``: a new follower, or, for a change already
+        followed (a ramp that outran its filter), the same one re-estimated as a whole."""
+        same = next((f for f in self.followers if f.cand.label == cand.label), None)
+        others = [(f.cand, f.mean) for f in self.followers if f is not same]
+        value, value_cov = explain.update(self.model, self.tracked, cand, self._observed(k, t), others)
+        day = self.series.days[t]
+        if same is not None:
+            same.mean, same.cov, same.day = value, value_cov, day
+            return same
+        f = explain.Follower(self.model, self.tracked, cand, value, value_cov, day, len(self.series.records))
+        self.followers.append(f)
+        return f
+
+    def _settle(self, t: int, force: bool) -> None:
+        """Weigh the reading's records again; name the change when one stands out (or ``force``)."""
+        reading, s = self.reading, self.series
+        verdict = self.diagnosis(reading.without[reading.onset:t + 1], s.sig[reading.onset:t + 1])
+        if verdict.log_evidence - verdict.runner_up_evidence < explain.MIN_MARGIN and not force:
+            return
+        if verdict.log_evidence < explain.MIN_LOG_EVIDENCE:
+            verdict = reading.verdict  # the evidence went: keep what the alarm said
+        f = reading.follower
+        if verdict.label != f.cand.label:
+            if reading.before is None:
+                self.followers.remove(f)
+            else:  # a change followed before the alarm: back to what it was
+                f.mean, f.cov, f.day = reading.before
+            f = self._follow(next(c for c in self.candidates if c.label == verdict.label), reading.onset, t)
+        note = "" if verdict.label == reading.verdict.label else \
+            f"first read as {reading.verdict.label} on day {s.days[reading.alarm.record]:.2f}"  # fmt: skip
+        reading.alarm.verdict = explain.named(verdict, f.cand, f.mean, f.cov, note=note)
+        reading.alarm.named = t
+        log.info("the change since %s named on %s: %s", s.records[reading.onset].start.isoformat(),
+                 s.records[t].start.isoformat(), reading.alarm.verdict.text)  # fmt: skip
+        self.reading = None
