@@ -58,3 +58,13 @@ def test_evidence_is_computed_in_one_place():
     found = [f"{name}:{n}" for name, text in _sources() if any(name.startswith(w) for w in weighing)
              for n, line in enumerate(text.splitlines(), 1) if "slogdet" in line or "log1p(" in line]  # fmt: skip
     assert found == []
+
+
+def test_one_modal_assignment():
+    """Modes are assigned one to one by twin.modes.pairing.assign (Hungarian, with gates) alone: no other module
+    calls the Hungarian algorithm or walks a cost matrix's pairs closest first."""
+    greedy = re.compile(r"argsort\([^)]*axis=None")
+    found = [f"{name}:{n}" for name, text in _sources() if name != "twin/modes/pairing.py"
+             for n, line in enumerate(text.splitlines(), 1)
+             if "linear_sum_assignment" in line or greedy.search(line)]  # fmt: skip
+    assert found == []

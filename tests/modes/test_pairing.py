@@ -42,3 +42,33 @@ def test_min_mac_drops_unrelated_modes(hydro_unit):
     other["sensor_shape"] = other.sensor_shape * 0 + np.eye(6, 8)
     pairs = pair_modes(ds, other, min_mac=0.99)
     assert pairs.sizes["pair"] < 6
+
+
+def test_assign_is_the_least_total_cost_over_every_one_to_one_assignment():
+    """Checked against brute force over all permutations, with gates."""
+    import itertools
+
+    from twin.modes.pairing import assign
+
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        rows, cols = int(rng.integers(1, 5)), int(rng.integers(1, 5))
+        cost = rng.uniform(0.0, 1.0, (rows, cols))
+        allowed = rng.uniform(size=(rows, cols)) < 0.7
+        got = assign(cost, allowed)
+        assert len(set(got[got >= 0])) == int((got >= 0).sum())  # one to one
+        assert all(allowed[r, c] for r, c in enumerate(got) if c >= 0)
+        best = (0, 0.0)  # (pairs, -cost) of the best assignment
+        for perm in itertools.permutations(range(max(rows, cols)), rows):
+            pairs = [(r, c) for r, c in enumerate(perm) if c < cols and allowed[r, c]]
+            best = max(best, (len(pairs), -sum(cost[r, c] for r, c in pairs)))
+        made = [(r, c) for r, c in enumerate(got) if c >= 0]
+        assert len(made) == best[0]
+        assert np.isclose(sum(cost[r, c] for r, c in made), -best[1])
+
+
+def test_assign_with_nothing_allowed_pairs_nothing():
+    from twin.modes.pairing import assign
+
+    assert assign(np.ones((2, 3)), np.zeros((2, 3), bool)).tolist() == [-1, -1]
+    assert assign(np.full((2, 2), np.inf)).tolist() == [-1, -1]

@@ -47,6 +47,7 @@ from twin.extract.samples import MATCH_DISTANCE, jackknife, order_deviations
 from twin.extract.ssi import BlockCovariances, Realisation, block_covariances, hankel_max_lag, realise
 from twin.extract.stabilisation import Cluster, Criteria, Diagram, cluster_poles, diagram, pole_distance
 from twin.modes.analysis import damping_ratio
+from twin.modes.pairing import assign
 
 log = logging.getLogger(__name__)
 
@@ -169,7 +170,8 @@ def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarra
     """For each mode, the index of the same mode among ``other_*`` (-1 for none), one to one.
 
     Two modes are the same when their clustering distance (relative pole distance plus ``1 - MAC``) is
-    below ``MATCH_DISTANCE``; pairs are taken closest first, so each mode is used at most once.
+    below ``MATCH_DISTANCE``; each mode is used at most once, by the assignment of least total distance
+    (:func:`twin.modes.pairing.assign`).
 
     Examples
     --------
@@ -180,18 +182,10 @@ def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarra
     >>> matching_modes(p, s, p[:1] * 1.5, s[:1]).tolist()
     [-1, -1]
     """
-    match = np.full(len(poles), -1)
     if not len(poles) or not len(other_poles):
-        return match
+        return np.full(len(poles), -1)
     dist = pole_distance(np.asarray(poles), np.asarray(shapes), np.asarray(other_poles), np.asarray(other_shapes))
-    taken = np.zeros(len(other_poles), dtype=bool)
-    for flat in np.argsort(dist, axis=None):
-        k, j = np.unravel_index(flat, dist.shape)
-        if dist[k, j] >= MATCH_DISTANCE:
-            break
-        if match[k] < 0 and not taken[j]:
-            match[k], taken[j] = j, True
-    return match
+    return assign(dist, dist < MATCH_DISTANCE)
 
 
 def shapes_at_longer_lags(again: SSIPass, fs: float, members: list, poles: np.ndarray, shapes: np.ndarray,

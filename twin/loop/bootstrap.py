@@ -95,6 +95,7 @@ from twin.defaults import DEFAULT_RECORDS, MAX_BATCHES  # noqa: F401 (shared wit
 from twin.errors import TwinError, UpdateError
 from twin.fem.model import RotorModel
 from twin.loop.pooling import MIN_RECORDS, pooled_rms, predictive_widening
+from twin.modes.pairing import assign
 from twin.tasks import mapper, one_blas_thread
 
 log = logging.getLogger(__name__)
@@ -160,8 +161,8 @@ def records_for(records: int | None, modes: xr.Dataset, method: str) -> int:
 def matched_modes(modes: xr.Dataset, reference: Mapping[int, float], tolerance: float = MATCH_TOLERANCE) -> xr.Dataset:
     """``modes`` renumbered as the reference modes (``{number: frequency [Hz]}``) they match.
 
-    A mode matches the reference mode nearest in frequency, within ``tolerance`` of it, one to one; modes that
-    match none are left out. Per-mode parameters (``FSI.added_mass_<mode>``) then mean the same mode in a
+    A mode matches a reference mode within ``tolerance`` of its frequency, one to one, by the assignment of
+    least total frequency distance (:func:`twin.modes.pairing.assign`); modes that match none are left out. Per-mode parameters (``FSI.added_mass_<mode>``) then mean the same mode in a
     simulated record as in the measured one. The reference is the simulated system's frequency of each
     measured mode (:func:`simulated_reference`), about which the records' modes scatter.
 
@@ -175,15 +176,12 @@ def matched_modes(modes: xr.Dataset, reference: Mapping[int, float], tolerance: 
     known = np.array(list(reference), dtype=int)
     reference_hz = np.array([reference[n] for n in known], dtype=float)
     f = np.abs(modes["frequency"].values)
-    numbers, keep = [], []
-    for k in np.argsort(np.abs(f[:, None] - reference_hz[None, :]).min(axis=1)):
-        j = int(np.argmin(np.abs(reference_hz - f[k])))
-        if abs(reference_hz[j] - f[k]) <= tolerance * reference_hz[j] and known[j] not in numbers:
-            numbers.append(int(known[j]))
-            keep.append(int(k))
+    distance = np.abs(f[:, None] - reference_hz[None, :])
+    cols = assign(distance, distance <= tolerance * reference_hz[None, :])
+    keep = np.flatnonzero(cols >= 0)
+    numbers = known[cols[keep]]
     order = np.argsort(numbers)
-    picked = modes.isel(mode=[keep[i] for i in order])
-    return picked.assign_coords(mode=[numbers[i] for i in order])
+    return modes.isel(mode=keep[order]).assign_coords(mode=[int(n) for n in numbers[order]])
 
 
 def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAIR_LIMIT) -> dict[int, float]:
@@ -223,16 +221,9 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     if not len(system_hz):
         return reference
     distance = np.abs(system_hz[None, :] / measured_hz[:, None] - 1.0)
-    taken_modes, taken_poles = set(), set()
-    for flat in np.argsort(distance, axis=None):
-        i, j = np.unravel_index(flat, distance.shape)
-        if distance[i, j] > limit:
-            break
-        if i in taken_modes or j in taken_poles:
-            continue
-        taken_modes.add(i)
-        taken_poles.add(j)
-        reference[labels[i]] = float(system_hz[j])
+    cols = assign(distance, distance <= limit)
+    for i in np.flatnonzero(cols >= 0):
+        reference[labels[i]] = float(system_hz[cols[i]])
     return reference
 
 

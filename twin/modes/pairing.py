@@ -38,6 +38,41 @@ def pairing_cost(reference_poles: np.ndarray, reference_shapes: np.ndarray, pole
     return dist + (1.0 - m), m
 
 
+def assign(cost: np.ndarray, allowed: np.ndarray | None = None) -> np.ndarray:
+    """For each row, its column (-1 for none): one to one, as many pairs as ``allowed`` permits, and of those
+    assignments the one of least total ``cost`` (Hungarian algorithm).
+
+    Every modal assignment of the package goes through here: a model's modes to measured ones, a tracked
+    mode to a record's, an extraction pass's modes to another's, a simulated record's to the measured ones.
+
+    Parameters
+    ----------
+    cost : (rows, columns) float
+        Cost of each pair, zero or more (e.g. :func:`pairing_cost`); ``inf`` or NaN forbids a pair.
+    allowed : (rows, columns) bool, optional
+        The gates: pairs that may be made at all.
+
+    Examples
+    --------
+    >>> cost = np.array([[0.1, 0.2], [0.15, 0.9]])
+    >>> assign(cost).tolist()  # closest first would pair (0, 0) and leave row 1 with 0.9
+    [1, 0]
+    >>> assign(cost, cost < 0.5).tolist(), assign(cost, cost < 0.12).tolist()
+    ([1, 0], [0, -1])
+    """
+    cost = np.asarray(cost, dtype=float)
+    ok = np.isfinite(cost) if allowed is None else np.asarray(allowed, dtype=bool) & np.isfinite(cost)
+    out = np.full(cost.shape[0], -1)
+    if not ok.any():
+        return out
+    # a forbidden pair costs more than any assignment of allowed ones: the most pairs first, then the least cost
+    forbidden = (np.abs(cost[ok]).max() + 1.0) * (min(cost.shape) + 1)
+    rows, cols = linear_sum_assignment(np.where(ok, cost, forbidden))
+    made = ok[rows, cols]
+    out[rows[made]] = cols[made]
+    return out
+
+
 def partners(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray,
              shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """``(mac, cols)``: mode ``cols[r]`` of the other set is reference mode ``r``'s partner, for every ``r``.
@@ -53,9 +88,9 @@ def partners(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: n
     [1, 0]
     """
     cost, m = pairing_cost(reference_poles, reference_shapes, poles, shapes)
-    rows, cols = linear_sum_assignment(cost)
-    out = np.argmin(cost, axis=1)
-    out[rows] = cols
+    out = assign(cost)
+    left = out < 0
+    out[left] = np.argmin(cost[left], axis=1)
     return m, out
 
 
@@ -123,7 +158,9 @@ def pair_modes(
         b = b.sel({dim: a[dim].values})
     fa, fb = reference["frequency"].values, other["frequency"].values
     cost, m = pairing_cost(dataset_poles(reference), a.values, dataset_poles(other), b.values)
-    rows, cols = linear_sum_assignment(cost)
+    out = assign(cost)
+    rows = np.flatnonzero(out >= 0)
+    cols = out[rows]
     keep = m[rows, cols] >= min_mac
     rows, cols = rows[keep], cols[keep]
     za, zb = reference["damping_ratio"].values[rows], other["damping_ratio"].values[cols]

@@ -29,7 +29,7 @@ from twin.errors import TwinError
 from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
 from twin.modes.measured import measured_modes
-from twin.modes.pairing import pairing_cost
+from twin.modes.pairing import assign, pairing_cost
 from twin.netcdf import check_folder, write_netcdf
 from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
@@ -81,7 +81,8 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
 
     A measured mode is a tracked one's when its pole is within :data:`IDENTITY_TOLERANCE` of the
     prediction with a MAC of :data:`IDENTITY_MAC`, or within :func:`reach` with a MAC of
-    :data:`IDENTITY_MAC_FAR`; each measured mode serves one tracked mode, the best pairs first.
+    :data:`IDENTITY_MAC_FAR`; each measured mode serves one tracked mode, by the assignment of least total
+    pairing cost (:func:`twin.modes.pairing.assign`).
     """
     m = len(predicted)
     pole = np.full(m, np.nan + 1j * np.nan)
@@ -92,16 +93,9 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
     dist = np.abs(meas.pole[None, :] - predicted[:, None]) / np.abs(predicted)[:, None]
     near = (dist < IDENTITY_TOLERANCE) & (mac >= IDENTITY_MAC)
     far = (dist < reach(predicted)[:, None]) & (mac >= IDENTITY_MAC_FAR)
-    cost = np.where(near | far, cost, np.inf)
-    taken: set[int] = set()
-    for flat in np.argsort(cost, axis=None):
-        i, j = np.unravel_index(flat, cost.shape)
-        if not np.isfinite(cost[i, j]):
-            break
-        if np.isfinite(pole[i]) or j in taken:
-            continue
-        pole[i], sigma[i] = meas.pole[j], meas.sigma[j]
-        taken.add(int(j))
+    cols = assign(cost, near | far)
+    found = cols >= 0
+    pole[found], sigma[found] = meas.pole[cols[found]], meas.sigma[cols[found]]
     return pole, sigma
 
 
