@@ -58,6 +58,8 @@ def _stage(module: str) -> str:
     parts = module.split(".")
     if len(parts) == 1:
         return "common"
+    if parts[1] == "__main__":  # python -m twin: the command line
+        return "cli"
     return "common" if parts[1] in COMMON else parts[1]
 
 

@@ -41,3 +41,16 @@ def test_help_names_every_stage():
 
     for stage in ("twin.fem", "twin.fmu", "twin.extract", "twin.update", "twin.loop"):
         assert stage in twin.__doc__, stage
+
+
+def test_python_dash_m_twin_is_the_command_line(tmp_path):
+    """``python -m twin`` runs the same command line as the ``twin`` script (where a script is not on the path)."""
+    import subprocess
+    import sys
+
+    import twin
+
+    done = subprocess.run([sys.executable, "-m", "twin", "--version"], capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.strip() == f"twin {twin.__version__}"
+    bad = subprocess.run([sys.executable, "-m", "twin", "track"], capture_output=True, text=True, cwd=tmp_path)
+    assert bad.returncode == 2 and "the following arguments are required" in bad.stderr

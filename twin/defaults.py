@@ -48,3 +48,8 @@ DEFAULT_UNBALANCE_ME = 100.0
 
 #: A mode of the extraction is the average of its poles at this many model orders (at most).
 ORDERS_PER_MODE = 8
+
+#: Days from a tracker's first record over which it learns the laws and sets its chart; no alarm in them.
+BASELINE_DAYS = 14.0
+#: The false-alarm rate [alarms per unit-year] a tracker's control limit is set for.
+FALSE_ALARMS_PER_YEAR = 0.1

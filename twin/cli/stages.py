@@ -126,19 +126,20 @@ def _import(args: argparse.Namespace) -> int:
 
 def _extract(args: argparse.Namespace) -> int:
     from twin.extract import extract
+    from twin.extract.options import ExtractOptions
     from twin.extract.harmonics import line_frequencies
     from twin.netcdf import check_writable
 
     plot = None if args.plot is None else check_writable(args.plot, figure=True)
     channels = None if args.channels is None else [c.strip() for c in args.channels.split(",") if c.strip()]
-    ds = extract(args.signals, samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
-                 shape_block_rows=args.shape_block_rows, first_lag=args.first_lag, max_order=args.max_order,
-                 channels=channels,
-                 output=args.output, command=" ".join(sys.argv),
-                 delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
-                 remove_harmonics=args.remove_harmonics, blocks=args.blocks,
-                 orders_per_mode=args.orders_per_mode or None,
-                 differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
+    options = ExtractOptions(samples=args.samples, fmax_hz=args.fmax, fmin_hz=args.fmin, block_rows=args.block_rows,
+                             shape_block_rows=args.shape_block_rows, first_lag=args.first_lag,
+                             max_order=args.max_order, channels=channels,
+                             delete_blocks=None if args.delete_half else 1, order_spread=args.order_spread,
+                             remove_harmonics=args.remove_harmonics, blocks=args.blocks,
+                             orders_per_mode=args.orders_per_mode or None,
+                             differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
+    ds = extract(args.signals, options, output=args.output, command=" ".join(sys.argv))
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     chosen = json.loads(ds.attrs["settings"]).get("blocks_chosen")
     if chosen:

@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from twin.defaults import BASELINE_DAYS, FALSE_ALARMS_PER_YEAR
+
 
 def add_commands(sub, command, add_scheduler) -> None:
     """Add ``twin campaign`` to the sub-parsers ``sub`` (with the parser module's helpers)."""
@@ -38,10 +40,12 @@ def add_commands(sub, command, add_scheduler) -> None:
     p.add_argument("model", help="model file with [[condition]] and [[law]] tables, or a shipped model's name")
     p.add_argument("folder", help="folder of the records (*.nc with start_time and operating_point)")
     p.add_argument("-o", "--out", required=True, metavar="OUT", help="the tracker's folder")
-    p.add_argument("--baseline-days", type=float, default=14.0,
-                   help="days from the first record over which the laws are learned; no alarm in them")
-    p.add_argument("--false-alarms", type=float, default=0.1, metavar="PER_YEAR",
-                   help="false-alarm rate the control limit is set for, per unit-year")
+    p.add_argument("--baseline-days", type=float, default=BASELINE_DAYS,
+                   help=f"days from the first record over which the laws are learned; no alarm in them "
+                        f"(default {BASELINE_DAYS:g})")
+    p.add_argument("--false-alarms", type=float, default=FALSE_ALARMS_PER_YEAR, metavar="PER_YEAR",
+                   help=f"false-alarm rate the control limit is set for, per unit-year (default "
+                        f"{FALSE_ALARMS_PER_YEAR:g})")
     p.add_argument("--json", action="store_true",
                    help='print {"records": N, "alarms": [{"time", "day", "onset_day", "named_day", "effects", "verdict"}]}')
     add_scheduler(p, "extractions")

@@ -5,6 +5,7 @@ The ``modes.nc`` file it writes is read and written by :func:`twin.modes.read_mo
 """
 
 from twin.extract.core import extract
+from twin.extract.options import ExtractOptions
 from twin.extract.stabilisation import Criteria
 
-__all__ = ["Criteria", "extract"]
+__all__ = ["Criteria", "ExtractOptions", "extract"]

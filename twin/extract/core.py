@@ -13,8 +13,9 @@ import dataclasses
 import json
 import logging
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.signal as sig
@@ -29,11 +30,11 @@ from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapt
 from twin.extract.quantities import displacement_shapes
 from twin.extract.harmonics import remove_running_harmonics
 from twin.modes.modesfile import write_modes
-from twin.extract.samples import deleted_blocks, jackknife, normalise_at, order_deviations, repeated
+from twin.extract.samples import jackknife, normalise_at, order_deviations, repeated
 from twin.extract.signals import Record, check_record
 from twin.extract.passes import (DIFFERENCES, differenced, first_lag_for, modes_from_differenced,
                                  shape_lag_rows, shapes_at_longer_lags, ssi_pass)
-from twin.extract.stabilisation import Criteria
+from twin.extract.options import ExtractOptions, as_float, jackknife_plan
 from twin.extract.orders import OUTLIER_MADS, mode_members
 from twin.extract.result import MAX_POLE_SE, extracted_modes, left_out, pole_scatter
 from twin.extract.ssi import hankel_max_lag
@@ -54,12 +55,8 @@ SAMPLES_PER_PERIOD = 2.5
 DEFAULT_FMIN_FRACTION = 0.01
 #: The record must hold this many periods of the lowest frequency asked for.
 MIN_CYCLES = 100
-#: What the model-order spread is added to (``extract(order_spread=...)``): the default first.
-ORDER_SPREADS = ("shapes", "all", "none")
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
-#: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread; docs/decisions/extraction-jackknife.md).
-DELETE_BLOCKS: int | None = 1
 
 
 def _open(signals: xr.Dataset | str | Path) -> tuple[xr.Dataset, str]:
@@ -84,26 +81,12 @@ def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
 @one_blas_thread  # many small SVDs and QRs: faster than with OpenBLAS's threads (see the docstring's Notes)
 def extract(
     signals: xr.Dataset | str | Path,
+    options: ExtractOptions | Mapping[str, Any] | None = None,
     *,
-    samples: int | None = None,
-    fmax_hz: float | None = None,
-    fmin_hz: float = 0.0,
-    block_rows: int | None = None,
-    shape_block_rows: int | str = 0,
-    first_lag: int | None = None,
-    max_order: int = 100,
-    channels: Sequence[str] | None = None,
-    criteria: Criteria | None = None,
     output: str | Path | None = None,
     progress: bool = True,
     command: str = "",
-    delete_blocks: int | None = DELETE_BLOCKS,
-    order_spread: str | bool = "shapes",
-    remove_harmonics: bool = True,
-    blocks: int | None = None,
-    orders_per_mode: int | None = ORDERS_PER_MODE,
-    differenced_above_hz: float | None = None,
-    shape_samples: int | None = None,
+    **fields: Any,
 ) -> xr.Dataset:
     """Identify the modes of a record and J samples of each (automated covariance-driven SSI).
 
@@ -113,6 +96,20 @@ def extract(
         ``displacement`` (time, channel) with attr ``sampling_rate`` [Hz] (``signals.nc``), or ``signal``
         with each channel's ``quantity`` and ``units`` (:mod:`twin.extract.quantities`): velocity and
         acceleration channels are read as such and every shape is reported in displacement.
+    options : ExtractOptions or mapping, optional
+        The options (:class:`twin.extract.options.ExtractOptions`, or a mapping of its fields); the
+        defaults where not given.
+    output : path, optional
+        ``modes.nc`` to write (atomically).
+    progress : bool
+        Progress bar over the jackknife blocks.
+    command : str
+        The command line recorded in the file's attrs.
+    **fields
+        Options as keywords, over ``options`` (the Other Parameters below).
+
+    Other Parameters
+    ----------------
     samples : int, optional
         Samples per mode: each comes from the record without
         ``delete_blocks`` of its ``blocks`` (delete-d jackknife, see
@@ -158,10 +155,6 @@ def extract(
         Channels to use (default all).
     criteria : Criteria, optional
         Stabilisation and clustering settings.
-    output : path, optional
-        ``modes.nc`` to write (atomically).
-    progress : bool
-        Progress bar over the jackknife blocks.
     delete_blocks : int or None
         Blocks each sample leaves out: 1 (the default, delete-one jackknife)
         or None for half of them, drawn at random (delete-half: a spread
@@ -261,14 +254,16 @@ def extract(
     >>> modes.frequency.values.round(2), modes.damping_ratio.values.round(2), modes.MPC.values.round(2)
     (array([2.]), array([0.02]), array([0.21]))
     """
-    crit = criteria or Criteria()
-    order_spread = {True: "all", False: "none"}.get(order_spread, order_spread)  # type: ignore[call-overload]
-    if order_spread not in ORDER_SPREADS:
-        raise SignalError(f"order_spread must be one of {', '.join(ORDER_SPREADS)}, got {order_spread!r}")
+    opts = ExtractOptions.of(options, **fields)  # every option checked before the record is read
+    (fmax_hz, fmin_hz, block_rows, shape_block_rows, first_lag, max_order, crit, delete_blocks, order_spread,
+     remove_harmonics, orders_per_mode, differenced_above_hz) = (
+        opts.fmax_hz, opts.fmin_hz, opts.block_rows, opts.shape_block_rows, opts.first_lag, opts.max_order,
+        opts.criteria, opts.delete_blocks, opts.order_spread, opts.remove_harmonics, opts.orders_per_mode,
+        opts.differenced_above_hz)  # fmt: skip
     if output is not None:
         output = check_writable(output)
     ds, source = _open(signals)
-    rec = check_record(ds, source, channels)
+    rec = check_record(ds, source, opts.channels)
     nyquist = rec.fs_hz / 2
     fmax = DEFAULT_FMAX_FRACTION * rec.fs_hz if fmax_hz is None else float(fmax_hz)
     if not 0 < fmax <= nyquist:
@@ -280,24 +275,11 @@ def extract(
                       stacklevel=2)  # fmt: skip
     if not 0 <= fmin_hz < fmax:
         raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
-    if max_order < 2:
-        raise SignalError(f"max_order must be at least 2 (one mode), got {max_order}")
-    if samples is not None and samples < 2:
-        raise SignalError(f"samples must be at least 2 (the spread needs two), got {samples}")
-    if first_lag is not None and not _whole_at_least_one(first_lag):
-        raise SignalError(f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
-                          f"noise), got {first_lag!r}")  # fmt: skip
-    if differenced_above_hz is not None and not 0 <= _as_float(differenced_above_hz) < fmax:  # NaN fails too
+    if differenced_above_hz is not None and not 0 <= as_float(differenced_above_hz) < fmax:  # NaN fails too
         raise SignalError(f"{source}: differenced_above_hz must be a frequency from 0 to below fmax = {fmax:g} Hz, "
                           f"got {differenced_above_hz!r}")  # fmt: skip
-    if orders_per_mode is not None and orders_per_mode < 1:
-        raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
-                          f"got {orders_per_mode}")  # fmt: skip
-    chosen = samples is None and blocks is None  # the extraction chooses the blocks from the record
-    n_blocks = SAMPLES if chosen else int(blocks if blocks is not None else samples)  # type: ignore[arg-type]
-    samples = n_blocks if samples is None else samples
-    if not chosen:  # checked before the record is read
-        _jackknife_plan(n_blocks, samples, delete_blocks, shape_samples, differenced_above_hz, shape_block_rows, chosen)
+    chosen = opts.chosen  # the extraction chooses the blocks from the record
+    n_blocks, samples = opts.n_blocks, opts.n_samples
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
         raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
                           f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
@@ -320,8 +302,7 @@ def extract(
     if chosen:
         n_blocks = samples = block_count(most)
     check_block_length(source, rec.duration_s, y.shape[0], n_blocks, lags, fs, i, k0)
-    n_deleted, repeats = _jackknife_plan(n_blocks, samples, delete_blocks, shape_samples, differenced_above_hz,
-                                         shape_block_rows, chosen)  # fmt: skip
+    n_deleted, repeats = jackknife_plan(n_blocks, samples, opts)
 
     log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
              source, n_ch, rec.duration_s, fs, i, k0, max_order)  # fmt: skip
@@ -460,32 +441,6 @@ def extract(
     return out
 
 
-def _jackknife_plan(n_blocks: int, samples: int, delete_blocks: int | None, shape_samples: object,
-                    differenced_above_hz: float | None, shape_block_rows: int | str, chosen: bool) -> tuple[int, int]:  # fmt: skip
-    """The blocks each sample deletes, and how many times each pole sample is used beside ``shape_samples``
-    delete-half shape samples (1: none asked, or as many as the poles': the shapes come with the poles, as a
-    modes file's settings record it). With ``chosen`` blocks, ``shape_samples`` is taken to the nearest multiple
-    (at least two) of the samples."""
-    try:
-        n_deleted = len(deleted_blocks(n_blocks, delete_blocks, n_samples=samples)[0])
-    except ValueError as exc:
-        raise SignalError(f"delete_blocks: {exc}") from None
-    if shape_samples is None or _as_float(shape_samples) in (0, samples):
-        return n_deleted, 1
-    if chosen and _whole_at_least_one(shape_samples):
-        shape_samples = samples * max(2, round(int(shape_samples) / samples))
-    if not _whole_at_least_one(shape_samples) or int(shape_samples) % samples or int(shape_samples) <= samples:
-        raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} (e.g. {4 * samples}; "
-                          f"{samples} or none: the shapes come with the poles), got {shape_samples!r}")  # fmt: skip
-    if n_blocks < 4:
-        raise SignalError(f"shape_samples draws random halves of the blocks: it needs at least 4 blocks, "
-                          f"got {n_blocks}")  # fmt: skip
-    if differenced_above_hz is not None or shape_block_rows != 0:
-        raise SignalError("shape_samples is not available with differenced_above_hz or shape_block_rows: those "
-                          "passes redraw the samples of the modes they read")  # fmt: skip
-    return n_deleted, int(shape_samples) // samples
-
-
 def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.ndarray) -> list[dict] | None:
     """The simulated record's target modes, observable or not (theory, :mod:`twin.design.observe`), found or not."""
     obs = record_observability(rec.attrs, list(rec.channels), rec.duration_s, fmax_hz)
@@ -495,22 +450,6 @@ def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.nda
     for line in unobservable_text(targets):
         log.info(line)
     return targets
-
-
-def _as_float(value: object) -> float:
-    """``value`` as a float, NaN when it is none (a string, None or an array)."""
-    if isinstance(value, (str, bool)):
-        return float("nan")
-    try:
-        return float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return float("nan")
-
-
-def _whole_at_least_one(value: object) -> bool:
-    """Whether ``value`` is a whole number >= 1 (``3`` or ``3.0``; not ``2.5``, ``0`` or ``"3"``)."""
-    number = _as_float(value)  # NaN for a non-number, which is no whole number
-    return number.is_integer() and number >= 1
 
 
 def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,
@@ -527,9 +466,6 @@ def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_le
         if not slow.any():
             return i, slow
         return shape_lag_rows(float(f_hz[slow].min()), fs, minimum=i, maximum=longest), slow
-    if isinstance(asked, str) or asked < 0:
-        raise SignalError(f"shape_block_rows must be 'auto' or at least 0 (0: the shapes from the poles' pass), "
-                          f"got {asked!r}")  # fmt: skip
     if asked > longest:
         raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
                           f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "

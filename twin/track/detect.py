@@ -31,10 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from twin.defaults import FALSE_ALARMS_PER_YEAR  # noqa: F401 (shared with the CLI)
+
 #: Smoothing of the chart: the weight of the newest record.
 LAMBDA = 0.2
-#: Target false-alarm rate [alarms per unit-year] the threshold is set for.
-FALSE_ALARMS_PER_YEAR = 0.1
 
 
 @dataclass(frozen=True)

@@ -16,9 +16,9 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import itertools
-import json
 import logging
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +26,7 @@ from typing import Any
 import xarray as xr
 
 from twin.errors import NoModeError, SignalError, TwinError, TwinWarning
+from twin.extract.options import ExtractOptions
 from twin.fem.operation import Operation
 from twin.netcdf import check_folder, global_attrs, load_netcdf, write_netcdf
 from twin.tasks import mapper
@@ -133,13 +134,9 @@ def stamp(path: Path) -> str:
     return f"{st.st_size}:{st.st_mtime_ns}"
 
 
-def settings_key(settings: dict[str, Any]) -> str:
-    """The extraction options as a cache file records them."""
-    return json.dumps(settings, sort_keys=True, default=repr)
-
-
-def is_fresh(target: Path, record: Path, settings: dict[str, Any]) -> bool:
-    """Whether the cache file ``target`` holds the modes of ``record`` as it is now, with these options.
+def is_fresh(target: Path, record: Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> bool:
+    """Whether the cache file ``target`` holds the modes of ``record`` as it is now, extracted with ``options``
+    (:class:`twin.extract.options.ExtractOptions`: its :meth:`~twin.extract.options.ExtractOptions.key`).
 
     Size and modification time decide cheaply; a record whose stamp differs (copied, touched) is still
     fresh when its bytes are those the cache was made from (its SHA-256).
@@ -151,36 +148,37 @@ def is_fresh(target: Path, record: Path, settings: dict[str, Any]) -> bool:
         made = {k: str(attrs.get(k, "")) for k in ("record_stamp", "record_sha256", "extract_settings")}
     except (OSError, ValueError):
         return False  # a damaged cache file is made again
-    if made["extract_settings"] != settings_key(settings):
+    if made["extract_settings"] != ExtractOptions.of(options).key():
         return False
     return made["record_stamp"] == stamp(record) or made["record_sha256"] == digest(record)
 
 
-def provenance(record: Path, settings: dict[str, Any]) -> dict[str, str]:
+def provenance(record: Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> dict[str, str]:
     """What a cache file of ``record``'s modes records of its source (:func:`is_fresh` reads it back)."""
-    return {"record_stamp": stamp(record), "record_sha256": digest(record), "extract_settings": settings_key(settings)}
+    return {"record_stamp": stamp(record), "record_sha256": digest(record),
+            "extract_settings": ExtractOptions.of(options).key()}  # fmt: skip
 
 
-def adopt(target: str | Path, record: str | Path, settings: dict[str, Any] | None = None) -> None:
+def adopt(target: str | Path, record: str | Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> None:
     """Mark the cache file ``target`` as the modes of ``record``: for modes extracted from the same signals
     elsewhere (records copied into another folder with other attrs). The caller vouches for the signals."""
     with xr.open_dataset(target) as ds:
         ds = ds.load()
-    ds.attrs.update(provenance(Path(record), dict(settings or {})))
+    ds.attrs.update(provenance(Path(record), options))
     write_netcdf(ds, target)
 
 
-def _extract_one(path: str, *, cache: str, settings: dict[str, Any]) -> str:
+def _extract_one(path: str, *, cache: str, options: ExtractOptions) -> str:
     from twin.extract import extract
     from twin.modes.modesfile import write_modes
 
     source = Path(path)
     target = Path(cache) / (source.stem + ".nc")
-    made = provenance(source, settings)
+    made = provenance(source, options)
     try:
         with warnings.catch_warnings(record=True) as caught:  # one record's notes, logged: not one line per record
             warnings.simplefilter("always", TwinWarning)
-            modes = extract(path, progress=False, **settings)
+            modes = extract(path, options, progress=False)
         for w in caught:
             log.info("%s", w.message)
     except NoModeError as exc:  # a record without any mode is a fact to keep, not a reason to stop
@@ -191,22 +189,24 @@ def _extract_one(path: str, *, cache: str, settings: dict[str, Any]) -> str:
     return str(target)
 
 
-def extract_new(records: list[RecordInfo], cache: str | Path, *, settings: dict[str, Any] | None = None,
-                tasks: Any = None, progress: bool = True) -> list[Path]:  # fmt: skip
+def extract_new(records: list[RecordInfo], cache: str | Path, *,
+                options: ExtractOptions | Mapping[str, Any] | None = None, tasks: Any = None,
+                progress: bool = True) -> list[Path]:  # fmt: skip
     """Extract the modes of the records not yet in ``cache``; the cache files of all records, in order.
 
-    ``settings`` are :func:`twin.extract.extract`'s options (its defaults without). The records are
+    ``options`` are :func:`twin.extract.extract`'s (:class:`~twin.extract.options.ExtractOptions` or a mapping of
+    its fields; the defaults without), checked before any record is read. The records are
     independent tasks (``tasks``, :func:`twin.tasks.mapper`). A record in which no mode stands out is kept
     as such (a cache file with a ``no_mode`` attr) and not analysed again. A cache file that is not the
     record's as it is now (:func:`is_fresh`) is made again.
     """
     cache = check_folder(cache, make=True)
-    settings = dict(settings or {})
+    options = ExtractOptions.of(options)
     targets = [cache / (r.path.stem + ".nc") for r in records]
-    todo = [str(r.path) for r, t in zip(records, targets) if not is_fresh(t, r.path, settings)]
+    todo = [str(r.path) for r, t in zip(records, targets) if not is_fresh(t, r.path, options)]
     if todo:
         log.info("extracting the modes of %d new or changed records (of %d)", len(todo), len(records))
-        mapper(tasks, progress=progress, desc="extract")(_extract_one, todo, cache=str(cache), settings=settings)
+        mapper(tasks, progress=progress, desc="extract")(_extract_one, todo, cache=str(cache), options=options)
     return targets
 
 

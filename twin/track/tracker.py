@@ -18,6 +18,7 @@ the folder later give the same alarms as one run over all of them.
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,9 @@ import numpy as np
 import xarray as xr
 
 from twin import __version__
+from twin.defaults import BASELINE_DAYS  # noqa: F401 (shared with the CLI)
 from twin.errors import TwinError
+from twin.extract.options import ExtractOptions
 from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
 from twin.modes.measured import measured_modes
@@ -41,8 +44,6 @@ from twin.track.watch import Alarm, Chart, Series, Watch
 
 log = logging.getLogger(__name__)
 
-#: Baseline length [days] by default.
-BASELINE_DAYS = 14.0
 #: A measured mode is a tracked mode's when its pole is within this relative distance of the prediction.
 IDENTITY_TOLERANCE = 0.05
 #: ... and its shape's MAC with the model's is at least this.
@@ -127,7 +128,7 @@ def track(
     *,
     baseline_days: float = BASELINE_DAYS,
     false_alarms_per_year: float = detect.FALSE_ALARMS_PER_YEAR,
-    extract_settings: dict[str, Any] | None = None,
+    extract_options: ExtractOptions | Mapping[str, Any] | None = None,
     tasks: Any = None,
     progress: bool = True,
     report: bool = True,
@@ -147,8 +148,9 @@ def track(
         is raised in them.
     false_alarms_per_year : float
         The false-alarm rate the chart's limit is set for [per unit-year].
-    extract_settings : dict, optional
-        Options of :func:`twin.extract.extract`.
+    extract_options : ExtractOptions or mapping, optional
+        Options of :func:`twin.extract.extract` (:class:`twin.extract.options.ExtractOptions` or a mapping of
+        its fields), checked before any record is read; a record's cached modes answer only for them.
     tasks : distributed.Client or mapper, optional
         Where the extractions run.
     progress : bool
@@ -166,10 +168,11 @@ def track(
         ``alarm_effect``, ``alarm_verdict``); the followed parameters (``parameter`` and its 5-95% interval).
     """
     op = operation_of(model)
+    options = ExtractOptions.of(extract_options)
     records = records_in(folder, op)
     out = check_folder(out, make=True)
     with stage(f"extract the modes of {len(records)} records"):
-        cache = extract_new(records, out / "modes", settings=extract_settings, tasks=tasks, progress=progress)
+        cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress)
     measured = [read_cached(p) for p in cache]
     first = next((m for m in measured if m is not None), None)
     if first is None:
