@@ -136,3 +136,28 @@ def test_the_high_modes_are_masked_by_the_lower_modes_even_with_a_quiet_pair_at_
     assert high.sum() == 2 and (obs.best_snr_db.values[high] > 15).all()
     assert (obs.best_prominence_db.values[high] < -4).all()
     assert (obs.best_prominence_db.values[f < 60] > -3).all()  # the modes SSI finds on that record (and 19.1 Hz)
+
+
+def test_judge_targets_marks_what_a_simulated_record_holds_and_leaves_a_measured_one(hydro_unit):
+    """The judgement the comparison reads, made beside the extraction from the record's model and excitation."""
+    import json
+
+    import pytest
+    import xarray as xr
+
+    from twin import shipped_model
+    from twin.design.observe import judge_targets
+    from twin.errors import TwinError
+
+    settings = {"channels": list(hydro_unit.channels), "duration_s": 1200.0, "fmin_hz": 0.0, "fmax_hz": 40.0}
+    modes = xr.Dataset({"frequency": ("mode", [2.92, 10.15])}, attrs={"settings": json.dumps(settings)})
+    simulated = xr.Dataset(attrs={"model_source": str(shipped_model("hydro_unit")),
+                                  "settings": json.dumps({"turbulence_asd": 3000.0, "noise_std_m": 1e-6,
+                                                          "fs_hz": 256.0})})  # fmt: skip
+    judged = judge_targets(modes, simulated)
+    targets = {round(t["frequency_hz"], 1): t for t in json.loads(judged.attrs["target_observability"])}
+    assert targets[2.9]["found"] and targets[10.1]["found"] and not targets[11.7]["found"]
+    assert targets[11.7]["observable"] and "target_observability" not in modes.attrs  # the input is left as it is
+    assert judge_targets(modes, xr.Dataset()) is modes  # a measured record names no model: nothing to judge
+    with pytest.raises(TwinError, match="the modes do not say how they were extracted"):
+        judge_targets(modes.assign_attrs(settings="{}"), simulated)

@@ -122,6 +122,7 @@ def test_extraction_on_a_layout_with_an_added_pair_finds_what_the_table_promises
     itself). The 8.6%-damped 19.1 Hz mode, at 18 dB, is found in at least two of the three: whether a
     5-10%-damped mode clears the extraction's tolerance varies from record to record (seed 3 misses it).
     """
+    from twin.design.observe import judge_targets
     from twin.extract import extract
     from twin.fmu.simulate import simulate
     from twin.loop.compare import compare
@@ -134,7 +135,7 @@ def test_extraction_on_a_layout_with_an_added_pair_finds_what_the_table_promises
     for seed in (3, 4, 5):
         signals = simulate(new, duration_s=1200.0, seed=seed, noise_std_m=d.attrs["noise_std_m"], progress=False)
         assert signals.sizes["channel"] == 10
-        modes = extract(signals, progress=False)
+        modes = judge_targets(extract(signals, progress=False), signals)
         targets = json.loads(modes.attrs["target_observability"])
         assert sum(t["observable"] for t in targets) == 10
         light = [t for t in targets if t["observable"] and t["damping_ratio"] < 0.05]

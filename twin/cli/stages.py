@@ -125,8 +125,10 @@ def _import(args: argparse.Namespace) -> int:
 
 
 def _extract(args: argparse.Namespace) -> int:
+    from twin.design.observe import judge_targets
     from twin.extract import extract
     from twin.extract.options import ExtractOptions
+    from twin.modes import write_modes
     from twin.extract.harmonics import line_frequencies
     from twin.netcdf import check_writable
 
@@ -139,7 +141,11 @@ def _extract(args: argparse.Namespace) -> int:
                              remove_harmonics=args.remove_harmonics, blocks=args.blocks,
                              orders_per_mode=args.orders_per_mode or None,
                              differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
-    ds = extract(args.signals, options, output=args.output, command=" ".join(sys.argv))
+    if args.output is not None:
+        check_writable(args.output)
+    ds = judge_targets(extract(args.signals, options, command=" ".join(sys.argv)), args.signals)
+    if args.output is not None:
+        write_modes(ds, args.output)
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     chosen = json.loads(ds.attrs["settings"]).get("blocks_chosen")
     if chosen:

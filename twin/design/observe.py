@@ -61,6 +61,7 @@ from twin.design.spectrum import (Excitation, Spectrum, partner_mode, pole_covar
 from twin.fmu.simulate import system_for
 from twin.fmu.truth import MAX_TARGET_DAMPING
 from twin.modes.analysis import damping_ratio
+from twin.netcdf import global_attrs
 
 log = logging.getLogger(__name__)
 
@@ -408,6 +409,35 @@ def target_summary(obs: xr.Dataset, found_hz: np.ndarray, fmin_hz: float = 0.0) 
             found = found or row["in_cluster"] > 0
         row["found"] = found
         out.append(row)
+    return out
+
+
+def judge_targets(modes: xr.Dataset, signals: xr.Dataset | str | Path) -> xr.Dataset:
+    """``modes`` extracted from ``signals`` with the record's target modes judged: observable or not (theory,
+    :func:`record_observability`) and found or not (:func:`target_summary`), in the attrs
+    ``target_observability`` and ``unobservable_modes`` (JSON) that the comparison reads, and logged.
+
+    The judgement needs the model the record was simulated from (its file, named in the record's attrs) and
+    the extraction's band, channels and length (the modes' ``settings``); ``modes`` are returned as they are
+    for a record that does not name them (a measured one). The extraction itself never reads a model.
+    """
+    attrs = dict(signals.attrs) if isinstance(signals, xr.Dataset) else global_attrs(signals)
+    try:
+        settings = json.loads(modes.attrs["settings"])
+        channels, duration_s = list(settings["channels"]), float(settings["duration_s"])
+        fmin_hz, fmax_hz = float(settings["fmin_hz"]), float(settings["fmax_hz"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise TwinError(f"the modes do not say how they were extracted (attr 'settings', as twin.extract writes "
+                        f"it): {exc!r}") from None  # fmt: skip
+    obs = record_observability(attrs, channels, duration_s, fmax_hz)
+    if obs is None:
+        return modes
+    targets = target_summary(obs, modes.frequency.values, fmin_hz)
+    for line in unobservable_text(targets):
+        log.info(line)
+    out = modes.copy()
+    out.attrs["target_observability"] = json.dumps(targets)
+    out.attrs["unobservable_modes"] = json.dumps([t["frequency_hz"] for t in targets if not t["observable"]])
     return out
 
 

@@ -23,7 +23,6 @@ import xarray as xr
 
 from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
-from twin.design.observe import record_observability, target_summary, unobservable_text
 from twin.errors import NoModeError, SignalError, TwinWarning
 from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, block_count,
                                  check_block_length, most_blocks, warn_about_few_blocks)
@@ -432,24 +431,9 @@ def extract(
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
         if key in rec.attrs:
             out.attrs[f"signals_{key}" if key == "seed" else key] = rec.attrs[key]
-    targets = _judge_targets(rec, fmin_hz, fmax, out.frequency.values)
-    if targets is not None:
-        out.attrs["target_observability"] = json.dumps(targets)
-        out.attrs["unobservable_modes"] = json.dumps([t["frequency_hz"] for t in targets if not t["observable"]])
     if output is not None:
         write_modes(out, output)
     return out
-
-
-def _judge_targets(rec: Record, fmin_hz: float, fmax_hz: float, found_hz: np.ndarray) -> list[dict] | None:
-    """The simulated record's target modes, observable or not (theory, :mod:`twin.design.observe`), found or not."""
-    obs = record_observability(rec.attrs, list(rec.channels), rec.duration_s, fmax_hz)
-    if obs is None:
-        return None
-    targets = target_summary(obs, found_hz, fmin_hz)
-    for line in unobservable_text(targets):
-        log.info(line)
-    return targets
 
 
 def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,

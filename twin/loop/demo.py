@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from twin.defaults import DEMO_RECORDS, SAMPLES  # noqa: F401 (shared with the CLI)
-from twin.design.observe import target_lines
+from twin.design.observe import judge_targets, target_lines
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
 from twin.fem.effects import is_per_mode_name
@@ -38,6 +38,7 @@ from twin.loop.html import write_html_report
 from twin.loop.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.modes.measured import Measured
+from twin.modes.modesfile import write_modes
 from twin.netcdf import atomic_output, check_folder
 from twin.update.posterior import is_laplace
 
@@ -295,7 +296,9 @@ def run_demo(
                            output=out / "signals.nc", progress=progress, command="twin demo")  # fmt: skip
     with stage("extract modes", timings):
         modes = extract(signals, samples=samples, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples,
-                        fmax_hz=fmax_hz, output=out / "modes.nc", progress=progress, command="twin demo")  # fmt: skip
+                        fmax_hz=fmax_hz, progress=progress, command="twin demo")  # fmt: skip
+        modes = judge_targets(modes, signals)
+        write_modes(modes, out / "modes.nc")
         fig = plot_stabilisation(modes)
         fig.savefig(out / "stabilisation.png", dpi=110)
         _pyplot().close(fig)
