@@ -1,6 +1,6 @@
 """Hidden-change diagnosis on synthetic modes: verdict, error fall, parameter errors, time.
 
-For each scenario (:mod:`twin.loop.scenarios`: every library effect at its
+For each scenario (:mod:`twin.harness.scenarios`: every library effect at its
 reference size, two at once, local changes outside the library, nothing), a
 truth hiding it gives paper-style modal samples (13 target modes, 100
 samples, pole noise std 0.1 rad/s, 5% shape noise; seeds 3, 4, ...); the
@@ -22,7 +22,7 @@ from twin import load_model
 from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
 from twin.loop.diagnose import diagnose
-from twin.loop.scenarios import REFERENCE_EFFECTS, parse_scenario
+from twin.harness.scenarios import REFERENCE_EFFECTS, parse_scenario
 from twin.modes.measured import measured_modes
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -34,7 +34,7 @@ def main() -> None:
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.harness.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
     from twin.tasks import blas_threads
 
     model = load_model(shipped_model("hydro_unit"))

@@ -51,7 +51,7 @@ def group(spec: str) -> str:
 
 
 def summary(table: xr.Dataset) -> list[str]:
-    from twin.loop.report import sweep_text
+    from twin.harness.sweep_report import sweep_text
 
     specs = [str(h) for h in table["hidden"].values]
     groups = np.array([group(s) for s in specs])

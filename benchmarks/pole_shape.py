@@ -95,7 +95,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     (``extraction``: options of :func:`twin.extract.extract`); the linearised terms and the two updates; one row
     per parameter."""
     from twin.fem.effects import is_per_mode_name
-    from twin.loop.demo import posterior_table
+    from twin.harness.demo import posterior_table
 
     name, seed = job
     tw, names, truth = scenario_record(job, duration_s, extraction, streams)

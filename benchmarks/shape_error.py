@@ -75,7 +75,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     from jackknife import mode_spread
 
     from twin.fem.effects import is_per_mode_name
-    from twin.loop.demo import posterior_table
+    from twin.harness.demo import posterior_table
     from twin.loop.twin import Twin
     from twin.update.marginal import marginal_problem
     from twin.update.problem import build_problem

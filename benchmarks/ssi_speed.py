@@ -40,7 +40,7 @@ def timed_extractions(signals, block_rows: int | None, repeat: int, shape_sample
     ``shape_samples``: ``extract``'s (0: the shapes come with the poles' samples)."""
     import twin.extract.ssi as ssi
     from twin.extract import extract
-    from twin.loop.demo import SAMPLES
+    from twin.harness.demo import SAMPLES
 
     options = {"shape_block_rows": "auto"} if block_rows is None else {"block_rows": block_rows}
     if shape_samples:
@@ -87,7 +87,7 @@ def main() -> None:
     args = ap.parse_args()
     from twin import load_model, shipped_model
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.harness.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
 
     shape_samples = SHAPE_SAMPLES_PER_SAMPLE * SAMPLES if args.shape_samples is None else args.shape_samples
 

@@ -4,7 +4,7 @@ Three parts, each a set of ``twin campaign`` runs tracked by ``twin track`` (the
 seeds no test uses (from 5000):
 
 ``detection``
-    For each library effect at its reference size (:data:`twin.loop.scenarios.REFERENCE_EFFECTS`, the
+    For each library effect at its reference size (:data:`twin.harness.scenarios.REFERENCE_EFFECTS`, the
     per-mode FSI left out) and a local change (element 18's bending stiffness), at three sizes, as a step
     and as a ramp: a campaign of ``--baseline-days`` of baseline, one day more, then the change, tracked
     for ``--after-days``. The six cases of an effect share one seed (the same baseline and noise, so they
@@ -49,11 +49,11 @@ from twin.fem import load_model
 from twin.fem.effects import effect_label, scaled
 from twin.fem.effects import ShaftStiffnessChange
 from twin.fem.operation import at_operating_point, with_parameters
-from twin.loop.scenarios import REFERENCE_EFFECTS
+from twin.harness.scenarios import REFERENCE_EFFECTS
 from twin.tasks import dask_client
 from twin.track import campaign, read_schedule, track
 from twin.track.records import adopt
-from twin.track.report import record_truth
+from twin.report.tracking import record_truth
 
 SEED = 5000
 SIZES = (0.25, 0.5, 1.0)

@@ -6,7 +6,7 @@ hidden effect is added to the twin's model and its parameters are updated by
 :func:`twin.update.update` with its defaults (the default sampler, 4 chains
 x 500 draws). The scenario ``bearings`` hides nothing and updates the 16
 guide-bearing coefficients (truth: the model's values). Any other hidden
-change of library effects :func:`twin.loop.scenarios.parse_scenario` reads
+change of library effects :func:`twin.harness.scenarios.parse_scenario` reads
 is a scenario too: another size (``magnetic_pull@0.3``) or several effects
 at once (``seal_cross_coupling+fsi``), all their parameters updated.
 
@@ -76,7 +76,7 @@ def loop_extraction(extraction: dict | None) -> dict:
     """The ``extract`` keywords of the twin's loop (``twin demo``), with the options given instead.
 
     The loop's samples (``samples`` if given) and its shape samples
-    (:data:`twin.loop.demo.SHAPE_SAMPLES_PER_SAMPLE` per sample), unless ``extraction`` sets ``blocks`` or
+    (:data:`twin.harness.demo.SHAPE_SAMPLES_PER_SAMPLE` per sample), unless ``extraction`` sets ``blocks`` or
     ``delete_blocks`` (the shapes then come with the poles) or ``shape_samples`` itself (0: none).
 
     Examples
@@ -88,7 +88,7 @@ def loop_extraction(extraction: dict | None) -> dict:
     >>> loop_extraction({"shape_samples": 0})
     {'samples': 15}
     """
-    from twin.loop.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
+    from twin.harness.demo import SAMPLES, SHAPE_SAMPLES_PER_SAMPLE
 
     options = dict(extraction or {})
     options.setdefault("samples", SAMPLES)
@@ -112,8 +112,8 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
     from twin import load_model, shipped_model
     from twin.extract import extract
     from twin.fmu.simulate import simulate
-    from twin.loop.demo import truth_for_measured
-    from twin.loop.scenarios import parse_scenario
+    from twin.harness.demo import truth_for_measured
+    from twin.harness.scenarios import parse_scenario
     from twin.loop.twin import Twin
     from twin.update.problem import select_parameters
 
@@ -149,7 +149,7 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     parameter. ``q05_model``/``q95_model`` are the sampler's interval; ``q05``/``q95`` with ``bootstrap``
     records the one calibrated on them (``bootstrap_factor``), without the sampler's again."""
     from twin.errors import TwinError
-    from twin.loop.demo import posterior_table
+    from twin.harness.demo import posterior_table
     from twin.update.posterior import stretch
     from twin.update.posterior import parameter_draws
     from twin.update.problem import UpdateError
@@ -315,7 +315,7 @@ def dataset_jobs(args: argparse.Namespace) -> list[tuple[str, int]]:
 
 def scenario_problem(name: str) -> str | None:
     """Why ``name`` cannot be a scenario of these benchmarks, or None: one of :data:`SCENARIOS`, or any hidden
-    change of library effects :func:`twin.loop.scenarios.parse_scenario` reads (other sizes, several effects
+    change of library effects :func:`twin.harness.scenarios.parse_scenario` reads (other sizes, several effects
     at once), whose parameters the twin can add and update.
 
     Examples
@@ -326,7 +326,7 @@ def scenario_problem(name: str) -> str | None:
     "'shaft_stiffness:18' changes the model outside the effect library: nothing to add and update"
     """
     from twin.errors import TwinError
-    from twin.loop.scenarios import parse_scenario
+    from twin.harness.scenarios import parse_scenario
 
     if name in SCENARIOS:
         return None

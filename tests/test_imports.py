@@ -10,8 +10,9 @@ from tests.conftest import ROOT
 
 PACKAGE = ROOT / "twin"
 #: The stages in the order of the loop; a module may import from its own stage and the ones before it.
-#: ``common`` is what every stage shares (defaults, errors, NetCDF, progress, tasks), ``cli`` is on top of all.
-STAGES = ("common", "fem", "modes", "fmu", "design", "extract", "update", "loop", "track", "cli")
+#: ``common`` is what every stage shares (defaults, errors, NetCDF, progress, tasks), ``report`` what the loop and
+#: the tracker show, ``harness`` the loop's validation on hidden truths, ``cli`` is on top of all.
+STAGES = ("common", "fem", "modes", "fmu", "design", "extract", "update", "report", "loop", "track", "harness", "cli")
 COMMON = {"defaults", "errors", "netcdf", "progress", "tasks", "units"}
 MAX_LINES = 600
 

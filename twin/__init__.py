@@ -14,7 +14,11 @@ each side (``twin --help`` for the same from the command line):
 4. :mod:`twin.update`: the APerCEM Gibbs updater, modes to a posterior in the
    ArviZ layout (``update``, ``posterior.nc``);
 5. :mod:`twin.loop`: compare model and measurements, diagnose the missing
-   effect, add it, update, keep the error history (``Twin``, ``demo``).
+   effect, add it, update, keep the error history (``Twin``); over months of
+   records, :mod:`twin.track` detects, names and follows a change.
+
+:mod:`twin.harness` runs the loop on scenarios with a hidden truth (``twin demo``,
+``twin sweep``); :mod:`twin.report` holds the figures and pages both show.
 
 Examples
 --------

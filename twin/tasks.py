@@ -179,7 +179,7 @@ def dask_client(
     ------
     distributed.Client or None
         Pass it as ``tasks=`` to :func:`twin.loop.diagnose.diagnose`,
-        :func:`twin.update.update` or :func:`twin.loop.sweep.sweep`.
+        :func:`twin.update.update` or :func:`twin.harness.sweep.sweep`.
 
     Examples
     --------

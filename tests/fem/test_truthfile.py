@@ -73,7 +73,7 @@ def test_a_files_truth_attr_reads_back_local_changes_too(spec):
     # the extraction judges the target modes' observability from the truth a record names; a local change
     # outside the library (the held-out suite's shaft and disk changes) was "not a truth description"
     from twin.fem.truthfile import truth_from_json
-    from twin.loop.scenarios import parse_scenario
+    from twin.harness.scenarios import parse_scenario
 
     truth = parse_scenario(spec).truth()
     assert truth_from_json(truth.to_json()) == truth

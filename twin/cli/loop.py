@@ -104,7 +104,7 @@ def _compare(args: argparse.Namespace) -> int:
 
     from twin.modes import read_modes
     from twin.loop.compare import compare
-    from twin.loop.report import comparison_text
+    from twin.harness.sweep_report import comparison_text
 
     modes = read_modes(args.modes)
     model = _posterior_model(args, modes)
@@ -118,7 +118,7 @@ def _compare(args: argparse.Namespace) -> int:
         plot_history(history, Path(args.history).with_suffix(".png"))
         log.info("history: %d steps in %s", history.sizes["step"], args.history)
     if args.plot:
-        from twin.loop.plots import comparison_figures
+        from twin.report.figures import comparison_figures
 
         from twin.errors import SignalError
         from twin.netcdf import load_netcdf
@@ -158,7 +158,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     from twin.modes.measured import measured_modes
     from twin.loop.candidates import select
     from twin.loop.diagnose import diagnose
-    from twin.loop.report import diagnosis_text
+    from twin.harness.sweep_report import diagnosis_text
 
     modes = read_modes(args.modes)
     model = _posterior_model(args, modes)
@@ -175,7 +175,7 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.loop.demo import check_demo, run_demo
+    from twin.harness.demo import check_demo, run_demo
 
     model, _, _ = check_demo(args.out, load_model(args.model) if args.model else None, args.hidden, args.method,
                              args.bootstrap)  # before a cluster starts
@@ -253,7 +253,7 @@ def _loop(args: argparse.Namespace) -> int:
         print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else ""))
         print(f"  {d.summary}")
     if tw.posterior is not None:
-        from twin.loop.demo import posterior_table
+        from twin.harness.demo import posterior_table
 
         _print_updated(posterior_table(tw.posterior, tw.model))
     _print_history(tw)
@@ -266,9 +266,9 @@ def _loop(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.loop.report import sweep_text
-    from twin.loop.scenarios import REFERENCE_EFFECTS
-    from twin.loop.sweep import Settings, read_scenarios, scenario_grid, sweep
+    from twin.harness.sweep_report import sweep_text
+    from twin.harness.scenarios import REFERENCE_EFFECTS
+    from twin.harness.sweep import Settings, read_scenarios, scenario_grid, sweep
 
     model = load_model(args.model) if args.model else None
     if args.scenarios:

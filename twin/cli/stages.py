@@ -49,11 +49,11 @@ def _modal(args: argparse.Namespace) -> int:
 def _campbell(args: argparse.Namespace) -> int:
     import numpy as np
 
-    import matplotlib
-
-    matplotlib.use("Agg")
     from twin.fem import load_model
     from twin.modes import campbell, plot_campbell
+    from twin.report.figures import pyplot
+
+    pyplot()  # figures for files, no window
 
     model = load_model(args.model)
     max_speed = args.max_speed if args.max_speed is not None else 2.0 * model.speed_rpm
@@ -161,10 +161,10 @@ def _extract(args: argparse.Namespace) -> int:
     print("se: standard error of the mean over the samples; MPC: modal phase collinearity (1 for a standing mode, "
           "0 for a circular whirl seen by an x-y pair); MPD: mean phase deviation [deg] (0 standing, 45 circular)")
     if plot is not None:
-        import matplotlib
-
-        matplotlib.use("Agg")
         from twin.extract.plot import plot_stabilisation
+        from twin.report.figures import pyplot
+
+        pyplot()  # figures for files, no window
 
         plot_stabilisation(ds).savefig(plot, dpi=120)
         print(f"wrote {plot}")

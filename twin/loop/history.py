@@ -147,9 +147,9 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
     over an update's posterior, which only an update's step has), they are
     drawn as error bars on those steps, and the legend says which.
     """
-    from twin.loop.plots import _pyplot, _save
+    from twin.report.figures import pyplot, save_figure
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 3.4), layout="constrained")
     steps = np.arange(history.sizes["step"])
     errors = 100 * history["error"].values
@@ -172,7 +172,7 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
     ax.set_ylim(low_y / 2, high_y * 3)  # room for the labels under the title and for the legend
     ax.set_xlim(-0.4, len(steps) - 0.4)
     ax.grid(True, which="both", alpha=0.3)
-    return _save(fig, Path(path), tight=False)
+    return save_figure(fig, Path(path), tight=False)
 
 
 def interval_text(interval: tuple[float, float] | None) -> str:

@@ -39,7 +39,7 @@ from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
-from twin.track.report import write_report
+from twin.report.tracking import write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
 log = logging.getLogger(__name__)
@@ -156,7 +156,7 @@ def track(
     progress : bool
         Progress bars.
     report : bool
-        Write ``out/report.html`` too (:func:`twin.track.report.write_report`).
+        Write ``out/report.html`` too (:func:`twin.report.tracking.write_report`).
 
     Returns
     -------

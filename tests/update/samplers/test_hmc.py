@@ -118,7 +118,7 @@ def _update_record(hydro_unit, name: str, effect: str, seed: int):
     calibration on simulated records (it stretches the draws; R-hat and ESS are the sampler's): the posterior and
     its table."""
     from twin.modes.modesfile import read_modes
-    from twin.loop.demo import posterior_table
+    from twin.harness.demo import posterior_table
     from twin.loop.twin import Twin
 
     tw = Twin(hydro_unit, read_modes(DATA / name))

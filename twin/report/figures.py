@@ -13,7 +13,8 @@ from twin.extract.signals import check_record
 from twin.netcdf import check_folder
 
 
-def _pyplot():
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend: figures for files, no window (on a server or in a test)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,7 +89,7 @@ def _mode_ticks(table: xr.Dataset) -> list[str]:
 
 def error_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
     """Frequency error [%] and damping ratio error [pp] per measured mode, ±1 measurement std as bars."""
-    plt = _pyplot()
+    plt = pyplot()
     first = tables[0]
     x = np.arange(first.sizes["mode"])
     fig, (ax_f, ax_z) = plt.subplots(2, 1, figsize=(max(7.0, 0.55 * len(x) + 2), 5.6), sharex=True)
@@ -110,7 +111,7 @@ def error_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path
     ax_z.set_xlabel("measured mode")
     ax_f.legend(fontsize=7, loc="best")
     ax_f.set_title("model against measured modes, " + " and ".join(labels), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def mac_columns(table: xr.Dataset) -> np.ndarray:
@@ -126,7 +127,7 @@ def mac_columns(table: xr.Dataset) -> np.ndarray:
 
 def mac_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
     """MAC of each measured mode against the model modes near the measured band, the pairing boxed."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(tables), figsize=(4.6 * len(tables) + 1.6, 4.6), squeeze=False,
                              layout="constrained")  # fmt: skip
     im = None
@@ -147,12 +148,12 @@ def mac_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) 
             ax.set_ylabel("measured mode")
         ax.set_title(f"{label}: MAC (red: paired)", fontsize=10)
     fig.colorbar(im, ax=axes[0].tolist(), label="MAC [1]")
-    return _save(fig, path, tight=False)
+    return save_figure(fig, path, tight=False)
 
 
 def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
     """Modal spectra per channel: the measured modes' against each model's."""
-    plt = _pyplot()
+    plt = pyplot()
     first = tables[0]
     f_max = 1.1 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
     freq = np.linspace(0.05, f_max, 4000)
@@ -175,7 +176,7 @@ def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Pa
     fig.supylabel("Σ|ψ|² / |i2πf − λ|² [s²]")
     fig.suptitle("modal spectra: each set of poles and unit-norm shapes with equal unit forcing\n"
                  "(the measured curve is rebuilt from the identified modes, not the signals' spectrum)", fontsize=9)  # fmt: skip
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 #: Length of the PSD's Welch segments in periods of the slowest identified mode (its resolution: a tenth of it).
@@ -220,7 +221,7 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
     :data:`PSD_SEGMENT_PERIODS` periods of the slowest identified mode, half overlapping), a black line at each
     identified mode's frequency and a dashed coloured line at each model's partner frequency.
     """
-    plt = _pyplot()
+    plt = pyplot()
     first = tables[0]
     f_meas = first["measured_frequency"].values
     f_max = 1.15 * float(max(max(t["measured_frequency"].max(), t["model_frequency"].max()) for t in tables))
@@ -247,12 +248,13 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
     fig.supylabel("displacement PSD [µm²/Hz]")
     fig.suptitle(f"power spectral density per channel (Welch, {freq[1]:.3g} Hz resolution)\n"
                  "identified modes: black lines; the model's partner modes: dashed", fontsize=9)  # fmt: skip
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
-def _save(fig, path: Path, tight: bool = True) -> Path:
+def save_figure(fig, path: Path, tight: bool = True) -> Path:
+    """Write ``fig`` to ``path`` (110 dpi, laid out tight unless ``tight`` is False) and close it."""
     if tight:
         fig.tight_layout()
     fig.savefig(path, dpi=110)
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return path

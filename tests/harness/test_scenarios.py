@@ -4,7 +4,7 @@ import pytest
 
 from twin.errors import TwinError
 from twin.fem.effects import DiskInertiaChange, DiskMassChange, ShaftStiffnessChange
-from twin.loop.scenarios import REFERENCE_EFFECTS, parse_scenario
+from twin.harness.scenarios import REFERENCE_EFFECTS, parse_scenario
 
 
 def test_reference_sizes_scaled_and_combined(hydro_unit):

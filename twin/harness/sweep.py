@@ -1,15 +1,15 @@
 """Scenario sweeps: the demo's loop over hidden changes and seeds, one task per scenario.
 
-A scenario is a spec of what the truth hides (:mod:`twin.loop.scenarios`:
+A scenario is a spec of what the truth hides (:mod:`twin.harness.scenarios`:
 library effects at some size, several at once, a local change outside the
 library, or ``none``) and a seed of the turbulence and the sensor noise. Each
-runs :func:`twin.loop.demo.run_demo` into its own report folder and returns a
+runs :func:`twin.harness.demo.run_demo` into its own report folder and returns a
 small summary; the scenarios are independent, so they run as tasks on Dask
 (:mod:`twin.tasks`) as well as one after the other here. The summaries make
 one Dataset over ``scenario`` (and ``parameter`` for the identified values),
 written to ``OUT/sweep.nc``.
 
-A scenario is *passed* when the diagnosis is right (:meth:`~twin.loop.scenarios.Scenario.expected`:
+A scenario is *passed* when the diagnosis is right (:meth:`~twin.harness.scenarios.Scenario.expected`:
 exactly the hidden library effects named; "unexplained" and the place of a
 hidden local change; "nothing missing" with nothing hidden), the error falls
 by at least :data:`MIN_FALL` and every identified parameter is within
@@ -39,8 +39,8 @@ from twin import __version__
 from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.loop.bootstrap import DEFAULT_RECORDS
-from twin.loop.demo import SAMPLES, run_demo
-from twin.loop.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
+from twin.harness.demo import SAMPLES, run_demo
+from twin.harness.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
 from twin.netcdf import check_folder, check_writable, write_netcdf
 from twin.tasks import mapper
 
@@ -56,7 +56,7 @@ MAX_Z = 3.0
 
 @dataclasses.dataclass(frozen=True)
 class Settings:
-    """What every scenario of a sweep shares (see :func:`twin.loop.demo.run_demo`)."""
+    """What every scenario of a sweep shares (see :func:`twin.harness.demo.run_demo`)."""
 
     duration_s: float = 1200.0
     fs_hz: float = 256.0
@@ -243,7 +243,7 @@ def sweep(
     array([ True])
     """
     from twin.fem import load_model
-    from twin.loop.demo import default_model_path
+    from twin.harness.demo import default_model_path
 
     scenarios = [(str(h), int(s)) for h, s in scenarios]
     if not scenarios:
@@ -268,7 +268,7 @@ def sweep(
     return table
 
 
-#: What a scenario's summary keeps of each identified parameter (:meth:`twin.loop.demo.DemoResult.identified`);
+#: What a scenario's summary keeps of each identified parameter (:meth:`twin.harness.demo.DemoResult.identified`);
 #: a summary may lack some (NaN in the table).
 PARAMETER_VARIABLES = ("map", "std", "q05", "q95", "r_hat", "ess_bulk", "truth", "determined")
 

@@ -2,7 +2,7 @@
 
 1. export the model as an FMU;
 2. simulate the proximeter signals of a truth that hides a scenario
-   (:mod:`twin.loop.scenarios`: library effects, a local change outside the
+   (:mod:`twin.harness.scenarios`: library effects, a local change outside the
    library, or nothing), by FMI co-simulation through FMPy (runner
    turbulence, 1X unbalance, 5% noise);
 3. extract the modes (automated SSI, jackknife samples);
@@ -34,8 +34,8 @@ from twin.loop.bootstrap import check_records
 from twin.loop.compare import ERROR_WEIGHTS, error_text
 from twin.loop.diagnose import LN_B_KEY, Diagnosis
 from twin.loop.history import HISTORY_KEY, INTERVAL_DRAWS, interval_text, write_history
-from twin.loop.html import write_html_report
-from twin.loop.scenarios import Scenario, parse_scenario
+from twin.report.html import write_html_report
+from twin.harness.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.modes.measured import Measured
 from twin.modes.modesfile import write_modes
@@ -243,7 +243,7 @@ def run_demo(
     model : RotorModel, optional
         The twin's model (default: :func:`default_model_path`).
     hidden : str
-        What the truth hides: a scenario spec (:func:`twin.loop.scenarios.parse_scenario`),
+        What the truth hides: a scenario spec (:func:`twin.harness.scenarios.parse_scenario`),
         e.g. ``magnetic_pull``, ``magnetic_pull@2.5+seal_cross_coupling``,
         ``disk_mass:generator@1.1`` or ``none``.
     duration_s, fs_hz : float
@@ -281,7 +281,7 @@ def run_demo(
     from twin.extract.plot import plot_stabilisation
     from twin.fmu import export_fmu
     from twin.fmu.simulate import simulate
-    from twin.loop.plots import _pyplot, comparison_figures
+    from twin.report.figures import comparison_figures, pyplot
     from twin.progress import stage
 
     model, scenario, out = check_demo(out, model, hidden, method, bootstrap)
@@ -301,7 +301,7 @@ def run_demo(
         write_modes(modes, out / "modes.nc")
         fig = plot_stabilisation(modes)
         fig.savefig(out / "stabilisation.png", dpi=110)
-        _pyplot().close(fig)
+        pyplot().close(fig)
     with stage("diagnose, add, update (loop rounds)", timings):
         tw = Twin(model, modes)
         tw.run(method=method, tasks=tasks, progress=progress,

@@ -7,7 +7,7 @@ from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
 from twin.loop.candidates import add_effects
 from twin.loop.compare import compare
-from twin.loop.plots import comparison_figures, mac_columns, modal_spectrum
+from twin.report.figures import comparison_figures, mac_columns, modal_spectrum
 from twin.update import synthesize_modes
 
 
@@ -52,7 +52,7 @@ def test_the_spectra_of_a_record_are_its_psd_peaking_at_its_modes(tmp_path, make
     at the modes the channel sees most, with the identified and the model's modes marked."""
     import xarray as xr
 
-    from twin.loop.plots import psd_figure, record_psd
+    from twin.report.figures import psd_figure, record_psd
 
     poles = [-0.02 * 2 * np.pi * 2 + 2j * np.pi * 2, -0.01 * 2 * np.pi * 5 + 2j * np.pi * 5]
     record = make_record(poles, [[1e-6, 0.05e-6j], [0.05e-6, 1e-6]], fs_hz=32.0, duration_s=400.0, seed=2,

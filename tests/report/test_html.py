@@ -8,7 +8,7 @@ import pytest
 
 from twin.errors import TwinError
 from twin.loop.history import history_dataset, plot_history
-from twin.loop.html import markdown_to_html, write_html_report
+from twin.report.html import markdown_to_html, write_html_report
 
 CHROMIUM = next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
 

@@ -6,7 +6,7 @@ import xarray as xr
 
 from twin.cli import main
 from twin.errors import TwinError
-from twin.loop.sweep import Settings, scenario_grid, sweep, tabulate
+from twin.harness.sweep import Settings, scenario_grid, sweep, tabulate
 
 
 def _row(verdict, missing, before, after, params, location=""):
@@ -68,7 +68,7 @@ def test_two_hidden_effects_pass_only_when_both_are_named():
 
 
 def test_scenario_file(tmp_path):
-    from twin.loop.sweep import read_scenarios
+    from twin.harness.sweep import read_scenarios
 
     f = tmp_path / "suite.txt"
     f.write_text("# sizes\nmagnetic_pull@0.3 31,32\n\nmagnetic_pull+fsi 33  # two at once\n")
@@ -121,7 +121,7 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
 
 
 def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
-    import twin.loop.sweep as sw
+    import twin.harness.sweep as sw
 
     def broken(*args, **kwargs):
         raise ValueError("no such thing")
@@ -135,9 +135,9 @@ def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
 
 
 def test_a_sweep_calibrates_on_the_loops_records_not_the_demos(monkeypatch, hydro_unit, tmp_path):
-    import twin.loop.sweep as sw
+    import twin.harness.sweep as sw
     from twin.loop.bootstrap import DEFAULT_RECORDS
-    from twin.loop.demo import DEMO_RECORDS
+    from twin.harness.demo import DEMO_RECORDS
 
     asked = []
 

@@ -1,6 +1,6 @@
 """``report.html`` of a tracking: trends, the chart with its limit and alarms, followed changes, verdicts.
 
-One self-contained page (figures embedded, :mod:`twin.loop.html`) beside ``track.nc``:
+One self-contained page (figures embedded, :mod:`twin.report.html`) beside ``track.nc``:
 
 * the measured frequency and damping ratio of each tracked mode over time, coloured by an operating
   condition, with the model's prediction at each record's operating point;
@@ -21,19 +21,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from twin.loop.html import markdown_to_html
+from twin.report.figures import pyplot
+from twin.report.html import markdown_to_html
 from twin.netcdf import atomic_output
 
 log = logging.getLogger(__name__)
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def record_truth(folder: str | Path, names: list[str], model, records: list[str] | None = None
@@ -76,7 +68,7 @@ def _colour_condition(table: xr.Dataset, colour_by: str | None) -> str:
 
 
 def _trends(table: xr.Dataset, colour_by: str, path: Path, quantity: str) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     m = table.sizes["mode"]
     cols = min(3, m)
     rows = -(-m // cols)
@@ -110,7 +102,7 @@ def _trends(table: xr.Dataset, colour_by: str, path: Path, quantity: str) -> Non
 
 
 def _chart(table: xr.Dataset, path: Path) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     day = table.day.values
     res = table.residual.sel(part="imag").values / (2 * np.pi) * 1e3
@@ -133,7 +125,7 @@ def _chart(table: xr.Dataset, path: Path) -> None:
 
 
 def _parameters(table: xr.Dataset, truth: dict[str, np.ndarray] | None, path: Path) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     names = [str(n) for n in table.tracked_parameter.values]
     fig, axes = plt.subplots(len(names), 1, figsize=(10, 2.6 * len(names)), sharex=True, squeeze=False)
     day = table.day.values

@@ -8,7 +8,7 @@ import xarray as xr
 from twin.design.observe import target_lines
 from twin.loop.compare import ERROR_WEIGHTS, error_text
 from twin.loop.diagnose import LN_B_KEY, Diagnosis
-from twin.loop.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
+from twin.harness.sweep import MAX_PARAMETER_ERROR, MAX_Z, MIN_FALL
 from twin.modes.measured import Measured
 
 
@@ -90,7 +90,7 @@ def _interval(row: xr.Dataset) -> str:
 
 
 def sweep_text(table: xr.Dataset) -> str:
-    """One line per scenario of :func:`twin.loop.sweep.sweep`: verdict, error fall, parameter errors.
+    """One line per scenario of :func:`twin.harness.sweep.sweep`: verdict, error fall, parameter errors.
 
     Parameters whose truth is known show ``MAP / truth - 1`` and, in brackets,
     the posterior std relative to the truth.

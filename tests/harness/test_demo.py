@@ -8,8 +8,8 @@ import pytest
 
 from twin.cli import main
 from twin.errors import TwinError
-from twin.loop.demo import run_demo
-from twin.loop.scenarios import parse_scenario
+from twin.harness.demo import run_demo
+from twin.harness.scenarios import parse_scenario
 from twin.loop.history import read_history
 
 
@@ -18,7 +18,7 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     out = tmp_path / "demo"
     # 10 min instead of 20: the same loop at a fraction of the cost, on twice the reference pull so that it
     # stands five times above the noise floor of the shorter record. The posterior is calibrated on the demo's
-    # default records (twin.loop.demo.DEMO_RECORDS), which run on the default local cluster
+    # default records (twin.harness.demo.DEMO_RECORDS), which run on the default local cluster
     assert main(["demo", "--out", str(out), "--duration", "600", "--samples", "10", "--hidden", "magnetic_pull@2",
                  "--workers", "2"]) == 0
     printed = capsys.readouterr().out
@@ -70,7 +70,7 @@ NO_EFFECT_SEED = 5
 
 @pytest.fixture(scope="module")
 def hidden_sweep(hydro_unit, dask_local, tmp_path_factory):
-    from twin.loop.sweep import sweep
+    from twin.harness.sweep import sweep
 
     scenarios = [(h, 1) for h in HIDDEN_CASES] + [("none", NO_EFFECT_SEED), ("shaft_stiffness_loss", 1)]
     out = tmp_path_factory.mktemp("sweep")
@@ -122,7 +122,7 @@ def test_no_hidden_effect_in_fmu_signals_is_no_false_alarm(hidden_sweep, hydro_u
 
 @pytest.mark.slow
 def test_change_outside_the_library_in_fmu_signals_is_unexplained_and_located(hidden_sweep):
-    from twin.loop.sweep import folder_name
+    from twin.harness.sweep import folder_name
 
     # shaft element 18 at half its bending stiffness, simulated through the FMU: no library effect explains it
     r = hidden_sweep.sel(scenario="shaft_stiffness_loss")
