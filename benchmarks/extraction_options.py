@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import argparse
 
-from twin.cli.parser import rows_or_auto
+from twin.cli.common import rows_or_auto
 
 #: Flags whose value is passed on as given (flag name, ``extract`` keyword).
 VALUED = (("samples", "samples"), ("blocks", "blocks"), ("order_spread", "order_spread"), ("block_rows", "block_rows"),

@@ -68,3 +68,14 @@ def test_one_modal_assignment():
              for n, line in enumerate(text.splitlines(), 1)
              if "linear_sum_assignment" in line or greedy.search(line)]  # fmt: skip
     assert found == []
+
+
+def test_sub_commands_are_made_one_way():
+    """Each command module registers its sub-commands (``add_commands``) through twin.cli.common.command; no
+    module makes a sub-parser of its own or reaches for another command module's private helpers."""
+    found = [f"{name}:{n}" for name, text in _sources() if name != "twin/cli/common.py"
+             for n, line in enumerate(text.splitlines(), 1)
+             if "add_parser(" in line or re.search(r"from twin\.cli\.\w+ import _", line)]  # fmt: skip
+    assert found == []
+    modules = [name for name, text in _sources() if name.startswith("twin/cli/") and "def add_commands(sub)" in text]
+    assert sorted(modules) == ["twin/cli/design.py", "twin/cli/loop.py", "twin/cli/stages.py", "twin/cli/track.py"]

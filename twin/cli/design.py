@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from twin.cli.common import COUNT, add_design_inputs, command
+
 
 def observe_text(obs, ident=None) -> str:
     """The observability table (and the identifiability table when given) as text."""
@@ -150,3 +152,33 @@ def _sensors(args: argparse.Namespace) -> int:
     print(sensors_text(design))
     print(f"wrote {args.output} (simulate it with --noise-std {design.attrs['noise_std_m']:.4g} for the same sensors)")
     return 0
+
+
+def add_commands(sub) -> None:
+    """Add this module's sub-commands to the sub-parsers ``sub``."""
+    p = command(sub, "observe", "which modes and parameters a sensor layout and record can determine",
+                 "Before any measurement: per target mode (damped less than 10%, up to --fmax) the peak response\n"
+                 "against the sensor noise on each channel, the expected standard error of its frequency and\n"
+                 "damping from SSI on such a record (theory: the Whittle likelihood of the output spectrum), and\n"
+                 "whether it is observable. With --params/--fsi, the expected posterior std of those parameters\n"
+                 "from the observable modes' poles and shapes (Fisher information), and whether each is determined.",
+                 ["twin observe hydro_unit", "twin observe hydro_unit --duration 3600 --params bearings --fsi --truth paper",
+                  "twin observe hydro_unit -o observability.nc"], _observe)  # fmt: skip
+    add_design_inputs(p)
+    p.add_argument("-o", "--output", default=None, help="write the observability table (NetCDF: mode x channel)")
+    p = command(sub, "sensors", "where to add proximeter pairs so the target modes and parameters are determined",
+                 "Greedy sensor design: adds one x-y pair at a time at the candidate node that makes the most\n"
+                 "target modes observable, then (with --params/--fsi) the most parameters determined, then ranks\n"
+                 "best on the D-optimal criterion; prints each pair's gain and, for modes no node can make\n"
+                 "observable, where they are seen best and the sensor noise that would do. Writes the model file\n"
+                 "with the added [[sensor]] entries; the sensors keep the current layout's noise std [m].",
+                 ["twin sensors hydro_unit --add 2 -o unit_10.toml",
+                  "twin sensors hydro_unit --add 3 --params bearings --fsi --truth paper --duration 3600 -o unit.toml",
+                  "twin sensors hydro_unit --add 1 --candidates 12,16,20 -o unit.toml --design design.nc"],
+                 _sensors)  # fmt: skip
+    add_design_inputs(p)
+    p.add_argument("--add", type=COUNT, required=True, help="number of proximeter pairs (x and y) to add")
+    p.add_argument("--candidates", default=None,
+                   help="nodes a pair may go to, comma-separated (default: every node without a sensor)")
+    p.add_argument("-o", "--output", required=True, help="model file to write: the model with the added sensors")
+    p.add_argument("--design", default=None, help="also write the design, step by step (NetCDF)")

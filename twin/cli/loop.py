@@ -3,13 +3,31 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import logging
 import sys
 from pathlib import Path
 
-from twin.defaults import METHODS  # noqa: F401 (what --method takes: twin.update.METHODS)
+from twin.cli.common import (
+    COUNT,
+    MODEL_HELP,
+    MODES_HELP,
+    NATURAL,
+    add_bootstrap,
+    add_chain_options,
+    add_loop_settings,
+    add_method,
+    add_model_and_posterior,
+    add_scheduler,
+    add_tolerance,
+    command,
+    model_with_effects,
+    tasks,
+)
+from twin.defaults import (
+    DEMO_RECORDS,
+    METHODS,  # noqa: F401 (what --method takes: twin.update.METHODS)
+)
 from twin.errors import TwinError
 
 log = logging.getLogger("twin")
@@ -35,7 +53,7 @@ def _update(args: argparse.Namespace) -> int:
         raise TwinError("nothing to update: give --params and/or --fsi")
     check_writable(args.output)
     modes = read_modes(args.modes)  # a bad modes file fails before a cluster starts
-    model = _model_with_effects(args.model, args.effect, modes)
+    model = model_with_effects(args.model, args.effect, modes)
     check_modes(modes, args.modes)
     if args.method == "laplace":
         return _update_laplace(args, model, modes)
@@ -45,7 +63,7 @@ def _update(args: argparse.Namespace) -> int:
     if args.params is not None:
         select_parameters(model, args.params)  # unknown names fail before a cluster starts
     options = sampler(args.method).options(sampler_options(args), progress=True)  # bad options fail here too
-    with _tasks(args) as client, stage(f"APerCEM ({args.method}): {options.chains} chains x {options.draws} draws"):
+    with tasks(args) as client, stage(f"APerCEM ({args.method}): {options.chains} chains x {options.draws} draws"):
         tree = update(model, modes, args.params, fsi=args.fsi, method=args.method, options=options,
                       priors="flat" if args.flat_priors else "plausible", tasks=client)  # fmt: skip
     tree.attrs["command"] = " ".join(sys.argv)
@@ -91,20 +109,12 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     return 0
 
 
-def _model_with_effects(path: str, labels: list[str] | None, modes=None):
-    """The model file's model with the ``--effect`` labels added (:func:`twin.loop.candidates.with_effects`)."""
-    from twin.fem import load_model
-    from twin.loop.candidates import with_effects
-
-    return with_effects(load_model(path), labels or (), modes)
-
-
 def _compare(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from twin.modes import read_modes
-    from twin.loop.compare import compare
     from twin.harness.sweep_report import comparison_text
+    from twin.loop.compare import compare
+    from twin.modes import read_modes
 
     modes = read_modes(args.modes)
     model = _posterior_model(args, modes)
@@ -118,10 +128,9 @@ def _compare(args: argparse.Namespace) -> int:
         plot_history(history, Path(args.history).with_suffix(".png"))
         log.info("history: %d steps in %s", history.sizes["step"], args.history)
     if args.plot:
-        from twin.report.figures import comparison_figures
-
         from twin.errors import SignalError
         from twin.netcdf import load_netcdf
+        from twin.report.figures import comparison_figures
 
         signals = None if args.signals is None else load_netcdf(args.signals, "signals", SignalError)
         for path in comparison_figures(table, args.plot, signals=signals):
@@ -145,7 +154,7 @@ def _posterior_model(args: argparse.Namespace, modes):
     from twin.fem import load_model
 
     if not args.posterior:
-        return _model_with_effects(args.model, args.effect, modes)
+        return model_with_effects(args.model, args.effect, modes)
     from twin.loop.candidates import posterior_model
     from twin.update import read_posterior
 
@@ -154,11 +163,11 @@ def _posterior_model(args: argparse.Namespace, modes):
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from twin.modes import read_modes
-    from twin.modes.measured import measured_modes
+    from twin.harness.sweep_report import diagnosis_text
     from twin.loop.candidates import select
     from twin.loop.diagnose import diagnose
-    from twin.harness.sweep_report import diagnosis_text
+    from twin.modes import read_modes
+    from twin.modes.measured import measured_modes
 
     modes = read_modes(args.modes)
     model = _posterior_model(args, modes)
@@ -167,7 +176,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     select(model, labels)  # unknown candidates fail before a cluster starts
     from twin.progress import stage
 
-    with _tasks(args) as client, stage("diagnose: the library's effects, then local changes"):
+    with tasks(args) as client, stage("diagnose: the library's effects, then local changes"):
         d = diagnose(model, meas, candidates=labels, tolerance=args.tolerance, tasks=client, progress=True)
     print(d.to_json(meas) if args.json else diagnosis_text(d, meas))
     return 0
@@ -179,7 +188,7 @@ def _demo(args: argparse.Namespace) -> int:
 
     model, _, _ = check_demo(args.out, load_model(args.model) if args.model else None, args.hidden, args.method,
                              args.bootstrap)  # before a cluster starts
-    with _tasks(args) as client:
+    with tasks(args) as client:
         r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
                      samples=args.samples, method=args.method, bootstrap=args.bootstrap, tasks=client)  # fmt: skip
     print(f"hidden in the truth: {r.hidden_text()}")
@@ -220,15 +229,15 @@ def _print_history(tw) -> None:
 
 
 def _loop(args: argparse.Namespace) -> int:
-    from twin.modes import read_modes
     from twin.loop.bootstrap import check_records
     from twin.loop.history import write_history
     from twin.loop.twin import Twin
+    from twin.modes import read_modes
     from twin.netcdf import atomic_output, write_netcdf
 
     out = Path(args.out)
     modes = read_modes(args.modes)
-    model = _model_with_effects(args.model, args.effect, modes)
+    model = model_with_effects(args.model, args.effect, modes)
     labels = args.candidates.split(",") if args.candidates else None
     if labels:
         from twin.loop.candidates import select
@@ -237,7 +246,7 @@ def _loop(args: argparse.Namespace) -> int:
     tw = Twin(model, modes, tolerance=args.tolerance)
     check_records(args.bootstrap, args.method)
     kwargs = {} if args.method == "laplace" else {**sampler_options(args), "bootstrap": args.bootstrap}
-    with _tasks(args) as client:
+    with tasks(args) as client:
         tw.run(method=args.method, max_rounds=args.rounds, candidates=labels, tasks=client, progress=True, **kwargs)
     out.mkdir(parents=True, exist_ok=True)
     meas = tw.measured
@@ -266,9 +275,9 @@ def _loop(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.harness.sweep_report import sweep_text
     from twin.harness.scenarios import REFERENCE_EFFECTS
     from twin.harness.sweep import Settings, read_scenarios, scenario_grid, sweep
+    from twin.harness.sweep_report import sweep_text
 
     model = load_model(args.model) if args.model else None
     if args.scenarios:
@@ -277,7 +286,7 @@ def _sweep(args: argparse.Namespace) -> int:
         hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
         scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
     settings = Settings(duration_s=args.duration, samples=args.samples, method=args.method, bootstrap=args.bootstrap)
-    with _tasks(args) as client:
+    with tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
     print(sweep_text(table))
     print(f"wrote {Path(args.out) / 'sweep.nc'} and one report folder per scenario")
@@ -291,10 +300,114 @@ def _int_list(text: str, flag: str) -> list[int]:
         raise TwinError(f"{flag} takes comma-separated integers, got '{text}'") from None
 
 
-@contextlib.contextmanager
-def _tasks(args: argparse.Namespace):
-    """The Dask client of ``--scheduler``/``--workers`` (None for ``sync``), closed afterwards."""
-    from twin.tasks import dask_client
-
-    with dask_client(args.scheduler, n_workers=args.workers) as client:
-        yield client
+def add_commands(sub) -> None:
+    """Add this module's sub-commands to the sub-parsers ``sub``."""
+    p = command(sub, "update", "Bayesian updating from mode samples (APerCEM: HMC on the marginal, the Gibbs sampler, or Laplace)",
+                 "The posterior of the chosen parameters given the measured poles and shapes, written in the\n"
+                 "ArviZ layout (posterior.nc: posterior, sample_stats, observed_data groups).",
+                 ["twin update hydro_unit modes.nc --params bearings --fsi -o posterior.nc",
+                  "twin update hydro_unit modes.nc --effect magnetic_pull --params MAG.stiffness -o posterior.nc",
+                  "twin update hydro_unit modes.nc --method laplace --effect magnetic_pull --params MAG.stiffness "
+                  "-o posterior.nc"], _update)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (posterior.nc, ArviZ groups)")
+    p.add_argument("--params", default=None,
+                   help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks); twin params "
+                        "lists the names (default: none, then --fsi is needed)")  # fmt: skip
+    p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
+    add_method(p, "how to update")
+    add_chain_options(p)
+    p.add_argument("--noise-model", choices=("full", "diagonal"), default=None,
+                   help="--method gibbs: covariance of the residual realisations: full (correlated rows, the "
+                        "default) or diagonal (the paper's)")  # fmt: skip
+    p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None,
+                   help="--method gibbs: a Metropolis step of the parameters with the shapes integrated out in "
+                        "every sweep (the default; chains mix along the parameter-shape ridge); --no-collapsed: "
+                        "plain Gibbs")
+    p.add_argument("--pole-model", choices=("linear", "samples"), default=None,
+                   help="--method gibbs: the condensed model linearised about each mode's mean pole (the default) "
+                        "or rebuilt at every pole sample (the paper's)")
+    p.add_argument("--flat-priors", action="store_true",
+                   help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
+                        "model's value, as wide as its effect's plausible scale: a bound where the data say little)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
+    add_scheduler(p, "chains")
+    p = command(sub, "compare", "compare a model with measured modes: per-mode errors and the overall error",
+                 "Each measured mode against its model partner (one-to-one, by pole distance and MAC): frequency\n"
+                 "and damping errors with their z-scores, the MAC, the shape error per sensor, and the error E\n"
+                 "(the uncertainty-weighted RMS relative pole distance).",
+                 ["twin compare hydro_unit modes.nc --plot figures",
+                  "twin compare hydro_unit modes.nc --posterior posterior.nc --history history.csv"], _compare)  # fmt: skip
+    add_model_and_posterior(p)
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="write the figures (errors, MAC, spectra) into the folder DIR (created if missing)")
+    p.add_argument("--signals", default=None, metavar="FILE",
+                   help="with --plot: the record the modes came from (signals.nc), for spectra.png as its power "
+                        "spectral density per channel with the identified and the model modes marked (default: the "
+                        "modal spectra rebuilt from the modes)")  # fmt: skip
+    p.add_argument("--history", default=None, metavar="FILE",
+                   help="append this comparison's error as one row of the CSV file FILE (created if missing), and "
+                        "redraw the error chart beside it, FILE with the suffix .png (history.csv: history.png)")  # fmt: skip
+    p.add_argument("--step", default=None, help="name of the step in the history (default: from --effect/--posterior)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p = command(sub, "diagnose", "where the model fails and which library effect is missing",
+                 "Fits the library's effects to the measured poles and compares them by evidence (Laplace\n"
+                 "approximation inside the physical bounds), stepwise; outside the library it locates shaft\n"
+                 "stiffness and disk mass or inertia changes. Verdicts: missing effect, partly explained,\n"
+                 "unexplained (with the place), nothing missing, not enough data.",
+                 ["twin diagnose hydro_unit modes.nc",
+                  "twin diagnose hydro_unit modes.nc --posterior posterior.nc --json"], _diagnose)  # fmt: skip
+    add_model_and_posterior(p)
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_scheduler(p, "candidate fits")
+    p = command(sub, "loop", "the twin loop to the end: diagnose, add the missing effects, update them jointly, "
+                              "diagnose again",
+                 "Rounds of diagnose, add every effect found, update all added effects jointly, until nothing\n"
+                 "new is missing; writes diagnosis.json, history.csv/.png and posterior.nc into --out.",
+                 ["twin loop hydro_unit modes.nc --out twin-loop"], _loop)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
+    add_method(p, "how each round updates the added effects")
+    add_bootstrap(p)
+    p.add_argument("--rounds", type=COUNT, default=4, help="rounds at most")
+    p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect to the model first; repeatable")
+    add_tolerance(p)
+    add_chain_options(p)
+    add_scheduler(p, "candidate fits and calibration records")
+    p = command(sub, "demo", "the whole loop on a truth with hidden changes, with a report folder",
+                 "Exports the FMU, simulates a truth with a hidden change, extracts the modes, and runs the\n"
+                 "loop; report.md and report.html in --out say what was found and how the error fell.",
+                 ["twin demo", "twin demo --hidden 'magnetic_pull@1.5+seal_cross_coupling' --seed 4",
+                  "twin demo --hidden disk_mass:generator@1.1 --out heavier-generator"], _demo)  # fmt: skip
+    p.add_argument("--out", default="twin-demo", help="report folder")
+    p.add_argument("--hidden", default="magnetic_pull",
+                   help="what the truth hides: a library effect (magnetic_pull, fsi, fsi_per_mode, seal_cross_coupling, "
+                        "thrust_tilt:thrust, bearing_change:UGB, bearing_change:LGB) at its reference size or scaled "
+                        "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
+                        "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
+                        "or none")  # fmt: skip
+    p.add_argument("--seed", type=NATURAL, default=1, help="seed of turbulence and noise")
+    add_loop_settings(p, DEMO_RECORDS)
+    # the calibration's records (twin.loop.bootstrap) take most of the demo's time: on a local cluster by default
+    add_scheduler(p, "candidate fits and calibration records")
+    p = command(sub, "sweep", "the demo's loop over hidden changes and seeds, one Dask task per scenario",
+                 "Runs the demo for every scenario and tabulates the verdict, the error's fall and the parameter\n"
+                 "errors (sweep.nc); exit status 1 when a scenario fails.",
+                 ["twin sweep --hidden all,none --seeds 1,2", "twin sweep --scenarios benchmarks/loop_suite.txt --workers 2"],
+                 _sweep)  # fmt: skip
+    p.add_argument("--hidden", default="all",
+                   help="what the truths hide, comma-separated specs as for twin demo; 'all' for every library effect "
+                        "at its reference size ('all,none' adds the false-alarm check)")  # fmt: skip
+    p.add_argument("--scenarios", default=None, metavar="FILE",
+                   help="scenarios from a file, one 'SPEC SEED[,SEED...]' per line (instead of --hidden and --seeds), "
+                        "e.g. benchmarks/loop_suite.txt")
+    p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated")
+    p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders")
+    add_loop_settings(p)
+    add_scheduler(p, "scenarios")

@@ -7,6 +7,20 @@ import json
 import sys
 from pathlib import Path
 
+from twin.cli.common import (
+    COUNT,
+    MODAL_MODES,
+    MODEL_HELP,
+    NATURAL,
+    NONNEGATIVE,
+    POSITIVE,
+    TRUTH_HELP,
+    add_record,
+    command,
+    model_with_effects,
+    rows_or_auto,
+)
+from twin.defaults import DEFAULT_UNBALANCE_ME, ORDERS_PER_MODE, SAMPLES
 from twin.errors import TwinError
 
 
@@ -127,9 +141,9 @@ def _import(args: argparse.Namespace) -> int:
 def _extract(args: argparse.Namespace) -> int:
     from twin.design.observe import judge_targets
     from twin.extract import extract
+    from twin.extract.harmonics import line_frequencies
     from twin.extract.options import ExtractOptions
     from twin.modes import write_modes
-    from twin.extract.harmonics import line_frequencies
     from twin.netcdf import check_writable
 
     plot = None if args.plot is None else check_writable(args.plot, figure=True)
@@ -173,9 +187,9 @@ def _extract(args: argparse.Namespace) -> int:
 
 
 def _synthesize_modes(args: argparse.Namespace) -> int:
-    from twin.modes.modesfile import write_modes
     from twin.fem import load_model
     from twin.fem.truthfile import load_truth
+    from twin.modes.modesfile import write_modes
     from twin.update import synthesize_modes
 
     model = load_model(args.model)
@@ -191,12 +205,11 @@ def _params(args: argparse.Namespace) -> int:
     """``twin params``: the names ``--params`` and ``--effect`` take, with values, units and bounds."""
     import numpy as np
 
-    from twin.cli.loop import _model_with_effects
     from twin.fem.effects import describe, effect_label
     from twin.loop.candidates import candidates as library_candidates
     from twin.update.problem import PARAMETER_GROUPS
 
-    model = _model_with_effects(args.model, args.effect)
+    model = model_with_effects(args.model, args.effect)
     groups = {n: g for g, f in PARAMETER_GROUPS.items() for n in f(model)}
     def finite(x: float) -> float | None:
         return float(x) if np.isfinite(x) else None  # JSON has no infinity: an open side is null
@@ -227,3 +240,146 @@ def _params(args: argparse.Namespace) -> int:
     for text in candidates:
         print(f"  {text}")
     return 0
+
+
+def add_commands(sub) -> None:
+    """Add this module's sub-commands to the sub-parsers ``sub``."""
+    p = command(sub, "modal", "complex modes of a model at a speed",
+                 "Frequency, damping ratio, log decrement and whirl of every under-damped mode (the state-space\n"
+                 "eigenproblem of M, C + Omega G, K).",
+                 ["twin modal hydro_unit", "twin modal models/ross_reference.toml --speed 0 --modes 4 --json"],
+                 _modal)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--speed", type=NONNEGATIVE, default=None, help="speed [rpm] (default: the model's running speed)")
+    p.add_argument("--modes", type=COUNT, default=MODAL_MODES, help="number of modes, lowest first")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p = command(sub, "campbell", "Campbell diagram of a model over a speed range",
+                 "Frequencies of the first modes against speed, forward and backward whirl, with the 1X line.",
+                 ["twin campbell hydro_unit -o campbell.png --max-speed 300"], _campbell)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--max-speed", type=POSITIVE, default=None, help="highest speed [rpm] (default: 2x running speed)")
+    p.add_argument("--points", type=COUNT, default=41, help="number of speeds")
+    p.add_argument("--modes", type=COUNT, default=12, help="number of modes followed")
+    p.add_argument("-o", "--output", default="campbell.png", help="figure file (.png, .pdf or .svg)")
+    p = command(sub, "params", "the parameters and effects of a model",
+                 "Every parameter (name, nominal value, unit, physical bounds, what it is), the effects the model\n"
+                 "has, and the library effects it can take with the parameters each brings: the names that\n"
+                 "twin update --params and --effect take.",
+                 ["twin params hydro_unit", "twin params hydro_unit --effect magnetic_pull --json"], _params)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
+                   help="add a library effect first (e.g. magnetic_pull); repeatable")
+    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    p = command(sub, "export-fmu", "export the model as an FMU (FMI 2.0 or 3.0, co-simulation and model exchange)",
+                 "Writes the model's modal form into an FMU with the generic runtime (compiled once per machine;\n"
+                 "needs a C compiler, gcc or cc); forces at the disks are its inputs, the proximeter displacements\n"
+                 "its outputs, the modal coordinates its states.",
+                 ["twin export-fmu hydro_unit -o unit.fmu", "twin export-fmu hydro_unit -o unit.fmu --basis modal --fmax 120",
+                  "twin export-fmu hydro_unit -o unit3.fmu --fmi 3 --kind me"],
+                 _export_fmu)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate = 1 / communication step [Hz]")
+    p.add_argument("--basis", choices=("full", "modal"), default="full",
+                   help="the full FEM, or a truncated basis of its modes below --fmax")
+    p.add_argument("--fmax", type=POSITIVE, default=None,
+                   help="highest mode kept by the modal basis [Hz] (required with --basis modal)")
+    p.add_argument("--inputs", default=None, help="force inputs, e.g. runner.x,runner.y,12.x (default: x, y at every disk)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    p.add_argument("--kind", choices=("both", "cs", "me"), default="both",
+                   help="interfaces: co-simulation, model exchange or both (default both)")
+    p = command(sub, "simulate", "simulate proximeter signals through the model's FMU",
+                 "Turbulence on the runner, unbalance at the generator and sensor noise drive the FMU (through\n"
+                 "FMPy); the proximeter displacements are written as signals.nc (time x channel, metres).",
+                 ["twin simulate hydro_unit --duration 1200 -o signals.nc",
+                  "twin simulate hydro_unit --duration 600 --truth paper --seed 3 -o signals.nc"], _simulate)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
+    add_record(p, duration_required=True)
+    p.add_argument("--seed", type=NATURAL, default=1, help="random seed of turbulence and noise")
+    p.add_argument("--truth", default=None, help=f"what the truth hides: {TRUTH_HELP} (default: none)")
+    p.add_argument("--unbalance", type=NONNEGATIVE, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]")
+    p.add_argument("--basis", choices=("full", "modal"), default="full",
+                   help="the full FEM, or a truncated basis of its modes below --fmax")
+    p.add_argument("--fmax", type=POSITIVE, default=None,
+                   help="highest mode of the modal basis [Hz] (required with --basis modal)")
+    p = command(sub, "import", "a measurement file (CSV/text, UFF 58, TDMS, MATLAB, HDF5) into signals.nc",
+                 "Reads the channels, their units and the time (or the rate) from the file, works out each\n"
+                 "channel's quantity from its units (um: displacement, mm/s: velocity, g: acceleration), checks\n"
+                 "the record as the extraction will and writes it as signals.nc (variable 'signal').",
+                 ["twin import probes.csv -o signals.nc",
+                  "twin import probes.txt -o signals.nc --fs 256 --units um --channels UGB_x,UGB_y",
+                  "twin import run.tdms -o signals.nc", "twin import test.mat -o signals.nc --units mm/s"],
+                 _import)  # fmt: skip
+    p.add_argument("file", help="the measurement file, read by its suffix: .csv, .txt, .tsv or .dat with a header "
+                                "line of column names (units as 'UGB_x [um]'; a column 'time [s]', or "
+                                "'# sampling_rate: 256' above); .uff/.unv (dataset 58 time responses); .tdms; "
+                                ".mat; .h5/.hdf5 (see twin.extract.readers)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (signals.nc)")
+    p.add_argument("--fs", type=POSITIVE, default=None, help="sampling rate [Hz] where the file gives none")
+    p.add_argument("--units", default=None, metavar="U|NAME=U,...",
+                   help="units of every channel, or of some by name, where the header gives none (um, mil, mm/s, g, ...)")
+    p.add_argument("--quantity", default=None, metavar="Q|NAME=Q,...",
+                   help="displacement, velocity or acceleration, for every channel or some by name (default: "
+                        "the quantity of its units)")  # fmt: skip
+    p.add_argument("--channels", default=None, help="new channel names in the file's order, e.g. UGB_x,UGB_y")
+    p = command(sub, "extract", "automated modal extraction (SSI-cov) from signals to mode samples",
+                 "Covariance-driven stochastic subspace identification over model orders, a stabilisation\n"
+                 "diagram cleared automatically, harmonics of the running speed rejected; each mode's\n"
+                 "uncertainty from jackknife samples over blocks of the record (modes.nc).",
+                 ["twin extract signals.nc -o modes.nc --fmax 60 --plot stabilisation.png"],
+                 _extract)  # fmt: skip
+    p.add_argument("signals", help="signals file (NetCDF, time x channel, from twin simulate or a measurement)")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--samples", type=COUNT, default=None,
+                   help=f"jackknife samples per mode J, one per block left out (default: {SAMPLES}, or as many "
+                        "blocks as a short record holds; the output says which)")
+    p.add_argument("--blocks", type=COUNT, default=None,
+                   help="blocks the record is cut into (default: --samples; with --delete-half it may be fewer)")
+    p.add_argument("--fmax", type=POSITIVE, default=None, help="highest frequency [Hz] (default: 40%% of fs)")
+    p.add_argument("--fmin", type=NONNEGATIVE, default=0.0, help="lowest frequency [Hz]")
+    p.add_argument("--block-rows", type=COUNT, default=None,
+                   help="Hankel block rows the poles are read at (default: from fmax)")
+    p.add_argument("--shape-block-rows", type=rows_or_auto, default=0,
+                   help="block rows of a second pass every mode's shapes are read at (default 0: none, the "
+                        "shapes come with the poles); auto: the slow modes' shapes at lags over 1.5 periods of "
+                        "the slowest")
+    p.add_argument("--first-lag", type=COUNT, default=None,
+                   help="lag the covariance Hankel matrix starts at, in samples (default: the first at or beyond "
+                        "one period of fmax; 1: the textbook matrix)")
+    p.add_argument("--differenced-above", type=POSITIVE, default=None, metavar="HZ",
+                   help="read the modes above this frequency [Hz] from a second pass over the record differenced "
+                        "twice, where the slow, strong modes no longer fill the covariances (default: none)")
+    p.add_argument("--shape-samples", type=COUNT, default=None, metavar="M",
+                   help="draw the shape samples from M random halves of the blocks (a multiple of --samples), "
+                        "the poles keeping their own samples, each used M / samples times (default: the shapes "
+                        "come with the poles)")
+    p.add_argument("--max-order", type=COUNT, default=100, help="largest model order")
+    p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
+    p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
+    p.add_argument("--delete-half", action="store_true",
+                   help="each sample leaves out half the blocks (a spread that matches independent records) "
+                        "instead of one (the default: wider, what the loop is calibrated to)")
+    p.add_argument("--order-spread", choices=("shapes", "all", "none"), default="shapes",
+                   help="add each mode's model-order error to the shape samples (the standard error of the "
+                        "shape's mean over its orders; the default), to the pole samples too (their spread over "
+                        "the orders: all) or to neither (none)")
+    p.add_argument("--orders-per-mode", type=NATURAL, default=ORDERS_PER_MODE,
+                   help=f"average each mode over this many of its lowest settled model orders (default "
+                        f"{ORDERS_PER_MODE}; 0: all of them)")
+    p.add_argument("--keep-harmonics", dest="remove_harmonics", action="store_false",
+                   help="leave the lines at the multiples of the record's running speed in the record (by "
+                        "default they are subtracted before SSI); they are then rejected as modes by their "
+                        "band kurtosis")
+    p = command(sub, "synthesize-modes", "paper-style synthetic modal data (noisy pole and shape samples)",
+                 "Samples of poles and partial mode shapes of a truth, with the reference paper's noise model:\n"
+                 "modal data without signals, for checking the updater.",
+                 ["twin synthesize-modes hydro_unit -o modes.nc --samples 100 --seed 7"], _synthesize_modes)  # fmt: skip
+    p.add_argument("model", help=MODEL_HELP + ", the calibrated FEM")
+    p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
+    p.add_argument("--truth", default="paper", help=f"what the truth hides: {TRUTH_HELP}")
+    p.add_argument("--samples", type=COUNT, default=100, help="samples per mode J")
+    p.add_argument("--seed", type=NATURAL, default=1, help="random seed")
+    p.add_argument("--modes", type=COUNT, default=None,
+                   help="number of modes, for a truth without per-mode effect (default: the truth's per-mode count, "
+                        "or every lightly damped mode of the model)")  # fmt: skip

@@ -7,11 +7,12 @@ import json
 import sys
 from pathlib import Path
 
+from twin.cli.common import add_scheduler, command, tasks
 from twin.defaults import BASELINE_DAYS, FALSE_ALARMS_PER_YEAR
 
 
-def add_commands(sub, command, add_scheduler) -> None:
-    """Add ``twin campaign`` to the sub-parsers ``sub`` (with the parser module's helpers)."""
+def add_commands(sub) -> None:
+    """Add ``twin campaign`` and ``twin track`` to the sub-parsers ``sub``."""
     p = command(sub, "campaign", "simulate a campaign of records through the FMU under changing operation",
                 "Simulates a record every few hours for days or years (the schedule: days, records_per_day,\n"
                 "duration; how the operating conditions vary; hidden changes with their start day and ramp),\n"
@@ -52,12 +53,11 @@ def add_commands(sub, command, add_scheduler) -> None:
 
 
 def _track(args: argparse.Namespace) -> int:
-    from twin.cli.loop import _tasks
     from twin.fem import load_model
     from twin.track.tracker import alarms_json, track
 
     model = load_model(args.model)
-    with _tasks(args) as client:
+    with tasks(args) as client:
         table = track(model, args.folder, args.out, baseline_days=args.baseline_days,
                       false_alarms_per_year=args.false_alarms, tasks=client)  # fmt: skip
     summary = alarms_json(table)
@@ -72,13 +72,12 @@ def _track(args: argparse.Namespace) -> int:
 
 
 def _campaign(args: argparse.Namespace) -> int:
-    from twin.cli.loop import _tasks
     from twin.fem import load_model
     from twin.track import campaign, read_schedule
 
     model = load_model(args.model)
     schedule = read_schedule(args.schedule, model)
-    with _tasks(args) as client:
+    with tasks(args) as client:
         table = campaign(model, schedule, args.out, seed=args.seed, tasks=client, command=" ".join(sys.argv))
     made = int(table.made.sum())
     summary = {"records": int(table.sizes["record"]), "made": made, "kept": int(table.sizes["record"]) - made,
