@@ -223,7 +223,7 @@ def test_decimation_by_a_prime_factor_above_eight(make_record):
 def test_the_extraction_runs_on_one_blas_thread(make_record, monkeypatch):
     # many small SVDs and QRs: OpenBLAS's threads cost more than they gain (benchmarks/extract_threads.py);
     # the limit holds inside the SSI passes and is lifted again afterwards
-    import twin.extract.core as core
+    import twin.extract.steps as core
     from twin.tasks import blas_threads
 
     seen, ssi_pass = [], core.ssi_pass

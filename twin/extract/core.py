@@ -3,8 +3,8 @@
 One function, :func:`extract`: check the record, decimate to the band asked
 for, covariance-driven SSI over many orders, stabilisation diagram, automatic
 clustering, running-speed harmonics removed (a known speed) or rejected, J jackknife samples per
-mode. It never reads the model; pair the result with model modes by MAC with
-:func:`twin.pair_modes`.
+mode; its steps are :mod:`twin.extract.steps`. It never reads the model; pair the result with model
+modes by MAC with :func:`twin.pair_modes`.
 """
 
 from __future__ import annotations
@@ -18,63 +18,35 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.signal as sig
 import xarray as xr
 
 from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
-from twin.errors import NoModeError, SignalError, TwinWarning
-from twin.extract.blocks import (MIN_BLOCK_LAGS, MIN_BLOCK_TIME_CONSTANTS, adapted_blocks, block_count,
-                                 check_block_length, most_blocks, warn_about_few_blocks)
-from twin.extract.quantities import displacement_shapes
-from twin.extract.harmonics import remove_running_harmonics
+from twin.errors import TwinWarning
+from twin.extract.blocks import warn_about_few_blocks
+from twin.extract.options import ExtractOptions
+from twin.extract.orders import OUTLIER_MADS
+from twin.extract.passes import DIFFERENCES
+from twin.extract.result import extracted_modes
+from twin.extract.steps import (  # noqa: F401
+    DEFAULT_FMAX_FRACTION,
+    Modes,
+    Prepared,
+    differenced_pass,
+    drop_undetermined,
+    finish_shapes,
+    first_pass,
+    prepare,
+    shapes_pass,
+)
 from twin.modes.modesfile import write_modes
-from twin.extract.samples import jackknife, normalise_at, order_deviations, repeated
-from twin.extract.signals import Record, check_record
-from twin.extract.passes import (DIFFERENCES, differenced, first_lag_for, modes_from_differenced,
-                                 shape_lag_rows, shapes_at_longer_lags, ssi_pass)
-from twin.extract.options import ExtractOptions, as_float, jackknife_plan
-from twin.extract.orders import OUTLIER_MADS, mode_members
-from twin.extract.result import MAX_POLE_SE, extracted_modes, left_out, pole_scatter
-from twin.extract.ssi import hankel_max_lag
-from twin.netcdf import check_writable, load_netcdf
+from twin.netcdf import check_writable
 from twin.tasks import one_blas_thread
 
 log = logging.getLogger(__name__)
 
-#: Default upper frequency: this fraction of the sampling rate (80% of Nyquist).
-DEFAULT_FMAX_FRACTION = 0.4
-#: Fewest channels for shapes that tell modes apart (two x-y proximeter pairs).
-MIN_CHANNELS = 4
-#: Below this sampling rate [Hz] an extraction without ``fmax_hz`` warns that its band is narrow.
-LOW_RATE_HZ = 50.0
-#: Decimate when the sampling rate exceeds this many times ``fmax``.
-SAMPLES_PER_PERIOD = 2.5
-#: Default lowest frequency for the Hankel size, as a fraction of ``fmax``.
-DEFAULT_FMIN_FRACTION = 0.01
-#: The record must hold this many periods of the lowest frequency asked for.
-MIN_CYCLES = 100
 #: Warn when more than this fraction of a mode's jackknife matches fail.
 MAX_MISSING = 0.05
-
-
-def _open(signals: xr.Dataset | str | Path) -> tuple[xr.Dataset, str]:
-    if isinstance(signals, xr.Dataset):
-        return signals, str(signals.attrs.get("title", "signals"))
-    return load_netcdf(signals, "signals", SignalError), str(signals)
-
-
-def _decimate(rec: Record, fmax_hz: float) -> tuple[np.ndarray, float, int]:
-    q = int(rec.fs_hz // (SAMPLES_PER_PERIOD * fmax_hz))
-    if q < 2:
-        return rec.y, rec.fs_hz, 1
-    y = rec.y
-    left = q
-    while left > 1:  # FIR stages of at most 8 where q factors so; a prime factor above 8 is one stage
-        step = next((s for s in range(min(8, left), 1, -1) if left % s == 0), left)
-        y = sig.decimate(y, step, ftype="fir", zero_phase=True, axis=0)
-        left //= step
-    return y, rec.fs_hz / q, q
 
 
 @one_blas_thread  # many small SVDs and QRs: faster than with OpenBLAS's threads (see the docstring's Notes)
@@ -254,220 +226,68 @@ def extract(
     (array([2.]), array([0.02]), array([0.21]))
     """
     opts = ExtractOptions.of(options, **fields)  # every option checked before the record is read
-    (fmax_hz, fmin_hz, block_rows, shape_block_rows, first_lag, max_order, crit, delete_blocks, order_spread,
-     remove_harmonics, orders_per_mode, differenced_above_hz) = (
-        opts.fmax_hz, opts.fmin_hz, opts.block_rows, opts.shape_block_rows, opts.first_lag, opts.max_order,
-        opts.criteria, opts.delete_blocks, opts.order_spread, opts.remove_harmonics, opts.orders_per_mode,
-        opts.differenced_above_hz)  # fmt: skip
     if output is not None:
         output = check_writable(output)
-    ds, source = _open(signals)
-    rec = check_record(ds, source, opts.channels)
-    nyquist = rec.fs_hz / 2
-    fmax = DEFAULT_FMAX_FRACTION * rec.fs_hz if fmax_hz is None else float(fmax_hz)
-    if not 0 < fmax <= nyquist:
-        raise SignalError(f"{source}: fmax = {fmax:g} Hz must be positive and at most Nyquist ({nyquist:g} Hz)")
-    if fmax > DEFAULT_FMAX_FRACTION * rec.fs_hz * (1 + 1e-9):
-        warnings.warn(f"{source}: fmax = {fmax:g} Hz is above {DEFAULT_FMAX_FRACTION:.0%} of the sampling rate "
-                      f"({DEFAULT_FMAX_FRACTION * rec.fs_hz:g} Hz): modes near Nyquist are seen with few samples per "
-                      "period and through the anti-alias filter's roll-off; their estimates are poor", TwinWarning,
-                      stacklevel=2)  # fmt: skip
-    if not 0 <= fmin_hz < fmax:
-        raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
-    if differenced_above_hz is not None and not 0 <= as_float(differenced_above_hz) < fmax:  # NaN fails too
-        raise SignalError(f"{source}: differenced_above_hz must be a frequency from 0 to below fmax = {fmax:g} Hz, "
-                          f"got {differenced_above_hz!r}")  # fmt: skip
-    chosen = opts.chosen  # the extraction chooses the blocks from the record
-    n_blocks, samples = opts.n_blocks, opts.n_samples
-    if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
-        raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
-                          f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
-    _warn_about_layout(source, len(rec.channels), rec.fs_hz, fmax_hz)
-    y, fs, q = _decimate(rec, fmax)
-    speed_rpm = rec.attrs.get("speed_rpm")
-    running_hz = float(speed_rpm) / 60.0 if speed_rpm else None
-    removed = []
-    if remove_harmonics and running_hz:
-        y, removed = remove_running_harmonics(y, fs, running_hz, fmax)
-        for h in removed:
-            log.info("%.4f Hz (%dX) removed before SSI: a line %.0f dB above the spectrum around it",
-                     h["frequency_hz"], h["running_speed_multiple"], h["line_to_floor_db"])  # fmt: skip
-    n_ch = y.shape[1]
-    f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
-    i = block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(max_order / n_ch)) + 1)
-    k0 = first_lag_for(fs, fmax) if first_lag is None else int(first_lag)
-    lags = hankel_max_lag(i, k0)
-    most = most_blocks(y.shape[0], lags)
-    if chosen:
-        n_blocks = samples = block_count(most)
-    check_block_length(source, rec.duration_s, y.shape[0], n_blocks, lags, fs, i, k0)
-    n_deleted, repeats = jackknife_plan(n_blocks, samples, opts)
-
-    log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
-             source, n_ch, rec.duration_s, fs, i, k0, max_order)  # fmt: skip
-    spectrum: dict = {}
-    found = ssi_pass(y, fs, i, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
-                     first_lag=k0)  # fmt: skip
-    plan = None
-    if chosen:
-        plan = adapted_blocks(y.shape[0] / fs, most, np.array([found.diag.pole[c.representative]
-                                                              for c in found.modes]))  # fmt: skip
-        log.info("jackknife: %s", plan.reason)
-    block_len = y.shape[0] // n_blocks
-    covariances, real, diag, modes = found.covariances, found.real, found.diag, found.modes
-    harmonics = list(removed) + found.harmonics
-    if not modes:
-        raise NoModeError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
-                          f"({len(harmonics)} harmonic(s) rejected)", block_rows=i)  # fmt: skip
-
-    members = mode_members(found, orders_per_mode)
-    poles, shapes, sample_p, sample_s, missing = jackknife(covariances, i, fs, members, progress,
-                                                           delete=delete_blocks, n_samples=samples, first_lag=k0)
-    n_samples = samples
-    if repeats > 1:  # the shapes from their own delete-half samples, each pole sample used `repeats` times
-        n_samples = samples * repeats
-        log.info("shape samples: %d random halves of the %d blocks", n_samples, n_blocks)
-        sample_s = jackknife(covariances, i, fs, members, progress, delete=None, n_samples=n_samples,
-                             first_lag=k0)[3]  # fmt: skip
-        sample_p, missing = repeated(sample_p, repeats), np.repeat(missing, repeats, axis=1)
-    d_p, d_s = order_deviations(members, shapes, n_samples)
-    differences = np.zeros(len(poles), dtype=int)
-    if differenced_above_hz is not None:
-        log.info("SSI-cov again on the record differenced %d times for the modes above %g Hz",
-                 DIFFERENCES, differenced_above_hz)  # fmt: skip
-        again = ssi_pass(differenced(y), fs, i, n_blocks, max_order, max(fmin_hz, differenced_above_hz), fmax, crit,
-                         running_hz, rec.channels, {}, quiet=True, first_lag=max(k0, DIFFERENCES + 1))  # fmt: skip
-        first = (members, poles, shapes, sample_p, sample_s, missing, d_p, d_s)
-        again_members = mode_members(again, orders_per_mode)
-        read, counterpart = modes_from_differenced(again, again_members, fs, differenced_above_hz, first, progress,
-                                                   delete=delete_blocks, n_samples=samples)  # fmt: skip
-        members, poles, shapes, sample_p, sample_s, missing, d_p, d_s = read
-        differences[counterpart >= 0] = DIFFERENCES
-        modes = [again.modes[j] if j >= 0 else c for c, j in zip(modes, counterpart)]  # for the cluster sizes
-    jackknife_p = sample_p
-    if order_spread == "all":
-        sample_p = sample_p + d_p
-    n_orders = np.array([len(m[0]) for m in members])
-    missing = missing / n_orders[:, None]  # per sample, the fraction of the mode's orders without a counterpart
-    # blocks shorter than a few time constants cannot tell a pole's damping: its frequency alone is judged
-    damping_judged = block_len / fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(poles.real), 1e-12)
-    scatter = pole_scatter(poles, sample_p, missing.mean(axis=1), damping_judged, rec.duration_s)
-    keep = scatter < MAX_POLE_SE  # pole_determined's test, with the scatter kept for the warnings
-    undetermined = left_out(source, poles[~keep], sample_p[~keep], scatter[~keep], damping_judged[~keep],
-                            rec.duration_s)
-    if not keep.any():
-        raise NoModeError(f"{source}: no physical mode found between {fmin_hz:g} and {fmax:g} Hz "
-                          f"({len(undetermined)} stable pole(s) dropped: their samples scatter beyond their "
-                          "bandwidth)", block_rows=i)  # fmt: skip
-    if undetermined:
-        new_index = np.where(keep, np.cumsum(keep) - 1, -1)
-        diag = dataclasses.replace(diag, cluster=np.where(diag.cluster >= 0, new_index[diag.cluster], diag.cluster))
-        poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders, differences = (
-            x[keep] for x in (poles, shapes, sample_p, sample_s, d_s, missing, jackknife_p, n_orders, differences))  # fmt: skip
-        members = [m for m, k in zip(members, keep) if k]
-        modes = [c for c, k in zip(modes, keep) if k]
-    i_s, slow = _shape_rows(shape_block_rows, poles, fs, i, block_len, source, k0)
-    shape_rows = np.full(len(poles), i)
-    if i_s > i:
-        log.info("SSI-cov again with %d block rows for the shapes of %d mode(s) (lags of %.3g s)",
-                 i_s, slow.sum(), i_s / fs)  # fmt: skip
-        again = ssi_pass(y, fs, i_s, n_blocks, max_order, fmin_hz, fmax, crit, running_hz, rec.channels, spectrum,
-                         quiet=True, first_lag=k0)  # fmt: skip
-        read = shapes_at_longer_lags(again, fs, mode_members(again, orders_per_mode), poles[slow],
-                                     shapes[slow], sample_s[slow], d_s[slow], progress, delete=delete_blocks,
-                                     n_samples=samples)  # fmt: skip
-        shapes[slow], sample_s[slow], d_s[slow], matched = read
-        shape_rows[np.flatnonzero(slow)[matched]] = i_s
-        for f in poles[slow][~matched].imag / (2 * np.pi):
-            log.info("%.4f Hz: no counterpart at %d block rows, its shapes are read at %d", f, i_s, i)
-    if order_spread != "none":
-        sample_s = sample_s + d_s
-    if rec.orders.any():  # velocity and acceleration channels: every shape in displacement, as the model's
-        shapes = displacement_shapes(shapes, poles, rec.orders)
-        sample_s = displacement_shapes(sample_s, poles, rec.orders)
-    ref_channel = np.argmax(np.abs(shapes), axis=1)
-    shapes = normalise_at(shapes, ref_channel)
-    sample_s = normalise_at(sample_s, ref_channel[:, None])
-    warn_about_few_blocks(source, n_blocks, chosen)
-    _warn_about_samples(source, poles, missing)
-
-    out = extracted_modes(rec, ds, poles, shapes, sample_p, sample_s, jackknife_p, members, n_orders,
-                          [len(c.members) for c in modes], ref_channel, diag)  # fmt: skip
-    out["shape_block_rows"] = ("mode", shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
-    out["differences"] = ("mode", differences, {"long_name": "times the record was differenced for the SSI pass "
-                                                             "the mode is read from"})  # fmt: skip
-    settings = {
-        "samples": samples, "shape_samples": n_samples, "blocks": n_blocks, "fmin_hz": fmin_hz, "fmax_hz": fmax,
-        "block_rows": i, "blocks_chosen": None if plan is None else plan.reason,
-        "shape_block_rows": max(i, i_s), "first_lag": k0, "max_order": int(real.max_order),
-        "decimation": q, "fs_hz": fs, "duration_s": rec.duration_s, "channels": list(rec.channels),
-        "quantities": list(rec.quantities),
-        "criteria": dataclasses.asdict(crit), "block_length_s": block_len / fs,
-        "delete_blocks": n_deleted, "order_spread": order_spread, "orders_per_mode": orders_per_mode,
-        "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(remove_harmonics),
-        "differenced_above_hz": None if differenced_above_hz is None else float(differenced_above_hz),
-    }  # fmt: skip
-    out.attrs.update({
-        "title": f"modes identified from {Path(source).name}",
-        "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
-        "command": command,
-        "settings": json.dumps(settings),
-        "harmonics": json.dumps(harmonics),
-        "undetermined_poles": json.dumps(undetermined),
-        "samples_method": (f"delete-d block jackknife (d = {n_deleted} of {n_blocks} blocks, {samples} samples) "
-                           "centred on the full-record estimate"
-                           + {"none": "", "shapes": ", the shapes plus the standard error of their mean over the "
-                                                    "mode's model orders",
-                              "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
-                                     "standard error of their mean over them"}[order_spread]
-                           + (f"; the shapes from {n_samples} random halves of the blocks, each pole sample "
-                              f"used {repeats} times (scaled to keep its standard error)" if repeats > 1 else "")
-                           + (f"; shapes read at {i_s} block rows" if i_s > i else "")
-                           + (f"; modes above {differenced_above_hz:g} Hz read from the record differenced "
-                              f"{DIFFERENCES} times" if differences.any() else "")
-                           + ": sample std / sqrt(J) is the standard error"),
-        "signals": source,
-    })  # fmt: skip
-    for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
-        if key in rec.attrs:
-            out.attrs[f"signals_{key}" if key == "seed" else key] = rec.attrs[key]
+    p = prepare(signals, opts)
+    m = first_pass(p, opts, progress)
+    if opts.differenced_above_hz is not None:
+        differenced_pass(p, m, opts, progress)
+    drop_undetermined(p, m, opts)
+    shapes_pass(p, m, opts, progress)
+    ref_channel = finish_shapes(p, m, opts)
+    warn_about_few_blocks(p.source, p.n_blocks, opts.chosen)
+    _warn_about_samples(p.source, m.poles, m.missing)
+    out = _modes_dataset(p, m, opts, ref_channel, command)
     if output is not None:
         write_modes(out, output)
     return out
 
 
-def _shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,
-                source: str, first_lag: int = 1) -> tuple[int, np.ndarray]:  # fmt: skip
-    """Block rows of the pass the shapes are read at, and which modes' shapes it reads.
-
-    ``asked``: every mode's, at that many rows (``i``, the poles' pass, or fewer: none). ``"auto"``: the
-    modes whose own :func:`shape_lag_rows` exceed ``i``, at those of the slowest of them; at most what
-    the jackknife blocks hold (lags ``2 i + first_lag - 1``)."""
-    longest = int((block_len / MIN_BLOCK_LAGS - first_lag + 1) // 2)
-    if asked == "auto":
-        f_hz = np.abs(poles) / (2 * np.pi)
-        slow = np.array([shape_lag_rows(f, fs) > i for f in f_hz], dtype=bool)
-        if not slow.any():
-            return i, slow
-        return shape_lag_rows(float(f_hz[slow].min()), fs, minimum=i, maximum=longest), slow
-    if asked > longest:
-        raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
-                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "
-                          f"(at most {longest})")  # fmt: skip
-    return int(asked), np.ones(len(poles), dtype=bool)
-
-
-def _warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: float | None) -> None:
-    """Warn about a record that can only give a poor extraction: few channels, or a low rate and no fmax."""
-    if n_channels < MIN_CHANNELS:
-        warnings.warn(f"{source}: {n_channels} channel(s): shapes known at so few points cannot tell modes apart "
-                      f"(MAC), and a mode with a node there is missed; use at least {MIN_CHANNELS} (two x-y "
-                      "proximeter pairs)", TwinWarning, stacklevel=3)  # fmt: skip
-    if fmax_hz is None and fs_hz < LOW_RATE_HZ:
-        warnings.warn(f"{source}: sampled at {fs_hz:g} Hz and no fmax given: modes are extracted up to "
-                      f"{DEFAULT_FMAX_FRACTION * fs_hz:g} Hz only ({DEFAULT_FMAX_FRACTION:.0%} of the rate); "
-                      "sample faster to see a rotor's higher modes, or give fmax to say that is the band you want",
-                      TwinWarning, stacklevel=3)  # fmt: skip
+def _modes_dataset(p: Prepared, m: Modes, opts: ExtractOptions, ref_channel: np.ndarray, command: str) -> xr.Dataset:
+    """The modes Dataset (:func:`twin.extract.result.extracted_modes`) with the passes' variables, the settings as
+    they were resolved, the lines and poles left out, and how the samples were made."""
+    i, n_blocks, samples, order_spread = p.block_rows, p.n_blocks, p.samples, opts.order_spread
+    out = extracted_modes(p.rec, p.ds, m.poles, m.shapes, m.sample_p, m.sample_s, m.jackknife_p, m.members,
+                          m.n_orders, [len(c.members) for c in m.clusters], ref_channel, m.diag)  # fmt: skip
+    out["shape_block_rows"] = ("mode", m.shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
+    out["differences"] = ("mode", m.differences, {"long_name": "times the record was differenced for the SSI pass "
+                                                               "the mode is read from"})  # fmt: skip
+    settings = {
+        "samples": samples, "shape_samples": m.n_samples, "blocks": n_blocks, "fmin_hz": opts.fmin_hz,
+        "fmax_hz": p.fmax, "block_rows": i, "blocks_chosen": m.plan_reason,
+        "shape_block_rows": m.shape_block_rows, "first_lag": p.first_lag, "max_order": m.max_order,
+        "decimation": p.decimation, "fs_hz": p.fs, "duration_s": p.rec.duration_s, "channels": list(p.rec.channels),
+        "quantities": list(p.rec.quantities),
+        "criteria": dataclasses.asdict(opts.criteria), "block_length_s": p.block_length / p.fs,
+        "delete_blocks": m.n_deleted, "order_spread": order_spread, "orders_per_mode": opts.orders_per_mode,
+        "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(opts.remove_harmonics),
+        "differenced_above_hz": None if opts.differenced_above_hz is None else float(opts.differenced_above_hz),
+    }  # fmt: skip
+    out.attrs.update({
+        "title": f"modes identified from {Path(p.source).name}",
+        "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
+        "command": command,
+        "settings": json.dumps(settings),
+        "harmonics": json.dumps(m.harmonics),
+        "undetermined_poles": json.dumps(m.undetermined),
+        "samples_method": (f"delete-d block jackknife (d = {m.n_deleted} of {n_blocks} blocks, {samples} samples) "
+                           "centred on the full-record estimate"
+                           + {"none": "", "shapes": ", the shapes plus the standard error of their mean over the "
+                                                    "mode's model orders",
+                              "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
+                                     "standard error of their mean over them"}[order_spread]
+                           + (f"; the shapes from {m.n_samples} random halves of the blocks, each pole sample "
+                              f"used {m.repeats} times (scaled to keep its standard error)" if m.repeats > 1 else "")
+                           + (f"; shapes read at {m.shape_block_rows} block rows" if m.shape_block_rows > i else "")
+                           + (f"; modes above {opts.differenced_above_hz:g} Hz read from the record differenced "
+                              f"{DIFFERENCES} times" if m.differences.any() else "")
+                           + ": sample std / sqrt(J) is the standard error"),
+        "signals": p.source,
+    })  # fmt: skip
+    for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
+        if key in p.rec.attrs:
+            out.attrs[f"signals_{key}" if key == "seed" else key] = p.rec.attrs[key]
+    return out
 
 
 def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray) -> None:

@@ -15,7 +15,7 @@ the noise; :func:`score` counts what an extraction found, missed and made up.
 A mode is *visible* when, at its frequency, its own response's spectral
 density on some channel stands :data:`VISIBLE_DB` above the sensor noise's
 (and it lies below the band an extraction reads by default,
-:data:`twin.extract.core.DEFAULT_FMAX_FRACTION` of the sampling rate): below that no method can be asked to find it.
+:data:`twin.extract.steps.DEFAULT_FMAX_FRACTION` of the sampling rate): below that no method can be asked to find it.
 
 Examples
 --------
@@ -37,7 +37,7 @@ import scipy.signal as sg
 import xarray as xr
 
 from twin import __version__
-from twin.extract.core import DEFAULT_FMAX_FRACTION
+from twin.extract.steps import DEFAULT_FMAX_FRACTION
 from twin.extract.quantities import derivative_orders
 from twin.extract.result import attainable_frequency_se
 from twin.modes.shapes import mac
