@@ -100,11 +100,12 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     fit = tree["constant_data"].to_dataset()
     names = [str(n) for n in fit["parameter"].values]
     at_bound = tree.attrs["at_bound"].split(", ")
+    units = json.loads(tree.attrs["units"])  # the per-mode FSI's too, which the fit added to the model
     print(f"Laplace update of {len(names)} parameters: chi2 {tree.attrs['chi2_before']:.1f} -> {tree.attrs['chi2_after']:.1f}")
     print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
     for k, n in enumerate(names):
         bound = " (on its physical bound)" if n in at_bound else ""
-        print(f"{n:<22} {float(fit['map'][k]):>11.4g} {float(fit['std'][k]):>10.3g} {model.parameter(n).unit:<8}{bound}")
+        print(f"{n:<22} {float(fit['map'][k]):>11.4g} {float(fit['std'][k]):>10.3g} {units[n]:<8}{bound}")
     print(f"wrote {args.output}")
     return 0
 

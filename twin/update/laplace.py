@@ -514,7 +514,8 @@ def laplace_file(post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: i
     attrs = {"title": f"Laplace posterior of {model.name}", "command": command, "model": model.name,
              "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
              "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"],
-             "at_bound": post.attrs["at_bound"]}  # fmt: skip
+             "at_bound": post.attrs["at_bound"],
+             "units": json.dumps({str(n): str(u) for n, u in zip(post["parameter"].values, post["unit"].values)})}  # fmt: skip
     return laplace_tree(post, modes, attrs, draws=draws, seed=seed)
 
 
