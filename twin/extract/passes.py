@@ -17,21 +17,10 @@ runs one over the record differenced twice (:func:`differenced`) and takes
 every mode above that frequency from it, pole, shape and samples
 (:func:`modes_from_differenced`).
 
-Why it is there, and why not the default. On the hydro unit's 20 min FMU
-records at 256 Hz the first pass has 107 block rows, 0.42 s, under half a
-period of the 1.09 Hz mode, whose whirl partner is at 2.9 Hz. With such lags
-the sixteen bearing coefficients updated from jackknife samples alone came
-out with the lower guide bearing's direct damping 3-4 posterior stds low on
-every record; the shapes' spread over the model orders covers that bias, at
-the price of bearing intervals about twice too wide. (That bias came from the
-first lags, not from the lags' length: the Hankel matrix now starts after
-them, :func:`first_lag_for`.) Longer lags for every
-quantity traded that bias for others (the pull's error 1.2% -> 2.8%). Reading
-only the shapes at longer lags (twenty unseen seeds) biased the
-upper guide bearing's stiffnesses when every mode's shapes were read there
-(UGB.kxx 4% high, 65% covered), and with ``"auto"`` left the bearings as wide
-as in one pass while the pull fell from 95% to 85% covered
-(``docs/decisions/extraction-lags.md``).
+Why it is there and not the default: the first pass's lags can be short against the slowest modes'
+periods, and the shapes read there may carry a bias; but on the hydro unit's FMU records neither second
+pass beat the one pass over every parameter (the figures are in ``docs/decisions/extraction-lags.md`` and
+``docs/decisions/extraction-differenced.md``).
 """
 
 from __future__ import annotations

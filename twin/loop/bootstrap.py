@@ -1,82 +1,33 @@
 """The posterior's spread calibrated on records simulated at its estimate (a parametric bootstrap of the loop).
 
-A 20-min record errs in a way no resampling of its own blocks shows: on the
-twin's FMU records a hidden seal cross-coupling, read mostly from the 11.6 Hz
-mode, came out 1.3 times further from its truth than its posterior std
-claimed (82.7% of 220 records covered by the 90% interval; with 60-min
-records 90%), while the bearings' intervals were a little wide
-(``docs/decisions/loop-calibration.md``). The error is SSI's on a short record, and the twin has what a
-statistic of one record lacks: the simulator that made it.
+A record errs in a way no resampling of its own blocks shows (SSI's error on a short record), and the twin
+has what a statistic of one record lacks: the simulator that made it. So, after an update, the model at the
+posterior's estimate is simulated ``records`` times through its FMU (fresh seeds, the measured record's
+length and sampling rate), each record is extracted with the measured modes' settings, and the update's own
+density (:func:`twin.update.samplers.hmc.marginal_setup`: the same parameters, priors and options) is fitted
+to it: its mode ``θ_r`` and Laplace std ``s_r``. The records' errors ``θ_r - θ̂`` are what the measured
+record's error would be if the estimate were the truth, so their RMS over the posterior's own std ``σ``,
+``c = sqrt(mean_r (θ_r - θ̂)²) / σ``, is the ratio of the error the posterior should claim to the one it
+claims. ``c²`` comes from ``R`` records, so the measured record's error is predicted by Student's t with
+``R`` degrees of freedom and the factor is ``c · t_R / z`` at the 90% interval
+(:func:`~twin.loop.pooling.predictive_widening`). The draws of every parameter the data determine are
+stretched about their mean by it (:func:`twin.update.posterior.stretch`), narrowed as well as widened;
+parameters the data do not determine keep their draws.
 
-So, after an update, the model at the posterior's estimate is simulated
-``records`` times through its FMU (fresh seeds, the measured record's length
-and sampling rate), each record is extracted with the measured modes'
-settings, and the update's own density (:func:`twin.update.samplers.hmc.marginal_setup`,
-the same parameters, priors and options) is fitted to it: its mode
-``θ_r`` and Laplace std ``s_r`` (the Gauss-Newton precision there). The
-records' errors ``θ_r - θ̂`` (``θ̂`` the estimate simulated) are what the
-measured record's error would be if the estimate were the truth, so their
-RMS over the posterior's own std ``σ`` (its draws' std),
-``c = sqrt(mean_r (θ_r - θ̂)²) / σ`` over the records whose fit found a
-mode, is the ratio of the error the posterior should claim to the one it
-claims. Since ``c²`` comes from ``R`` records (to about ``sqrt(2 / R)``),
-the error of the measured record is predicted by Student's t with ``R``
-degrees of freedom, and the factor is ``c · t_R / z`` at the 90% interval
-(1.084 for 12 records, :func:`~twin.loop.pooling.predictive_widening`). The draws of every
-parameter the data determine are stretched about their mean by it
-(:func:`twin.update.posterior.stretch`), narrowed as well as widened.
-Parameters the data do not determine keep their (prior-bound) draws.
+Twelve records give each parameter its own ``c`` only to about 20%, more than the parameters differ, so each
+``c`` is first shrunk towards the determined parameters' pooled value as far as their spread is the records'
+noise (:func:`~twin.loop.pooling.pooled_rms`, empirical Bayes on ``log c²``); parameters that really differ
+keep their own. The RMS of each record's error in its own std, ``z_r = (θ_r - θ̂) / s_r``, is kept as the
+diagnostic ``rms_z``: it answers for the measured record only where the records' ``s_r`` are its ``σ``.
 
-With many parameters, twelve records give each its own ``c`` to about 20%,
-more than the parameters differ: on twenty records of the 16 bearings
-(``c`` from ``rms_z`` below) the per-parameter factors left 84.6% of 240 determined values
-covered, and which parameter's factor came out high did not predict which
-parameter's error was large. So each ``c`` is first shrunk towards the
-determined parameters' pooled value, as far as their spread is the
-records' noise (:func:`~twin.loop.pooling.pooled_rms`, empirical Bayes on ``log c²``): the same
-records then covered 90.0%. Parameters that really differ (the per-mode
-added masses, whose ``c`` span a factor of ten) keep their own.
+A simulated record's modes are numbered as the measured ones (:func:`simulated_reference`,
+:func:`matched_modes`). A parameter seen on too few records (:data:`~twin.loop.pooling.MIN_RECORDS`) is
+seen on more: batches of ``R`` further records, up to :data:`~twin.defaults.MAX_BATCHES` in all.
 
-On FMU records, 12 records each: per bearing
-coefficient the RMS of ``rms_z`` over ten records matched the RMS of the
-posterior's real z (0.54-1.23) within about 0.15, and over all 120 values
-0.83 against 0.87; for a hidden seal 1.31 against 1.27. Dividing by the
-noisy ``c`` alone left an RMS z of 1.11-1.15, about ``sqrt(R / (R - 2))``:
-the t widening is what that noise asks.
-
-``c`` is not the RMS of each record's error in its own Laplace std,
-``z_r = (θ_r - θ̂) / s_r`` (kept as the diagnostic ``rms_z``). That asks how far a
-record's std understates that record's error, and it answers for the
-measured record only where the records' ``s_r`` are its ``σ``. They are not
-where a mode is seen less well in records simulated at the estimate than in
-the measured one: on per-mode FSI records the 17.1 Hz mode's
-added mass had a median ``rms_z`` of 1.46, the records' RMS error over the
-measured std 2.14, and the measured posteriors' RMS z was 1.63. Offline on
-those twenty records (the benchmark's rows), the determined per-mode added
-masses covered 86.6% calibrated with ``rms_z`` and 93.0% with the records'
-errors over the measured std (pooled as below); the added damping 93.0%
-and 94.3%.
-
-A simulated record's modes are numbered as the measured ones by frequency:
-each measured mode is the simulated system's mode nearest it
-(:func:`simulated_reference`, which says why not the measured frequency
-itself), and a record's mode within :data:`MATCH_TOLERANCE` of that mode's
-frequency takes its number.
-
-A mode the sensors hardly see may come out of few simulated records, and a
-parameter seen on fewer than :data:`~twin.loop.pooling.MIN_RECORDS` has no factor: its draws
-would stay as the sampler left them. On per-mode FSI record 10307 the
-17.1 Hz mode, its added mass estimated at twice the truth's, came out of 1
-of 6 records simulated at the estimate, of 4 of 6 with the true added mass
-and of 3 of 6 simulated from the truth: the synthesis's mode is harder to
-see with more water on it. So a determined parameter seen on at least one
-record but too few is seen on more: batches of ``R`` further records, up to
-:data:`~twin.defaults.MAX_BATCHES` in all (a parameter seen on none asks for none).
-
-A record and its extraction take about 12 s on one core, so this costs
-minutes per update; :meth:`twin.loop.twin.Twin.update` does it by default
-for the sampler's update of extracted modes (:data:`~twin.defaults.DEFAULT_RECORDS`,
-:func:`records_for`), as do ``twin loop``, ``twin demo`` and ``twin sweep``.
+A record and its extraction take about 12 s on one core, so this costs minutes per update;
+:meth:`twin.loop.twin.Twin.update` does it by default for the sampler's update of extracted modes
+(:data:`~twin.defaults.DEFAULT_RECORDS`, :func:`records_for`), as do ``twin loop``, ``twin demo`` and
+``twin sweep``. Why, and what it was measured to do, is ``docs/decisions/loop-calibration.md``.
 """
 
 from __future__ import annotations

@@ -15,9 +15,9 @@
    effects already chosen and with those the model has, and adds the one of
    the largest log Bayes factor if it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
    odds above 20:1 on the Kass-Raftery scale). A model that agrees with the
-   data gets no effect, however well one fits the noise: with nothing hidden,
-   one of seven candidates reached ln B = 3.4 on one of the FMU records by
-   taking up a 3.6-sigma scatter. After each addition, an effect
+   data gets no effect, however well one fits the noise (a candidate can
+   reach a strong ln B on one record by taking up a few-sigma scatter of one
+   mode). After each addition, an effect
    chosen earlier that the others now make unnecessary (its own ``ln B``
    below the threshold) is dropped. So two effects at once are named
    together, and a first choice that only mimicked them is undone. We chose
