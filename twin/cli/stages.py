@@ -155,11 +155,8 @@ def _extract(args: argparse.Namespace) -> int:
                              remove_harmonics=args.remove_harmonics, blocks=args.blocks,
                              orders_per_mode=args.orders_per_mode or None,
                              differenced_above_hz=args.differenced_above, shape_samples=args.shape_samples)  # fmt: skip
-    if args.output is not None:
-        check_writable(args.output)
     ds = judge_targets(extract(args.signals, options, command=" ".join(sys.argv)), args.signals)
-    if args.output is not None:
-        write_modes(ds, args.output)
+    write_modes(ds, args.output)  # -o is required, and checked before the command ran (twin.cli._check_outputs)
     removed, rejected = (", ".join(f"{f:.3f}" for f in fs) for fs in line_frequencies(ds.attrs["harmonics"]))
     chosen = json.loads(ds.attrs["settings"]).get("blocks_chosen")
     if chosen:

@@ -28,8 +28,7 @@ from twin.extract.options import ExtractOptions
 from twin.extract.orders import OUTLIER_MADS
 from twin.extract.passes import DIFFERENCES
 from twin.extract.result import extracted_modes
-from twin.extract.steps import (  # noqa: F401
-    DEFAULT_FMAX_FRACTION,
+from twin.extract.steps import (
     Modes,
     Prepared,
     differenced_pass,

@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.defaults import ORDERS_PER_MODE
+from twin.defaults import ORDERS_PER_MODE, SAMPLES
 from twin.errors import SignalError
 from twin.extract.samples import deleted_blocks
 from twin.extract.stabilisation import Criteria
@@ -101,8 +101,6 @@ class ExtractOptions:
     @property
     def n_blocks(self) -> int:
         """The blocks asked for (``blocks``, else ``samples``; the default's before the record chooses them)."""
-        from twin.defaults import SAMPLES
-
         return SAMPLES if self.chosen else int(self.blocks if self.blocks is not None else self.samples)  # type: ignore[arg-type]
 
     @property

@@ -51,6 +51,7 @@ from twin.extract.result import MAX_POLE_SE, left_out, pole_scatter
 from twin.extract.samples import jackknife, normalise_at, order_deviations, repeated
 from twin.extract.signals import Record, check_record
 from twin.extract.ssi import hankel_max_lag
+from twin.netcdf import load_netcdf
 
 log = logging.getLogger(__name__)
 
@@ -128,8 +129,6 @@ class Modes:
 
 def open_signals(signals: xr.Dataset | str | object) -> tuple[xr.Dataset, str]:
     """The signals Dataset and a name for it in messages (the file's path, or the Dataset's title)."""
-    from twin.netcdf import load_netcdf
-
     if isinstance(signals, xr.Dataset):
         return signals, str(signals.attrs.get("title", "signals"))
     return load_netcdf(signals, "signals", SignalError), str(signals)

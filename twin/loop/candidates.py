@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from twin.errors import ModelError
-from twin.fem.effects import effect_classes, effect_label, holds, library_effects, local_changes
+from twin.fem.effects import effect_classes, effect_fields, effect_label, holds, library_effects, local_changes
 from twin.fem.model import RotorModel
 
 
@@ -73,7 +73,7 @@ class Candidate:
 
     def with_values(self, values: Sequence[float]):
         """The effect with its number fields (in their order: its parameters' order) set to ``values``."""
-        numbers = [f.name for f in dataclasses.fields(self.effect) if isinstance(getattr(self.effect, f.name), float)]
+        numbers = [name for name, kind in effect_fields(type(self.effect)).items() if kind is float]
         return dataclasses.replace(self.effect, **{k: float(v) for k, v in zip(numbers, np.ravel(values))})
 
 
@@ -105,7 +105,7 @@ def candidates(model: RotorModel, *, present: bool = False, per_mode: bool = Tru
         label = effect_label(e)
         if e.per_mode and not per_mode:
             continue
-        known = label in have or any(holds(p, label) for p in have) or (e.per_mode and model.per_mode_effect)
+        known = label in have or any(holds(p, label) for p in have) or (e.per_mode and model.per_mode_effect is not None)
         if known and not present:
             continue
         out.append(Candidate(label, e))

@@ -119,17 +119,23 @@ class Watch:
     followers: list[explain.Follower] = field(init=False, default_factory=list)
     alarms: list[Alarm] = field(init=False, default_factory=list)
     reading: Reading | None = field(init=False, default=None)
+    #: The first record of the chart's current run: after the baseline, then after each alarm.
+    start: int = field(init=False, default=0)
 
     def __post_init__(self) -> None:
         self.statistic = np.full(len(self.series.records), np.nan)
         self.current = self.series.residual.copy()
         drift = self.series.drift
         self._smooth = detect.MEWMA(self.chart.watched, uncertain=self.chart.laws.covariance if drift.shape[2] else None)
-        self._m = len(self.tracked.poles)
+
+    @property
+    def m(self) -> int:
+        """The number of tracked modes (pole parts: real ``[:m]``, imaginary ``[m:]``)."""
+        return len(self.tracked.poles)
 
     def run(self, start: int) -> Watch:
         """Every record from ``start`` (the first after the baseline) on."""
-        self._start = start
+        self.start = start
         for t in range(start, len(self.series.records)):
             self.step(t)
         return self
@@ -139,7 +145,7 @@ class Watch:
         followers see them (the real parts NaN unless :data:`DIAGNOSE_WITH_DAMPING`)."""
         obs = self.series.y[t] - self.chart.laws.offsets - self.chart.baseline.center
         if not DIAGNOSE_WITH_DAMPING:
-            obs[: self._m] = np.nan
+            obs[: self.m] = np.nan
         return obs
 
     def diagnosis(self, residuals: np.ndarray, se: np.ndarray) -> explain.Verdict:
@@ -147,12 +153,12 @@ class Watch:
         :data:`DIAGNOSE_WITH_DAMPING`)."""
         mean, pooled_cov = detect.pooled(residuals, se, self.chart.baseline)
         if not DIAGNOSE_WITH_DAMPING:
-            mean[: self._m] = np.nan
+            mean[: self.m] = np.nan
         return explain.diagnose(mean, pooled_cov, self.candidates)
 
     def step(self, t: int) -> None:
         """One record: the followers updated, a reading weighed again, the chart, and an alarm if it rises."""
-        s, m, start = self.series, self._m, self._start
+        s, m = self.series, self.m
         point, cov = s.records[t].point, detect.record_covariance(s.sig[t], self.chart.baseline)
         obs = self.observation(t)
         for f in self.followers:
@@ -173,15 +179,15 @@ class Watch:
         g = np.nan_to_num(s.drift[t] / (watched.scale * s.sig[t, m:])[:, None])  # 0 where the mode was not found
         self.statistic[t] = self._smooth.add(z, g)
         if self.statistic[t] > self.chart.limit:
-            self._alarm(t, start)
+            self._alarm(t)
             self._smooth.reset()
-            self._start = t + 1
+            self.start = t + 1
         for f in self.followers:
             f.keep(t)
 
-    def _alarm(self, t: int, start: int) -> None:
-        """The alarm at record ``t`` of a chart started at record ``start``: the change named and followed."""
-        s, m = self.series, self._m
+    def _alarm(self, t: int) -> None:
+        """The alarm at record ``t`` (the chart's run started at :attr:`start`): the change named and followed."""
+        s, m, start = self.series, self.m, self.start
         if self.reading is not None:
             self._settle(t, force=True)
         k = start + detect.onset(detect.standardised(self.current[start:t + 1, m:], s.sig[start:t + 1, m:],
