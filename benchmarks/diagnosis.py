@@ -27,7 +27,11 @@ from twin.modes.measured import measured_modes
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT = [k for k in REFERENCE_EFFECTS if k != "fsi_per_mode"] + [
-    "magnetic_pull@1.5+seal_cross_coupling@0.8", "shaft_stiffness:18@0.5", "disk_mass:generator@1.1", "none"]
+    "magnetic_pull@1.5+seal_cross_coupling@0.8",
+    "shaft_stiffness:18@0.5",
+    "disk_mass:generator@1.1",
+    "none",
+]
 
 
 def main() -> None:
@@ -38,14 +42,18 @@ def main() -> None:
     parser.add_argument("--hidden", default=",".join(DEFAULT))
     args = parser.parse_args()
     model = load_model(ROOT / "models" / "hydro_unit.toml")
-    print(f"{'hidden':<44} {'seed':>4} {'verdict':<17} {'named':<38} {'E before':>9} {'E after':>8} {'fall':>6} "
-          f"{'time':>6}  parameter errors / place")  # fmt: skip
+    print(
+        f"{'hidden':<44} {'seed':>4} {'verdict':<17} {'named':<38} {'E before':>9} {'E after':>8} {'fall':>6} "
+        f"{'time':>6}  parameter errors / place"
+    )
     for spec in args.hidden.split(","):
         scenario = parse_scenario(spec)
         truth = scenario.truth_values(model)
         for seed in range(3, 3 + args.seeds):
             effects = scenario.truth().effects or (MagneticPull(0.0),)
-            data = synthesize_modes(model, Truth(effects), n_modes=13, samples=100, seed=seed, pole_variance=(0.01, 0.01))
+            data = synthesize_modes(
+                model, Truth(effects), n_modes=13, samples=100, seed=seed, pole_variance=(0.01, 0.01)
+            )
             meas = measured_modes(data)
             t0 = time.perf_counter()
             d = diagnose(model, meas)
@@ -53,13 +61,20 @@ def main() -> None:
             f = d.final
             e0 = d.ranking[0].error_before(meas)
             e1 = f.error_after(meas) if (f is not None and d.missing) else e0
-            detail = ", ".join(f"{n} {100 * (v / truth[n] - 1):+.1f}%" for n, v in zip(f.names, f.values)
-                               if truth.get(n)) if (f is not None and d.missing) else ""  # fmt: skip
+            detail = (
+                ", ".join(f"{n} {100 * (v / truth[n] - 1):+.1f}%" for n, v in zip(f.names, f.values) if truth.get(n))
+                if (f is not None and d.missing)
+                else ""
+            )
             if d.locations and not d.missing:
                 detail = d.locations[0].text()
-            right = d.verdict == scenario.expected().split(":")[0].split(",")[0] and set(d.missing) == set(scenario.labels)
-            print(f"{spec:<44} {seed:>4} {d.verdict:<17} {'+'.join(d.missing) or '-':<38} {100 * e0:>8.3f}% "
-                  f"{100 * e1:>7.3f}% {100 * (1 - e1 / e0):>5.1f}% {elapsed:>5.1f}s  {'' if right else 'WRONG '}{detail}")  # fmt: skip
+            right = d.verdict == scenario.expected().split(":")[0].split(",")[0] and set(d.missing) == set(
+                scenario.labels
+            )
+            print(
+                f"{spec:<44} {seed:>4} {d.verdict:<17} {'+'.join(d.missing) or '-':<38} {100 * e0:>8.3f}% "
+                f"{100 * e1:>7.3f}% {100 * (1 - e1 / e0):>5.1f}% {elapsed:>5.1f}s  {'' if right else 'WRONG '}{detail}"
+            )
 
 
 if __name__ == "__main__":

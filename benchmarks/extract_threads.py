@@ -39,8 +39,7 @@ def main() -> None:
 
     model = load_model(shipped_model("hydro_unit"))
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
-    options = dict(fmax_hz=60.0, samples=SAMPLES, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * SAMPLES,
-                   progress=False)  # fmt: skip
+    options = dict(fmax_hz=60.0, samples=SAMPLES, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * SAMPLES, progress=False)
     runs = {"one BLAS thread (extract)": extract, "BLAS's own threads": extract.__wrapped__}
     best, out = {k: np.inf for k in runs}, {}
     for _ in range(args.repeat):
@@ -52,18 +51,25 @@ def main() -> None:
             best[name] = min(best[name], time.perf_counter() - t0)
     one, many = out.values()
     threads = blas_threads()
-    lines = ["# Extraction: one BLAS thread against the machine's", "",
-             f"Command: `python benchmarks/extract_threads.py --seed {args.seed} --repeat {args.repeat}`; one 20-min "
-             f"record at 256 Hz, fmax 60 Hz, {SAMPLES} samples and {SHAPE_SAMPLES_PER_SAMPLE * SAMPLES} shape samples; best of "
-             f"{args.repeat}; BLAS's own threads here: {threads}.", "",
-             "| setting | extract [s] |", "| --- | --- |"]  # fmt: skip
+    lines = [
+        "# Extraction: one BLAS thread against the machine's",
+        "",
+        f"Command: `python benchmarks/extract_threads.py --seed {args.seed} --repeat {args.repeat}`; one 20-min "
+        f"record at 256 Hz, fmax 60 Hz, {SAMPLES} samples and {SHAPE_SAMPLES_PER_SAMPLE * SAMPLES} shape samples; best of "
+        f"{args.repeat}; BLAS's own threads here: {threads}.",
+        "",
+        "| setting | extract [s] |",
+        "| --- | --- |",
+    ]
     lines += [f"| {name} | {t:.1f} |" for name, t in best.items()]
     t_one, t_many = best.values()
     lines += ["", f"Threaded / one thread: {t_many / t_one:.2f}."]
     if one.sizes["mode"] == many.sizes["mode"]:
-        lines.append(f"Same {one.sizes['mode']} modes; largest relative difference of the frequencies "
-                     f"{np.max(np.abs(one.frequency.values / many.frequency.values - 1)):.1e}, of the damping ratios "
-                     f"{np.max(np.abs(one.damping_ratio.values / many.damping_ratio.values - 1)):.1e}.")  # fmt: skip
+        lines.append(
+            f"Same {one.sizes['mode']} modes; largest relative difference of the frequencies "
+            f"{np.max(np.abs(one.frequency.values / many.frequency.values - 1)):.1e}, of the damping ratios "
+            f"{np.max(np.abs(one.damping_ratio.values / many.damping_ratio.values - 1)):.1e}."
+        )
     else:
         lines.append(f"Different modes found: {one.sizes['mode']} with one thread, {many.sizes['mode']} threaded.")
     RESULTS.write_text("\n".join(lines) + "\n")

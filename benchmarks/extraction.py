@@ -65,8 +65,15 @@ def record(cache: Path, seed: int, duration_s: float = 3600.0) -> Path:
     name = "1h" if duration_s == 3600.0 else f"{duration_s:g}s"
     path = cache / f"hydro_paper_{name}_seed{seed}.nc"
     if not path.exists():
-        simulate(load_model(MODEL), duration_s=duration_s, fs_hz=256.0, seed=seed, truth=paper_truth(),
-                 output=path, progress=False)  # fmt: skip
+        simulate(
+            load_model(MODEL),
+            duration_s=duration_s,
+            fs_hz=256.0,
+            seed=seed,
+            truth=paper_truth(),
+            output=path,
+            progress=False,
+        )
     return path
 
 
@@ -97,14 +104,18 @@ def spurious(freq, shapes, lam_t, phi_t):
 
 def table(name, rows, seconds, extra=""):
     print(f"\n{name}: {seconds:.1f} s {extra}")
-    print(f"{'truth f [Hz]':>12} {'truth zeta %':>12} | {'f [Hz]':>9} {'f err %':>8} {'zeta %':>7} {'zeta err %':>10} {'MAC':>7}")
+    print(
+        f"{'truth f [Hz]':>12} {'truth zeta %':>12} | {'f [Hz]':>9} {'f err %':>8} {'zeta %':>7} {'zeta err %':>10} {'MAC':>7}"
+    )
     for ft, zt, got in rows:
         if got is None:
             print(f"{ft:12.3f} {100 * zt:12.2f} | {'not found':>9}")
         else:
             f, z, m = got
-            print(f"{ft:12.3f} {100 * zt:12.2f} | {f:9.3f} {100 * (f / ft - 1):+8.3f} {100 * z:7.2f} "
-                  f"{100 * (z / zt - 1):+10.1f} {m:7.4f}")  # fmt: skip
+            print(
+                f"{ft:12.3f} {100 * zt:12.2f} | {f:9.3f} {100 * (f / ft - 1):+8.3f} {100 * z:7.2f} "
+                f"{100 * (z / zt - 1):+10.1f} {m:7.4f}"
+            )
 
 
 def run_twin(path, lam_t, phi_t):
@@ -115,10 +126,12 @@ def run_twin(path, lam_t, phi_t):
     dt = time.perf_counter() - t0
     rows = match(m.frequency.values, m.damping_ratio.values, m.sensor_shape.values, lam_t, phi_t)
     harmonics = json.loads(m.attrs["harmonics"])
-    extra = (f"({m.sizes['mode']} modes x {m.sizes['sample']} samples; harmonics rejected: "
-             f"{[round(h['frequency_hz'], 3) for h in harmonics]}; spurious: "
-             f"{spurious(m.frequency.values, m.sensor_shape.values, lam_t, phi_t)}; "
-             f"{len(caught)} warning(s))")  # fmt: skip
+    extra = (
+        f"({m.sizes['mode']} modes x {m.sizes['sample']} samples; harmonics rejected: "
+        f"{[round(h['frequency_hz'], 3) for h in harmonics]}; spurious: "
+        f"{spurious(m.frequency.values, m.sensor_shape.values, lam_t, phi_t)}; "
+        f"{len(caught)} warning(s))"
+    )
     return m, rows, dt, extra
 
 
@@ -164,10 +177,17 @@ def _record_estimates(seed, *, cache, duration_s, names, lam_t, phi_t, options):
 
 def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, workers=1, **options):
     """Mean jackknife standard error against the std over independent records, and the total against the RMS error."""
-    names = ("frequency", "damping_ratio", "frequency_se_jackknife", "damping_ratio_se_jackknife",
-             "frequency_se", "damping_ratio_se")  # fmt: skip
-    task = partial(_record_estimates, cache=cache, duration_s=duration_s, names=names, lam_t=lam_t, phi_t=phi_t,
-                   options=options)  # fmt: skip
+    names = (
+        "frequency",
+        "damping_ratio",
+        "frequency_se_jackknife",
+        "damping_ratio_se_jackknife",
+        "frequency_se",
+        "damping_ratio_se",
+    )
+    task = partial(
+        _record_estimates, cache=cache, duration_s=duration_s, names=names, lam_t=lam_t, phi_t=phi_t, options=options
+    )
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             per_record = list(pool.map(task, range(1, seeds + 1)))
@@ -175,14 +195,18 @@ def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, workers=1, **options):
         per_record = [task(s) for s in range(1, seeds + 1)]
     f, z, jf, jz, tf, tz = (np.array([r[n] for r in per_record]) for n in names)
     obs = observability(load_model(MODEL), Excitation(duration_s=duration_s), truth=paper_truth())
-    print(f"\nspread over {seeds} independent {duration_s:g} s records (seeds 1..{seeds}, {options}). Statistical "
-          "part: the jackknife "
-          "standard error (SE) / the Monte Carlo std, and the Monte Carlo std / the Cramer-Rao bound (CRB, "
-          "twin observe). Total: the samples' standard error (jackknife and model-order spread) / the RMS error "
-          "against the truth (which includes SSI's bias)")  # fmt: skip
-    print(f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f':>7} {'ratio':>6} {'MC/CRB':>6} "
-          f"{'bias/MC':>7} {'tot/RMSE':>8} | {'MC std zeta %':>13} {'SE zeta':>7} {'ratio':>6} {'MC/CRB':>6} "
-          f"{'bias/MC':>7} {'tot/RMSE':>8}")  # fmt: skip
+    print(
+        f"\nspread over {seeds} independent {duration_s:g} s records (seeds 1..{seeds}, {options}). Statistical "
+        "part: the jackknife "
+        "standard error (SE) / the Monte Carlo std, and the Monte Carlo std / the Cramer-Rao bound (CRB, "
+        "twin observe). Total: the samples' standard error (jackknife and model-order spread) / the RMS error "
+        "against the truth (which includes SSI's bias)"
+    )
+    print(
+        f"{'truth f [Hz]':>12} {'found':>5} | {'MC std f [mHz]':>14} {'SE f':>7} {'ratio':>6} {'MC/CRB':>6} "
+        f"{'bias/MC':>7} {'tot/RMSE':>8} | {'MC std zeta %':>13} {'SE zeta':>7} {'ratio':>6} {'MC/CRB':>6} "
+        f"{'bias/MC':>7} {'tot/RMSE':>8}"
+    )
     ratios = []
     for j in range(len(lam_t)):
         ok = np.isfinite(f[:, j])
@@ -191,19 +215,25 @@ def spread(cache, seeds, lam_t, phi_t, duration_s=3600.0, workers=1, **options):
         ft, zt = lam_t[j].imag / (2 * np.pi), -lam_t[j].real / abs(lam_t[j])
         o = int(np.argmin(np.abs(obs.frequency.values - ft)))
         line = f"{ft:12.3f} {ok.sum():5d} |"
-        for est, se, tot, truth, crb, unit in ((f, jf, tf, ft, float(obs.frequency_std[o]), 1e3),
-                                               (z, jz, tz, zt, float(obs.damping_ratio_std[o]), 100.0)):  # fmt: skip
+        for est, se, tot, truth, crb, unit in (
+            (f, jf, tf, ft, float(obs.frequency_std[o]), 1e3),
+            (z, jz, tz, zt, float(obs.damping_ratio_std[o]), 100.0),
+        ):
             x = est[ok, j]
             mc, bias, rmse = np.std(x, ddof=1), np.mean(x) - truth, np.sqrt(np.mean((x - truth) ** 2))
             ratios.append(np.mean(se[ok, j]) / mc)
-            line += (f" {unit * mc:{14 if unit == 1e3 else 13}.4f} {unit * np.mean(se[ok, j]):7.4f} "
-                     f"{ratios[-1]:6.2f} {mc / crb:6.2f} {bias / mc:7.2f} "
-                     f"{np.sqrt(np.mean(tot[ok, j] ** 2)) / rmse:8.2f} |")  # fmt: skip
+            line += (
+                f" {unit * mc:{14 if unit == 1e3 else 13}.4f} {unit * np.mean(se[ok, j]):7.4f} "
+                f"{ratios[-1]:6.2f} {mc / crb:6.2f} {bias / mc:7.2f} "
+                f"{np.sqrt(np.mean(tot[ok, j] ** 2)) / rmse:8.2f} |"
+            )
         print(line.rstrip(" |"))
     within = sum(abs(r - 1) <= SPREAD_TOLERANCE for r in ratios)
-    print(f"jackknife SE / Monte Carlo std within +-{SPREAD_TOLERANCE:.0%}: {within} of {len(ratios)} "
-          f"(frequency and damping ratio of the modes found on 3 or more records; {seeds} records know a std "
-          f"to about +-{1 / np.sqrt(2 * (seeds - 1)):.0%})")
+    print(
+        f"jackknife SE / Monte Carlo std within +-{SPREAD_TOLERANCE:.0%}: {within} of {len(ratios)} "
+        f"(frequency and damping ratio of the modes found on 3 or more records; {seeds} records know a std "
+        f"to about +-{1 / np.sqrt(2 * (seeds - 1)):.0%})"
+    )
 
 
 def single_record(cache: Path, lam_t, phi_t) -> None:
@@ -221,11 +251,17 @@ def single_record(cache: Path, lam_t, phi_t) -> None:
         import logging
 
         logging.getLogger("pyoma2").setLevel(logging.WARNING)
-        for preset, unc, complex_ok in (("Magalhaes", False, False), ("Magalhaes", False, True),
-                                        ("Magalhaes", True, True), ("Reynders", False, True)):  # fmt: skip
-            name = (f"pyOMA2 {version('pyOMA-2')} SSI-cov br=64 orders<=100, clustering '{preset}', "
-                    f"{'complex-mode filters off' if complex_ok else 'default MPC/MPD filters'}"
-                    f"{', bootstrap uncertainty nb=100' if unc else ''}")  # fmt: skip
+        for preset, unc, complex_ok in (
+            ("Magalhaes", False, False),
+            ("Magalhaes", False, True),
+            ("Magalhaes", True, True),
+            ("Reynders", False, True),
+        ):
+            name = (
+                f"pyOMA2 {version('pyOMA-2')} SSI-cov br=64 orders<=100, clustering '{preset}', "
+                f"{'complex-mode filters off' if complex_ok else 'default MPC/MPD filters'}"
+                f"{', bootstrap uncertainty nb=100' if unc else ''}"
+            )
             try:
                 rows, dt, extra = run_pyoma(path, lam_t, phi_t, preset, unc, complex_ok)
             except Exception as exc:  # report a failure of the other tool, do not hide it
@@ -238,13 +274,24 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=0, help="records for the spread ratio (0: skip)")
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "twin" / "bench")
-    ap.add_argument("--duration", type=float, default=3600.0,
-                    help="record length [s] of the spread's records (1200 with --samples 15: the loop's records)")
-    ap.add_argument("--fmax", type=float, default=None,
-                    help="fmax [Hz] of the spread's extractions (default extract's, 102.4 Hz; the loop uses 60)")
+    ap.add_argument(
+        "--duration",
+        type=float,
+        default=3600.0,
+        help="record length [s] of the spread's records (1200 with --samples 15: the loop's records)",
+    )
+    ap.add_argument(
+        "--fmax",
+        type=float,
+        default=None,
+        help="fmax [Hz] of the spread's extractions (default extract's, 102.4 Hz; the loop uses 60)",
+    )
     ap.add_argument("--workers", type=int, default=1, help="records extracted at once for the spread (processes)")
-    ap.add_argument("--spread-only", action="store_true",
-                    help="only the spread over --seeds records (skip the single-record tables)")
+    ap.add_argument(
+        "--spread-only",
+        action="store_true",
+        help="only the spread over --seeds records (skip the single-record tables)",
+    )
     add_extraction_options(ap)
     args = ap.parse_args()
     if args.spread_only and not args.seeds:

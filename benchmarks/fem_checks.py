@@ -36,8 +36,10 @@ def main() -> None:
         t0 = time.perf_counter()
         twin.modal(twin.load_model(path))
         times.append(time.perf_counter() - t0)
-    print(f"hydro unit: import {import_s:.2f} s; load + assemble + modal (116 DOF, all modes): "
-          f"median {1e3 * np.median(times):.0f} ms, max {1e3 * max(times):.0f} ms over 20 runs")
+    print(
+        f"hydro unit: import {import_s:.2f} s; load + assemble + modal (116 DOF, all modes): "
+        f"median {1e3 * np.median(times):.0f} ms, max {1e3 * max(times):.0f} ms over 20 runs"
+    )
 
 
 if __name__ == "__main__":

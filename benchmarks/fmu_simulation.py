@@ -71,8 +71,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=3600.0, help="simulated time [s] (default 3600)")
     parser.add_argument("--out", type=Path, default=None, help="also write the table to this Markdown file")
-    parser.add_argument("--baseline-fmu", type=Path, default=None,
-                        help="an FMU of the full hydro unit from another twin version, timed in the same run")
+    parser.add_argument(
+        "--baseline-fmu",
+        type=Path,
+        default=None,
+        help="an FMU of the full hydro unit from another twin version, timed in the same run",
+    )
     args = parser.parse_args()
     if args.baseline_fmu is not None and not args.baseline_fmu.is_file():
         parser.error(f"--baseline-fmu: no file {args.baseline_fmu}")
@@ -81,11 +85,14 @@ def main() -> None:
     model = twin.load_model(ROOT / "models" / "hydro_unit.toml")
     full = full_state_space(model)
     modal = truncated_state_space(full, 100.0)
-    lines = [f"{args.duration:g} s at {FS:g} Hz = {n} samples of 8 channels; turbulence {ASD:g} N/sqrt(Hz), "
-             f"unbalance {ME:g} kg m", "",
-             "| system | states | fmpy.simulate_fmu [s] | record_outputs [s] | numpy modal [s] | "
-             "fmpy / numpy | record / numpy | us per step (record) | max deviation / peak |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    lines = [
+        f"{args.duration:g} s at {FS:g} Hz = {n} samples of 8 channels; turbulence {ASD:g} N/sqrt(Hz), "
+        f"unbalance {ME:g} kg m",
+        "",
+        "| system | states | fmpy.simulate_fmu [s] | record_outputs [s] | numpy modal [s] | "
+        "fmpy / numpy | record / numpy | us per step (record) | max deviation / peak |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     with tempfile.TemporaryDirectory() as tmp:
         export_fmu(model, Path(tmp) / "warm.fmu", step_s=h)  # compiles (or finds) the cached runtime
         changed = model.with_values({"UGB.kxx": 7e8})
@@ -102,33 +109,43 @@ def main() -> None:
             y_ref, ref = numpy_modal(ss, n, h)
             ref_full = ref if ref_full is None else ref_full
             dev = np.abs(y - y_ref).max() / np.abs(y_ref).max()
-            lines.append(f"| {label} | {ss.n_states} | {general:.2f} | {recorded:.2f} | {ref:.2f} | "
-                         f"{general / ref:.2f} | {recorded / ref:.2f} | {1e6 * recorded / n:.1f} | {dev:.1e} |")  # fmt: skip
+            lines.append(
+                f"| {label} | {ss.n_states} | {general:.2f} | {recorded:.2f} | {ref:.2f} | "
+                f"{general / ref:.2f} | {recorded / ref:.2f} | {1e6 * recorded / n:.1f} | {dev:.1e} |"
+            )
         twin_s = {}
         for steady in (False, True):
             start = time.perf_counter()
             simulate(model, duration_s=args.duration, fs_hz=FS, seed=1, steady_start=steady, progress=False)
             twin_s[steady] = time.perf_counter() - start
-    lines += [""] + [f"twin simulate of the full FEM ({what}): {twin_s[steady]:.2f} s, "
-                     f"{twin_s[steady] / ref_full:.2f} x the numpy modal reference of the same run"
-                     for steady, what in ((False, "from rest, default warm-up"), (True, "steady start, no warm-up"))]
+    lines += [""] + [
+        f"twin simulate of the full FEM ({what}): {twin_s[steady]:.2f} s, "
+        f"{twin_s[steady] / ref_full:.2f} x the numpy modal reference of the same run"
+        for steady, what in ((False, "from rest, default warm-up"), (True, "steady start, no warm-up"))
+    ]
     if args.baseline_fmu is not None:
         lines.append("")
         n_warm = int(np.ceil(default_warmup_s(full) * FS))
         for what, samples in (("the record", n), (f"warm-up ({n_warm * h:.1f} s) and record", n_warm + n)):
             start = time.perf_counter()
-            fmpy.simulate_fmu(str(args.baseline_fmu), stop_time=(samples - 1) * h, step_size=h, output_interval=h,
-                              start_values=START)  # fmt: skip
+            fmpy.simulate_fmu(
+                str(args.baseline_fmu), stop_time=(samples - 1) * h, step_size=h, output_interval=h, start_values=START
+            )
             spent = time.perf_counter() - start
-            lines.append(f"baseline FMU {args.baseline_fmu.name}, {what} through fmpy.simulate_fmu: {spent:.2f} s, "
-                         f"{spent / ref_full:.2f} x the numpy modal reference of the same run")  # fmt: skip
+            lines.append(
+                f"baseline FMU {args.baseline_fmu.name}, {what} through fmpy.simulate_fmu: {spent:.2f} s, "
+                f"{spent / ref_full:.2f} x the numpy modal reference of the same run"
+            )
     lines += [
-              f"re-export of a changed model (runtime cached): {1e3 * export_s:.0f} ms, "
-              f"{export_s / build_s:.1f} x building its state space ({1e3 * build_s:.0f} ms)"]  # fmt: skip
+        f"re-export of a changed model (runtime cached): {1e3 * export_s:.0f} ms, "
+        f"{export_s / build_s:.1f} x building its state space ({1e3 * build_s:.0f} ms)"
+    ]
     text = "\n".join(lines)
     print(text)
     if args.out is not None:
-        command = "python benchmarks/fmu_simulation.py" + (f" --duration {args.duration:g}" if args.duration != 3600 else "")
+        command = "python benchmarks/fmu_simulation.py" + (
+            f" --duration {args.duration:g}" if args.duration != 3600 else ""
+        )
         if args.baseline_fmu is not None:
             command += f" --baseline-fmu {args.baseline_fmu.name}"
         args.out.write_text(f"# FMU simulation speed\n\nCommand: `{command}`\n\n{text}\n")

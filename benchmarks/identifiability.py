@@ -46,15 +46,26 @@ def main() -> None:
     for seed in (int(s) for s in args.seeds.split(",")):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TwinWarning)
-            post = update(unit, synthesize_modes(unit, samples=100, seed=seed), names, fsi=True, options={'draws': args.draws, 'chains': args.chains, 'seed': 2, 'progress': False})  # fmt: skip
+            post = update(
+                unit,
+                synthesize_modes(unit, samples=100, seed=seed),
+                names,
+                fsi=True,
+                options={"draws": args.draws, "chains": args.chains, "seed": 2, "progress": False},
+            )
         sampled = summary(post["posterior"].to_dataset())["std"].sel(parameter=ident.parameter)
         ratio = (sampled / ident["std"]).values
         r = ratio[determined]
         within = np.abs(np.log(r)) <= np.log(FACTOR)
         outside = [f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[determined][~within], r[~within])]
-        undetermined = ", ".join(f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[~determined], ratio[~determined]))
-        print(f"| {seed} | {int(within.sum())} of {len(r)} | {np.median(r):.2f} | {r.min():.2f}-{r.max():.2f} | "
-              f"{undetermined} | {', '.join(outside) or 'none'} |", flush=True)  # fmt: skip
+        undetermined = ", ".join(
+            f"{p} {x:.2f}" for p, x in zip(ident.parameter.values[~determined], ratio[~determined])
+        )
+        print(
+            f"| {seed} | {int(within.sum())} of {len(r)} | {np.median(r):.2f} | {r.min():.2f}-{r.max():.2f} | "
+            f"{undetermined} | {', '.join(outside) or 'none'} |",
+            flush=True,
+        )
     print(f"({time.perf_counter() - started:.0f} s)")
 
 

@@ -54,8 +54,17 @@ def perturbed(x: xr.DataArray, j: int | np.ndarray) -> xr.DataArray:
     return (x + (pick.drop_vars("sample", errors="ignore") - mean) / np.sqrt(J)).transpose(*x.dims)
 
 
-def correlation_factors(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool,
-                        eps_std: float, prior_mean: np.ndarray, prior_precision: np.ndarray) -> np.ndarray | None:  # fmt: skip
+def correlation_factors(
+    marg: Marginal,
+    model: RotorModel,
+    modes: xr.Dataset,
+    names: Sequence[str],
+    *,
+    fsi: bool,
+    eps_std: float,
+    prior_mean: np.ndarray,
+    prior_precision: np.ndarray,
+) -> np.ndarray | None:
     """Per parameter, the spread of the posterior mode with the modes' samples joint over that with them shuffled.
 
     ``marg`` is the marginal problem of ``modes`` itself (the perturbed data's take its shape covariance
@@ -66,17 +75,37 @@ def correlation_factors(marg: Marginal, model: RotorModel, modes: xr.Dataset, na
     centre, _ = posterior_mode(marg, prior_mean, prior_precision)
     spread = {}
     for pairing in ("joint", "shuffled"):
-        spread[pairing] = mode_spread(marg, model, modes, names, fsi=fsi, eps_std=eps_std, prior_mean=prior_mean,
-                                      prior_precision=prior_precision, pairing=pairing, centre=centre)  # fmt: skip
+        spread[pairing] = mode_spread(
+            marg,
+            model,
+            modes,
+            names,
+            fsi=fsi,
+            eps_std=eps_std,
+            prior_mean=prior_mean,
+            prior_precision=prior_precision,
+            pairing=pairing,
+            centre=centre,
+        )
         if spread[pairing] is None:
             return None
     joint, shuffled = spread["joint"], spread["shuffled"]
     return np.divide(joint, shuffled, out=np.ones_like(joint), where=shuffled > 0)
 
 
-def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool,
-                eps_std: float, prior_mean: np.ndarray, prior_precision: np.ndarray,
-                pairing: str = "joint", centre: np.ndarray | None = None) -> np.ndarray | None:  # fmt: skip
+def mode_spread(
+    marg: Marginal,
+    model: RotorModel,
+    modes: xr.Dataset,
+    names: Sequence[str],
+    *,
+    fsi: bool,
+    eps_std: float,
+    prior_mean: np.ndarray,
+    prior_precision: np.ndarray,
+    pairing: str = "joint",
+    centre: np.ndarray | None = None,
+) -> np.ndarray | None:
     """RMS move [SI] of each parameter's posterior mode over perturbations of the data by its samples.
 
     Each perturbation moves the data's mean by a sample's deviation over
@@ -101,9 +130,12 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
         data["pole"], data["shape"] = perturbed(modes["pole"], j), perturbed(modes["shape"], j)
         try:
             problem = build_problem(model, data, names, fsi=fsi, eps_std=eps_std, pole_model="marginal")
-            perturbed_marg = marginal_problem(problem, data["pole"].transpose("mode", "sample").values,
-                                              marg.shape_covariance,
-                                              order_cov=marg.order_cov)  # fmt: skip
+            perturbed_marg = marginal_problem(
+                problem,
+                data["pole"].transpose("mode", "sample").values,
+                marg.shape_covariance,
+                order_cov=marg.order_cov,
+            )
             if marg.weights is not None:  # the same combination of each mode's pole and shapes as the data's
                 perturbed_marg = intersected(perturbed_marg, marg.weights)
             theta, _ = posterior_mode(perturbed_marg, prior_mean, prior_precision, start=centre)
@@ -111,9 +143,10 @@ def mode_spread(marg: Marginal, model: RotorModel, modes: xr.Dataset, names: Seq
             continue
         moves.append((theta - centre) * scales)
     if len(moves) < MIN_PERTURBATIONS:
-        log.warning("the posterior's spread is not adjusted: the mode was found for %d of %d perturbations",
-                    len(moves), len(picks))  # fmt: skip
+        log.warning(
+            "the posterior's spread is not adjusted: the mode was found for %d of %d perturbations",
+            len(moves),
+            len(picks),
+        )
         return None
     return np.sqrt(np.mean(np.square(moves), axis=0))
-
-

@@ -36,8 +36,7 @@ FS_HZ, SNR_DB, FIRST_SEED = 20.0, 40.0, 100
 def z_scores(duration_s: float, zeta: float, blocks: tuple[int, ...], seed: int) -> dict:
     """Per number of blocks, the frequency and damping z-scores of the modes below 5.5 Hz of one record."""
     structure = shear_frame(5, damping_ratio=zeta)
-    ds = simulate_record(structure, duration_s=duration_s, fs_hz=FS_HZ, snr_db=SNR_DB, quantities="velocity",
-                         seed=seed)  # fmt: skip
+    ds = simulate_record(structure, duration_s=duration_s, fs_hz=FS_HZ, snr_db=SNR_DB, quantities="velocity", seed=seed)
     truth = truth_modes(structure, ds)
     out = {}
     for J in blocks:
@@ -61,8 +60,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     blocks = tuple(int(x) for x in args.blocks.split(","))
-    lines = ["| record | slowest time constant [s] | J | block [s] | modes | frequency RMS z | freq. beyond 2 "
-             "| damping RMS z | damp. beyond 2 |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| record | slowest time constant [s] | J | block [s] | modes | frequency RMS z | freq. beyond 2 "
+        "| damping RMS z | damp. beyond 2 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     with ProcessPoolExecutor(args.workers) as pool:
         for duration_s, zeta in RECORDS:
             jobs = [pool.submit(z_scores, duration_s, zeta, blocks, FIRST_SEED + s) for s in range(args.seeds)]
@@ -72,15 +74,19 @@ def main() -> None:
             for J in blocks:
                 zf = np.concatenate([r[J][0] for r in results])
                 zd = np.concatenate([r[J][1] for r in results])
-                row = (f"| shear frame 5, {100 * zeta:g}%, {duration_s:g} s | {slow:.0f} | {J} | {duration_s / J:.3g} "
-                       f"| {len(zf)} | {np.sqrt(np.mean(zf**2)):.2f} | {np.mean(np.abs(zf) > 2):.1%} "
-                       f"| {np.sqrt(np.mean(zd**2)):.2f} | {np.mean(np.abs(zd) > 2):.1%} |")  # fmt: skip
+                row = (
+                    f"| shear frame 5, {100 * zeta:g}%, {duration_s:g} s | {slow:.0f} | {J} | {duration_s / J:.3g} "
+                    f"| {len(zf)} | {np.sqrt(np.mean(zf**2)):.2f} | {np.mean(np.abs(zf) > 2):.1%} "
+                    f"| {np.sqrt(np.mean(zd**2)):.2f} | {np.mean(np.abs(zd) > 2):.1%} |"
+                )
                 print(row, flush=True)
                 lines.append(row)
-    text = ("# Jackknife standard errors against the blocks' length\n\n"
-            f"`python benchmarks/jackknife_blocks.py --seeds {args.seeds} --blocks {args.blocks}` (seeds "
-            f"{FIRST_SEED} to {FIRST_SEED + args.seeds - 1}; velocity, {SNR_DB:g} dB, {FS_HZ:g} Hz; modes below "
-            "5.5 Hz found within 1%)\n\n" + "\n".join(lines) + "\n")  # fmt: skip
+    text = (
+        "# Jackknife standard errors against the blocks' length\n\n"
+        f"`python benchmarks/jackknife_blocks.py --seeds {args.seeds} --blocks {args.blocks}` (seeds "
+        f"{FIRST_SEED} to {FIRST_SEED + args.seeds - 1}; velocity, {SNR_DB:g} dB, {FS_HZ:g} Hz; modes below "
+        "5.5 Hz found within 1%)\n\n" + "\n".join(lines) + "\n"
+    )
     RESULTS.write_text(text)
     print(f"wrote {RESULTS}")
 

@@ -35,8 +35,10 @@ import xarray as xr
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "benchmarks" / "loop_suite.txt"
-RESULTS = {"hmc": ROOT / "benchmarks" / "results" / "loop_suite.md",
-           "laplace": ROOT / "benchmarks" / "results" / "loop_suite_laplace.md"}
+RESULTS = {
+    "hmc": ROOT / "benchmarks" / "results" / "loop_suite.md",
+    "laplace": ROOT / "benchmarks" / "results" / "loop_suite_laplace.md",
+}
 
 
 def group(spec: str) -> str:
@@ -59,18 +61,26 @@ def summary(table: xr.Dataset) -> list[str]:
     for g in ("one effect, three sizes", "two effects", "outside the library", "nothing hidden"):
         k = groups == g
         if k.any():
-            lines.append(f"| {g} | {int(k.sum())} | {int(table['passed'].values[k].sum())} | "
-                         f"{int(table['found'].values[k].sum())} | {int(table['passed_strict'].values[k].sum())} |")  # fmt: skip
-    lines.append(f"| all | {len(specs)} | {int(table['passed'].sum())} | {int(table['found'].sum())} | "
-                 f"{int(table['passed_strict'].sum())} |")  # fmt: skip
+            lines.append(
+                f"| {g} | {int(k.sum())} | {int(table['passed'].values[k].sum())} | "
+                f"{int(table['found'].values[k].sum())} | {int(table['passed_strict'].values[k].sum())} |"
+            )
+    lines.append(
+        f"| all | {len(specs)} | {int(table['passed'].sum())} | {int(table['found'].sum())} | "
+        f"{int(table['passed_strict'].sum())} |"
+    )
     none = groups == "nothing hidden"
     if none.any():
         chi2, n = table["chi2_before"].values[none], table["n_data"].values[none]
         lo, hi = scipy.stats.chi2.ppf([0.05, 0.95], n.sum()) / n.sum()
-        lines += ["", f"Calibration: with nothing hidden, chi2 / n of the true model against its own extracted modes "
-                      f"= {chi2.sum() / n.sum():.2f} over {int(none.sum())} records ({int(n.sum())} data; a chi2 law "
-                      f"gives 90% of its values in {lo:.2f}-{hi:.2f}); per record "
-                      + ", ".join(f"{c / m:.2f}" for c, m in zip(chi2, n)) + "."]  # fmt: skip
+        lines += [
+            "",
+            f"Calibration: with nothing hidden, chi2 / n of the true model against its own extracted modes "
+            f"= {chi2.sum() / n.sum():.2f} over {int(none.sum())} records ({int(n.sum())} data; a chi2 law "
+            f"gives 90% of its values in {lo:.2f}-{hi:.2f}); per record "
+            + ", ".join(f"{c / m:.2f}" for c, m in zip(chi2, n))
+            + ".",
+        ]
     lines += ["", "```", sweep_text(table), "```"]
     return lines
 
@@ -81,12 +91,27 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--method", choices=tuple(RESULTS), default="hmc")
     parser.add_argument("--from-table", default=None)
-    parser.add_argument("--bootstrap", type=int, default=None, metavar="R",
-                        help="records each scenario's last update is calibrated on (twin sweep --bootstrap; default: "
-                             "the loop's)")  # fmt: skip
+    parser.add_argument(
+        "--bootstrap",
+        type=int,
+        default=None,
+        metavar="R",
+        help="records each scenario's last update is calibrated on (twin sweep --bootstrap; default: the loop's)",
+    )
     args = parser.parse_args()
-    command = ["twin", "sweep", "--scenarios", str(SUITE), "--out", args.out, "--workers", str(args.workers),
-               "--method", args.method, *(["--bootstrap", str(args.bootstrap)] if args.bootstrap is not None else [])]
+    command = [
+        "twin",
+        "sweep",
+        "--scenarios",
+        str(SUITE),
+        "--out",
+        args.out,
+        "--workers",
+        str(args.workers),
+        "--method",
+        args.method,
+        *(["--bootstrap", str(args.bootstrap)] if args.bootstrap is not None else []),
+    ]
     flag = "" if args.bootstrap is None else f" --bootstrap {args.bootstrap}"
     t0 = time.perf_counter()
     if args.from_table is None:
@@ -97,10 +122,14 @@ def main() -> None:
     table = xr.load_dataset(path)
     method = json.loads(table.attrs.get("settings", "{}")).get("method", "laplace")  # tables before it: Laplace
     method = {"gibbs": "hmc"}.get(method, method)  # tables whose 'gibbs' ran the HMC sampler
-    lines = ["# The twin loop on scenarios it was not tuned to", "",
-             f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}{flag}`, i.e. "
-             f"`twin sweep --scenarios benchmarks/loop_suite.txt --workers {args.workers} --method {method}{flag}` "
-             f"({table.attrs.get('producer', 'twin')}); sweep {table.attrs.get('elapsed_s', float('nan')):.0f} s.", ""]  # fmt: skip
+    lines = [
+        "# The twin loop on scenarios it was not tuned to",
+        "",
+        f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}{flag}`, i.e. "
+        f"`twin sweep --scenarios benchmarks/loop_suite.txt --workers {args.workers} --method {method}{flag}` "
+        f"({table.attrs.get('producer', 'twin')}); sweep {table.attrs.get('elapsed_s', float('nan')):.0f} s.",
+        "",
+    ]
     lines += summary(table)
     RESULTS[method].parent.mkdir(exist_ok=True)
     RESULTS[method].write_text("\n".join(lines) + "\n")

@@ -36,8 +36,13 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     from twin.fmu import discretize, simulate_reference
     from twin.fmu.excitation import excitation_forces
     from twin.fmu.export import default_turbulence_node, default_unbalance_node
-    from twin.fmu.simulate import (DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME, default_warmup_s,
-                                   sensor_noise_std, system_for)  # fmt: skip
+    from twin.fmu.simulate import (
+        DEFAULT_TURBULENCE_ASD,
+        DEFAULT_UNBALANCE_ME,
+        default_warmup_s,
+        sensor_noise_std,
+        system_for,
+    )
 
     h = 1.0 / fs_hz
     ss = system_for(model, truth, "full", None)
@@ -47,18 +52,31 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     rng = np.random.default_rng(seed)
     turbulence_node = default_turbulence_node(model)
     t = (np.arange(total) - n_warm) * h
-    forces = excitation_forces(ss, t, default_unbalance_node(model), DEFAULT_UNBALANCE_ME, turbulence_node,
-                               DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2)))
+    forces = excitation_forces(
+        ss,
+        t,
+        default_unbalance_node(model),
+        DEFAULT_UNBALANCE_ME,
+        turbulence_node,
+        DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2)),
+    )
     turbulence = ss.node_ports(turbulence_node)
     y = simulate_reference(discretize(ss, h), ss.C, foh=forces)[n_warm:]
     noise = rng.standard_normal((total, y.shape[1]))[n_warm:]  # drawn over the warm-up too, as the FMU's
     y += sensor_noise_std(ss, h, DEFAULT_TURBULENCE_ASD, turbulence, 0.05) * noise
-    attrs = {"title": f"simulated proximeter signals of {model.name} (numpy's random streams)",
-             "sampling_rate": float(fs_hz), "speed_rpm": float(ss.speed_rpm), "model": model.name,
-             "seed": int(seed), "streams": "numpy",
-             "settings": json.dumps({"duration_s": duration_s, "fs_hz": fs_hz, "seed": seed, "streams": "numpy"})}
+    attrs = {
+        "title": f"simulated proximeter signals of {model.name} (numpy's random streams)",
+        "sampling_rate": float(fs_hz),
+        "speed_rpm": float(ss.speed_rpm),
+        "model": model.name,
+        "seed": int(seed),
+        "streams": "numpy",
+        "settings": json.dumps({"duration_s": duration_s, "fs_hz": fs_hz, "seed": seed, "streams": "numpy"}),
+    }
     if truth is not None:
         attrs.update(truth=ss.attrs["truth"], truth_modes=ss.attrs["truth_modes"])
-    return xr.Dataset({"displacement": (("time", "channel"), y, {"units": "m"})},
-                      coords={"time": ("time", np.arange(n_rec) * h, {"units": "s"}), "channel": list(ss.outputs)},
-                      attrs=attrs)  # fmt: skip
+    return xr.Dataset(
+        {"displacement": (("time", "channel"), y, {"units": "m"})},
+        coords={"time": ("time", np.arange(n_rec) * h, {"units": "s"}), "channel": list(ss.outputs)},
+        attrs=attrs,
+    )

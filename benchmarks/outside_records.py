@@ -33,8 +33,16 @@ import xarray as xr
 
 from twin.errors import NoModeError
 from twin.extract import extract
-from twin.extract.corpus import (close_pair, cantilever, frequency_limit, from_matrices, score, shear_frame, simulate_record,
-                                 truth_modes)  # fmt: skip
+from twin.extract.corpus import (
+    close_pair,
+    cantilever,
+    frequency_limit,
+    from_matrices,
+    score,
+    shear_frame,
+    simulate_record,
+    truth_modes,
+)
 from twin.extract.quantities import derivative_orders
 from twin.extract.signals import check_record
 
@@ -49,8 +57,9 @@ def ross_rotor():
     K = (d["K"] + d["K"].T) / 2
     sensors = {f"n{k}_{ax}": 4 * k + j for k in (1, 2, 4, 5) for j, ax in enumerate("xy")}
     forced = [4 * k + j for k in range(7) for j in (0, 1)]
-    return from_matrices("ROSS reference rotor", d["M"], d["C"], K, sensors, forced, G=d["G"],
-                         speed_rad_s=float(d["speed"][1]))  # fmt: skip
+    return from_matrices(
+        "ROSS reference rotor", d["M"], d["C"], K, sensors, forced, G=d["G"], speed_rad_s=float(d["speed"][1])
+    )
 
 
 def corpus(seed: int = 1):
@@ -59,24 +68,49 @@ def corpus(seed: int = 1):
     cases = [
         ("frame5 1% 600s disp 40dB", lambda: shear_frame(5, damping_ratio=0.01), 600, 20, 40, "displacement"),
         ("frame5 0.1% 1h vel 40dB", lambda: shear_frame(5, damping_ratio=0.001), 3600, 20, 40, V),
-        ("frame10 0.2% 240s vel+acc 40dB", lambda: shear_frame(10, stiffness_n_m=stiff, damping_ratio=0.002),
-         240, 100, 40, [V, V, V, A, A, V, V, V, A, A]),
+        (
+            "frame10 0.2% 240s vel+acc 40dB",
+            lambda: shear_frame(10, stiffness_n_m=stiff, damping_ratio=0.002),
+            240,
+            100,
+            40,
+            [V, V, V, A, A, V, V, V, A, A],
+        ),
         ("frame8 5% 300s acc 30dB", lambda: shear_frame(8, damping_ratio=0.05), 300, 20, 30, A),
-        ("frame5 0.5% 60s mixed 40dB", lambda: shear_frame(5, stiffness_n_m=stiff, damping_ratio=0.005), 60, 100, 40,
-         ["displacement", V, A, V, "displacement"]),
+        (
+            "frame5 0.5% 60s mixed 40dB",
+            lambda: shear_frame(5, stiffness_n_m=stiff, damping_ratio=0.005),
+            60,
+            100,
+            40,
+            ["displacement", V, A, V, "displacement"],
+        ),
         ("cantilever 2% 120s acc 40dB", lambda: cantilever(10, damping_ratio=0.02), 120, 400, 40, A),
-        ("cantilever 10% 600s mixed 30dB", lambda: cantilever(10, damping_ratio=0.10), 600, 400, 30,
-         ["displacement", V, A, V, A]),
+        (
+            "cantilever 10% 600s mixed 30dB",
+            lambda: cantilever(10, damping_ratio=0.10),
+            600,
+            400,
+            30,
+            ["displacement", V, A, V, A],
+        ),
         ("ROSS rotor 300s disp 30dB", ross_rotor, 300, 400, 30, "displacement"),
-        ("two modes 1% apart 0.5% 1800s", lambda: close_pair(5.0, 0.01, 0.005, sensors=3), 1800, 20, 40,
-         "displacement"),
+        (
+            "two modes 1% apart 0.5% 1800s",
+            lambda: close_pair(5.0, 0.01, 0.005, sensors=3),
+            1800,
+            20,
+            40,
+            "displacement",
+        ),
         ("frame5 1% 600s disp 10dB", lambda: shear_frame(5, damping_ratio=0.01), 600, 20, 10, "displacement"),
         ("frame5 1% 600s disp 0dB", lambda: shear_frame(5, damping_ratio=0.01), 600, 20, 0, "displacement"),
     ]
     for k, (name, build, duration, fs, snr, quantities) in enumerate(cases):
         structure = build()
-        ds = simulate_record(structure, duration_s=duration, fs_hz=fs, snr_db=snr, quantities=quantities,
-                             seed=1000 * seed + k)  # fmt: skip
+        ds = simulate_record(
+            structure, duration_s=duration, fs_hz=fs, snr_db=snr, quantities=quantities, seed=1000 * seed + k
+        )
         yield name, ds, truth_modes(structure, ds)
     yield ("KOMA shear frame 1200s", *koma())
 
@@ -86,18 +120,27 @@ def koma():
     was integrated with the trapezoidal rule at its sampling step: its poles are the reference ones mapped
     through ``z = (1 + lambda h / 2) / (1 - lambda h / 2)``."""
     d = np.load(DATA / "shearframe.npz")
-    ds = xr.Dataset({"displacement": (("time", "channel"), d["response"])},
-                    coords={"channel": [f"storey{i + 1}" for i in range(5)]},
-                    attrs={"sampling_rate": 12.0, "title": "KOMA shear frame"})  # fmt: skip
+    ds = xr.Dataset(
+        {"displacement": (("time", "channel"), d["response"])},
+        coords={"channel": [f"storey{i + 1}" for i in range(5)]},
+        attrs={"sampling_rate": 12.0, "title": "KOMA shear frame"},
+    )
     h, w, xi = 1 / 12.0, d["omega_n"], d["xi_ref"]
     lam = -xi * w + 1j * w * np.sqrt(1 - xi**2)
     lam = np.log((1 + lam * h / 2) / (1 - lam * h / 2)) / h
     fn = np.abs(lam) / (2 * np.pi)
-    truth = xr.Dataset({"frequency": ("mode", lam.imag / (2 * np.pi)), "damping_ratio": ("mode", -lam.real / np.abs(lam)),
-                        "sensor_shape": (("mode", "channel"), d["phi_ref"].T.astype(complex)),
-                        "visible": ("mode", fn < 0.4 * 12.0)})  # fmt: skip
-    truth["frequency_tolerance"] = ("mode", frequency_limit(truth.frequency.values, truth.damping_ratio.values,
-                                                            len(d["response"]) / 12.0))
+    truth = xr.Dataset(
+        {
+            "frequency": ("mode", lam.imag / (2 * np.pi)),
+            "damping_ratio": ("mode", -lam.real / np.abs(lam)),
+            "sensor_shape": (("mode", "channel"), d["phi_ref"].T.astype(complex)),
+            "visible": ("mode", fn < 0.4 * 12.0),
+        }
+    )
+    truth["frequency_tolerance"] = (
+        "mode",
+        frequency_limit(truth.frequency.values, truth.damping_ratio.values, len(d["response"]) / 12.0),
+    )
     return ds, truth
 
 
@@ -169,8 +212,12 @@ def main() -> None:
     ap.add_argument("--only", default=None, help="comma-separated substrings of record names to run")
     ap.add_argument("--no-pyoma", action="store_true")
     ap.add_argument("--seed", type=int, default=1, help="seed of the corpus (record k's seed is 1000 seed + k)")
-    ap.add_argument("--seeds", default=None, help="comma-separated seeds to run the corpus for, one after the "
-                                                   "other, with totals at the end (instead of --seed)")
+    ap.add_argument(
+        "--seeds",
+        default=None,
+        help="comma-separated seeds to run the corpus for, one after the "
+        "other, with totals at the end (instead of --seed)",
+    )
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     try:
@@ -184,8 +231,10 @@ def main() -> None:
     head = f"{'record':34} {'visible':>7} | {'twin found':>10} {'missed':>6} {'spur':>4} {'time s':>6}"
     for preset in PRESETS if pyoma else ():
         head += f" | {preset[:8] + ' found':>14} {'spur':>4} {'time s':>6}"
-    print(f"twin defaults vs pyOMA2 {pyoma or '-'} SSI-cov + automatic clustering; found = frequency within 0.5% "
-          "(or 3 times its statistical limit), MAC >= 0.95 in displacement (* pyOMA2: frequency alone)")
+    print(
+        f"twin defaults vs pyOMA2 {pyoma or '-'} SSI-cov + automatic clustering; found = frequency within 0.5% "
+        "(or 3 times its statistical limit), MAC >= 0.95 in displacement (* pyOMA2: frequency alone)"
+    )
     print(head)
     rows, worse = [], 0
     seeds = [args.seed] if args.seeds is None else [int(x) for x in args.seeds.split(",")]
@@ -195,8 +244,10 @@ def main() -> None:
             continue
         f_twin, shapes_twin, block_rows, dt = run_twin(ds)
         tw = score(f_twin, shapes_twin, truth)
-        line = (f"{name:34} {int(truth.visible.sum()):7d} | {len(tw['found']):10d} {len(tw['missed']):6d} "
-                f"{len(tw['spurious']):4d} {dt:6.1f}")  # fmt: skip
+        line = (
+            f"{name:34} {int(truth.visible.sum()):7d} | {len(tw['found']):10d} {len(tw['missed']):6d} "
+            f"{len(tw['spurious']):4d} {dt:6.1f}"
+        )
         row = {"record": name, "visible": int(truth.visible.sum()), "twin": {**tw, "time_s": dt}}
         if pyoma:
             best = 0
@@ -213,19 +264,30 @@ def main() -> None:
             worse += len(tw["found"]) < best
         print(line, flush=True)
         if tw["missed"] or tw["spurious"]:
-            print(f"{'':34}   twin missed {np.round(tw['missed'], 3).tolist()} spurious "
-                  f"{np.round(tw['spurious'], 3).tolist()}")  # fmt: skip
+            print(
+                f"{'':34}   twin missed {np.round(tw['missed'], 3).tolist()} spurious "
+                f"{np.round(tw['spurious'], 3).tolist()}"
+            )
         rows.append(row)
     spurious = sum(len(r["twin"]["spurious"]) for r in rows)
-    print(f"twin: {sum(len(r['twin']['found']) for r in rows)} of {sum(r['visible'] for r in rows)} visible modes "
-          f"found, {spurious} spurious")  # fmt: skip
+    print(
+        f"twin: {sum(len(r['twin']['found']) for r in rows)} of {sum(r['visible'] for r in rows)} visible modes "
+        f"found, {spurious} spurious"
+    )
     if pyoma:
         for row in rows:
             for key, value in row.items():
                 if isinstance(value, dict) and "error" in value:
                     print(f"{key} on '{row['record']}': {value['error']}")
-        found = {k: sum(len(r[k]["found"]) for r in rows if "found" in r[k]) for k in rows[0] if k != "record"
-                 and k != "visible"} if rows else {}  # fmt: skip
+        found = (
+            {
+                k: sum(len(r[k]["found"]) for r in rows if "found" in r[k])
+                for k in rows[0]
+                if k != "record" and k != "visible"
+            }
+            if rows
+            else {}
+        )
         print(f"visible modes {sum(r['visible'] for r in rows)}, found: {found}")
         print(f"records where twin found fewer modes than pyOMA2's better preset: {worse} of {len(rows)}")
     if args.json:

@@ -80,17 +80,24 @@ def mode_terms(tw, truth: dict[str, float], name: str) -> list[dict]:
         w_s, w_p = np.linalg.solve(cov_s, g), np.linalg.solve(cov_p, g_pole[i])
         a_s, a_p = (x - x.mean(axis=0)) @ w_s, (p - p.mean(axis=0)) @ w_p
         e_s, e_p = x.mean(axis=0) - shapes_t[i][moving], p.mean(axis=0) - poles_t[i]
-        out.append({"frequency_hz": float(poles[i].mean().imag / (2 * np.pi)),
-                    "shape_a": float(w_s @ e_s), "shape_b": float(w_s @ g),
-                    "pole_a": float(w_p @ e_p), "pole_b": float(w_p @ g_pole[i]),
-                    "sample_corr": float(np.corrcoef(a_s, a_p)[0, 1]),
-                    "shape_chi2_dof": float(e_s @ np.linalg.solve(cov_s, e_s)) / (len(e_s) - 1),
-                    "pole_chi2_dof": float(e_p @ np.linalg.solve(cov_p, e_p)) / 2})  # fmt: skip
+        out.append(
+            {
+                "frequency_hz": float(poles[i].mean().imag / (2 * np.pi)),
+                "shape_a": float(w_s @ e_s),
+                "shape_b": float(w_s @ g),
+                "pole_a": float(w_p @ e_p),
+                "pole_b": float(w_p @ g_pole[i]),
+                "sample_corr": float(np.corrcoef(a_s, a_p)[0, 1]),
+                "shape_chi2_dof": float(e_s @ np.linalg.solve(cov_s, e_s)) / (len(e_s) - 1),
+                "pole_chi2_dof": float(e_p @ np.linalg.solve(cov_p, e_p)) / 2,
+            }
+        )
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                streams: str = "fmu") -> list[dict]:
+def one_dataset(
+    job: tuple[str, int], duration_s: float, extraction: dict | None = None, streams: str = "fmu"
+) -> list[dict]:
     """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s) and extract one dataset
     (``extraction``: options of :func:`twin.extract.extract`); the linearised terms and the two updates; one row
     per parameter."""
@@ -112,8 +119,11 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         row = {"scenario": name, "seed": seed, "parameter": p, "truth": truth[p], "modes": terms[p]}
         for combine, table in tables.items():
             t = table.sel(parameter=p)
-            row[combine] = {"map": float(t["map"]), "std": float(t["q95"] - t["q05"]) / (2 * Z95),
-                            "covered": bool(t["q05"] <= truth[p] <= t["q95"])}  # fmt: skip
+            row[combine] = {
+                "map": float(t["map"]),
+                "std": float(t["q95"] - t["q05"]) / (2 * Z95),
+                "covered": bool(t["q05"] <= truth[p] <= t["q95"]),
+            }
         rows.append(row)
     return rows
 
@@ -127,11 +137,14 @@ def report(rows: list[dict]) -> list[str]:
     lines = []
     for scenario, p in sorted({(r["scenario"], r["parameter"]) for r in rows}, key=lambda k: scenario_order(k[0])):
         sel = [r for r in rows if r["scenario"] == scenario and r["parameter"] == p]
-        lines += [f"## {scenario}: {p} ({len(sel)} records)", "",
-                  "| mode [Hz] | records | information: shapes, pole | RMS z: shapes, pole, both independent | "
-                  "correlation of the shapes' and the pole's errors: over the records, in the samples | "
-                  "chi2 / dof in every direction: shapes, pole |",
-                  "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        lines += [
+            f"## {scenario}: {p} ({len(sel)} records)",
+            "",
+            "| mode [Hz] | records | information: shapes, pole | RMS z: shapes, pole, both independent | "
+            "correlation of the shapes' and the pole's errors: over the records, in the samples | "
+            "chi2 / dof in every direction: shapes, pole |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
         centres = np.unique(np.round([m["frequency_hz"] for r in sel for m in r["modes"]], 0))
         for f in centres:
             ms = [min(r["modes"], key=lambda m: abs(m["frequency_hz"] - f)) for r in sel]
@@ -141,32 +154,51 @@ def report(rows: list[dict]) -> list[str]:
             zs = np.array([m["shape_a"] / np.sqrt(m["shape_b"]) for m in ms])
             zp = np.array([m["pole_a"] / np.sqrt(m["pole_b"]) for m in ms])
             zb = [(m["shape_a"] + m["pole_a"]) / np.sqrt(m["shape_b"] + m["pole_b"]) for m in ms]
-            lines.append(f"| {np.median([m['frequency_hz'] for m in ms]):.1f} | {len(ms)} | "
-                         f"{np.median([m['shape_b'] for m in ms]):.3g}, {np.median([m['pole_b'] for m in ms]):.3g} | "
-                         f"{rms(zs):.2f}, {rms(zp):.2f}, {rms(zb):.2f} | {np.corrcoef(zs, zp)[0, 1]:.2f}, "
-                         f"{np.median([m['sample_corr'] for m in ms]):.2f} | "
-                         f"{np.mean([m['shape_chi2_dof'] for m in ms]):.2f}, "
-                         f"{np.mean([m['pole_chi2_dof'] for m in ms]):.2f} |")  # fmt: skip
-        total = {k: np.array([[sum(m[f"{k}_{ab}"] for m in r["modes"]) for ab in "ab"] for r in sel])
-                 for k in ("shape", "pole")}  # fmt: skip
+            lines.append(
+                f"| {np.median([m['frequency_hz'] for m in ms]):.1f} | {len(ms)} | "
+                f"{np.median([m['shape_b'] for m in ms]):.3g}, {np.median([m['pole_b'] for m in ms]):.3g} | "
+                f"{rms(zs):.2f}, {rms(zp):.2f}, {rms(zb):.2f} | {np.corrcoef(zs, zp)[0, 1]:.2f}, "
+                f"{np.median([m['sample_corr'] for m in ms]):.2f} | "
+                f"{np.mean([m['shape_chi2_dof'] for m in ms]):.2f}, "
+                f"{np.mean([m['pole_chi2_dof'] for m in ms]):.2f} |"
+            )
+        total = {
+            k: np.array([[sum(m[f"{k}_{ab}"] for m in r["modes"]) for ab in "ab"] for r in sel])
+            for k in ("shape", "pole")
+        }
         z = {k: v[:, 0] / np.sqrt(v[:, 1]) for k, v in total.items()}
         both = (total["shape"][:, 0] + total["pole"][:, 0]) / np.sqrt(total["shape"][:, 1] + total["pole"][:, 1])
-        lines += ["", f"Every mode, linearised: RMS z from the shapes {rms(z['shape']):.2f}, from the poles "
-                  f"{rms(z['pole']):.2f}, both as independent {rms(both):.2f}; correlation of the shapes' and the "
-                  f"poles' z over the records {np.corrcoef(z['shape'], z['pole'])[0, 1]:.2f}.", ""]  # fmt: skip
+        lines += [
+            "",
+            f"Every mode, linearised: RMS z from the shapes {rms(z['shape']):.2f}, from the poles "
+            f"{rms(z['pole']):.2f}, both as independent {rms(both):.2f}; correlation of the shapes' and the "
+            f"poles' z over the records {np.corrcoef(z['shape'], z['pole'])[0, 1]:.2f}.",
+            "",
+        ]
         for combine in COMBINATIONS:
             zu = [(r[combine]["map"] - r["truth"]) / r[combine]["std"] for r in sel]
-            lines.append(f"- update, `combine={combine!r}`: RMS z {rms(zu):.2f}, 90% interval covers "
-                         f"{np.mean([r[combine]['covered'] for r in sel]):.0%}, median std "
-                         f"{np.median([r[combine]['std'] / abs(r['truth']) for r in sel]):.2%} of the truth")  # fmt: skip
+            lines.append(
+                f"- update, `combine={combine!r}`: RMS z {rms(zu):.2f}, 90% interval covers "
+                f"{np.mean([r[combine]['covered'] for r in sel]):.0%}, median std "
+                f"{np.median([r[combine]['std'] / abs(r['truth']) for r in sel]):.2%} of the truth"
+            )
         lines.append("")
     return lines
 
 
 def main() -> None:
-    dataset_benchmark(__doc__.splitlines()[0], "pole_shape.py", one_dataset, report, RESULTS,
-                      "A mode's pole and shape errors on FMU data", "",
-                      scenarios="seal_cross_coupling,magnetic_pull", seeds=24, first_seed=601)
+    dataset_benchmark(
+        __doc__.splitlines()[0],
+        "pole_shape.py",
+        one_dataset,
+        report,
+        RESULTS,
+        "A mode's pole and shape errors on FMU data",
+        "",
+        scenarios="seal_cross_coupling,magnetic_pull",
+        seeds=24,
+        first_seed=601,
+    )
 
 
 if __name__ == "__main__":

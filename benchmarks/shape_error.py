@@ -68,8 +68,9 @@ def moved(modes, target: np.ndarray, part: str):
     return out
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                streams: str = "fmu") -> list[dict]:
+def one_dataset(
+    job: tuple[str, int], duration_s: float, extraction: dict | None = None, streams: str = "fmu"
+) -> list[dict]:
     """Simulate (``streams`` as :func:`update_coverage_fmu.scenario_record`'s), extract (``extraction``:
     options of :func:`twin.extract.extract`) and update one dataset the five ways; one row per parameter."""
     from jackknife import mode_spread
@@ -83,8 +84,12 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
     name, seed = job
     tw, names, truth = scenario_record(job, duration_s, extraction, streams)
     target = truth_shapes(tw, truth)
-    datasets = {"default": tw.modes, "true shapes": moved(tw.modes, target, "all"),
-                "true Re": moved(tw.modes, target, "re"), "true Im": moved(tw.modes, target, "im")}  # fmt: skip
+    datasets = {
+        "default": tw.modes,
+        "true shapes": moved(tw.modes, target, "all"),
+        "true Re": moved(tw.modes, target, "re"),
+        "true Im": moved(tw.modes, target, "im"),
+    }
     tables = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -97,20 +102,31 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         problem = build_problem(tw.model, tw.modes, shared, fsi=fsi, pole_model="marginal")
         marg = marginal_problem(problem, tw.modes["pole"].transpose("mode", "sample").values)
         flat = np.zeros(marg.size)
-        joint = mode_spread(marg, tw.model, tw.modes, shared, fsi=fsi, eps_std=1e-6, prior_mean=flat,
-                            prior_precision=flat)  # fmt: skip
+        joint = mode_spread(
+            marg, tw.model, tw.modes, shared, fsi=fsi, eps_std=1e-6, prior_mean=flat, prior_precision=flat
+        )
     sandwich = dict(zip(problem.parameter_labels, joint if joint is not None else np.full(marg.size, np.nan)))
     rows = []
     for p, value in truth.items():
         if p not in sandwich:
             continue
-        row = {"scenario": name, "seed": seed, "parameter": p, "group": group(p), "truth": value,
-               "joint_spread": float(sandwich[p])}  # fmt: skip
+        row = {
+            "scenario": name,
+            "seed": seed,
+            "parameter": p,
+            "group": group(p),
+            "truth": value,
+            "joint_spread": float(sandwich[p]),
+        }
         for variant, table in tables.items():
             t = table.sel(parameter=p)
             std = float(t["q95"] - t["q05"]) / (2 * Z95)
-            row[variant] = {"map": float(t["map"]), "std": std, "covered": bool(t["q05"] <= value <= t["q95"]),
-                            "determined": bool(t["determined"])}  # fmt: skip
+            row[variant] = {
+                "map": float(t["map"]),
+                "std": std,
+                "covered": bool(t["q05"] <= value <= t["q95"]),
+                "determined": bool(t["determined"]),
+            }
         rows.append(row)
     return rows
 
@@ -118,9 +134,12 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
 def report(rows: list[dict]) -> list[str]:
     """Per scenario and group, over the values the default update determines: RMS z and 90% coverage of each
     variant, the median sandwich / posterior std and the median relative error of the MAP."""
-    lines = ["| scenario | parameter group | values | " + " | ".join(f"{v}: RMS z (covered)" for v in VARIANTS)
-             + " | sandwich / posterior std | median abs. error: default, true shapes, poles only |",
-             "| --- | --- | --- | " + " | ".join("---" for _ in VARIANTS) + " | --- | --- |"]  # fmt: skip
+    lines = [
+        "| scenario | parameter group | values | "
+        + " | ".join(f"{v}: RMS z (covered)" for v in VARIANTS)
+        + " | sandwich / posterior std | median abs. error: default, true shapes, poles only |",
+        "| --- | --- | --- | " + " | ".join("---" for _ in VARIANTS) + " | --- | --- |",
+    ]
     keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (scenario_order(k[0]), k[1]))
     for scenario, grp in keys:
         sel = [r for r in rows if r["scenario"] == scenario and r["group"] == grp and r["default"]["determined"]]
@@ -131,17 +150,28 @@ def report(rows: list[dict]) -> list[str]:
             z = np.array([(r[v]["map"] - r["truth"]) / r[v]["std"] for r in sel])
             cells.append(f"{np.sqrt(np.mean(z**2)):.2f} ({np.mean([r[v]['covered'] for r in sel]):.0%})")
         ratio = np.nanmedian([r["joint_spread"] / r["default"]["std"] for r in sel])
-        errors = ", ".join(f"{np.median([abs(r[v]['map'] / r['truth'] - 1) for r in sel if r['truth']]):.1%}"
-                           for v in ("default", "true shapes", "poles only"))  # fmt: skip
+        errors = ", ".join(
+            f"{np.median([abs(r[v]['map'] / r['truth'] - 1) for r in sel if r['truth']]):.1%}"
+            for v in ("default", "true shapes", "poles only")
+        )
         lines.append(f"| {scenario} | {grp} | {len(sel)} | " + " | ".join(cells) + f" | {ratio:.2f} | {errors} |")
     return lines
 
 
 def main() -> None:
-    dataset_benchmark(__doc__.splitlines()[0], "shape_error.py", one_dataset, report, RESULTS,
-                      "Where the updated parameters' error comes from on FMU data",
-                      "Over the values the default update determines; z = (MAP - truth) / std, the std from the 90% "
-                      "interval's width.", scenarios="seal_cross_coupling,bearings", seeds=16, first_seed=601)
+    dataset_benchmark(
+        __doc__.splitlines()[0],
+        "shape_error.py",
+        one_dataset,
+        report,
+        RESULTS,
+        "Where the updated parameters' error comes from on FMU data",
+        "Over the values the default update determines; z = (MAP - truth) / std, the std from the 90% "
+        "interval's width.",
+        scenarios="seal_cross_coupling,bearings",
+        seeds=16,
+        first_seed=601,
+    )
 
 
 if __name__ == "__main__":

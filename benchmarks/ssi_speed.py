@@ -65,25 +65,42 @@ def timed_extractions(signals, block_rows: int | None, repeat: int, shape_sample
     same = lanczos.sizes["mode"] == full.sizes["mode"]
     diff = {}
     if same:
-        diff = {"frequency": float(np.max(np.abs(lanczos.frequency.values / full.frequency.values - 1))),
-                "damping": float(np.max(np.abs(lanczos.damping_ratio.values / full.damping_ratio.values - 1))),
-                "shape": float(np.max(np.abs(lanczos.shape.values - full.shape.values)))}  # fmt: skip
+        diff = {
+            "frequency": float(np.max(np.abs(lanczos.frequency.values / full.frequency.values - 1))),
+            "damping": float(np.max(np.abs(lanczos.damping_ratio.values / full.damping_ratio.values - 1))),
+            "shape": float(np.max(np.abs(lanczos.shape.values - full.shape.values))),
+        }
     settings = json.loads(lanczos.attrs["settings"])
-    rows = (f"{settings['block_rows']}" if block_rows is not None
-            else f"{settings['block_rows']}, slow modes' shapes at {settings['shape_block_rows']}")  # fmt: skip
-    return {"block_rows": rows, "modes": int(lanczos.sizes["mode"]), "same_modes": same,
-            "t_lanczos": t_lanczos, "t_full": t_full, **diff}  # fmt: skip
+    rows = (
+        f"{settings['block_rows']}"
+        if block_rows is not None
+        else f"{settings['block_rows']}, slow modes' shapes at {settings['shape_block_rows']}"
+    )
+    return {
+        "block_rows": rows,
+        "modes": int(lanczos.sizes["mode"]),
+        "same_modes": same,
+        "t_lanczos": t_lanczos,
+        "t_full": t_full,
+        **diff,
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--block-rows", default="107,214",
-                    help="comma-separated block rows of one pass, or auto (a second pass for the slow modes' shapes)")
+    ap.add_argument(
+        "--block-rows",
+        default="107,214",
+        help="comma-separated block rows of one pass, or auto (a second pass for the slow modes' shapes)",
+    )
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=2, help="runs per setting; the fastest counts")
-    ap.add_argument("--shape-samples", type=int, default=None,
-                    help="extract's shape samples (default: the loop's, 4 per sample; 0: none; auto block rows "
-                         "take none)")
+    ap.add_argument(
+        "--shape-samples",
+        type=int,
+        default=None,
+        help="extract's shape samples (default: the loop's, 4 per sample; 0: none; auto block rows take none)",
+    )
     args = ap.parse_args()
     from twin import load_model, shipped_model
     from twin.fmu.simulate import simulate
@@ -95,18 +112,27 @@ def main() -> None:
     signals = simulate(model, duration_s=1200.0, fs_hz=256.0, seed=args.seed, progress=False)
     settings = [None if b.strip() == "auto" else int(b) for b in args.block_rows.split(",")]
     rows = [timed_extractions(signals, b, args.repeat, 0 if b is None else shape_samples) for b in settings]
-    lines = ["# SSI: leading singular triplets by Lanczos against the full SVD", "",
-             f"Command: `python benchmarks/ssi_speed.py --block-rows {args.block_rows} --seed {args.seed} "
-             f"--repeat {args.repeat} --shape-samples {shape_samples}`; one BLAS thread, best of {args.repeat}; "
-             f"{shape_samples or 'no'} shape samples of their own (none with auto block rows).", "",
-             "| block rows | modes | extract, Lanczos [s] | extract, full SVD [s] | full / Lanczos | "
-             "max rel. diff. frequency | max rel. diff. damping | max abs. diff. shape samples |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    lines = [
+        "# SSI: leading singular triplets by Lanczos against the full SVD",
+        "",
+        f"Command: `python benchmarks/ssi_speed.py --block-rows {args.block_rows} --seed {args.seed} "
+        f"--repeat {args.repeat} --shape-samples {shape_samples}`; one BLAS thread, best of {args.repeat}; "
+        f"{shape_samples or 'no'} shape samples of their own (none with auto block rows).",
+        "",
+        "| block rows | modes | extract, Lanczos [s] | extract, full SVD [s] | full / Lanczos | "
+        "max rel. diff. frequency | max rel. diff. damping | max abs. diff. shape samples |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for r in rows:
-        d = (f"{r['frequency']:.1e} | {r['damping']:.1e} | {r['shape']:.1e}" if r["same_modes"]
-             else "different modes found | | ")  # fmt: skip
-        lines.append(f"| {r['block_rows']} | {r['modes']} | {r['t_lanczos']:.1f} | {r['t_full']:.1f} | "
-                     f"{r['t_full'] / r['t_lanczos']:.2f} | {d} |")  # fmt: skip
+        d = (
+            f"{r['frequency']:.1e} | {r['damping']:.1e} | {r['shape']:.1e}"
+            if r["same_modes"]
+            else "different modes found | | "
+        )
+        lines.append(
+            f"| {r['block_rows']} | {r['modes']} | {r['t_lanczos']:.1f} | {r['t_full']:.1f} | "
+            f"{r['t_full'] / r['t_lanczos']:.2f} | {d} |"
+        )
     RESULTS.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -51,17 +51,19 @@ def main(argv: list[str] | None = None) -> None:
     medians = {label: statistics.median(wall_times(cmd, args.repeat)) for label, cmd in COMMANDS.items()}
     base = medians["python -c pass (baseline)"]
     rows = [f"| {label} | {1e3 * t:.0f} | {t / base:.2f} |" for label, t in medians.items()]
-    text = "\n".join([
-        "# Start-up of the twin command",
-        "",
-        f"Command: `python benchmarks/startup.py --repeat {args.repeat}`; median wall time of {args.repeat} fresh "
-        "processes each (after one warm-up), in one session.",
-        "",
-        "| command | median [ms] | ratio to python -c pass |",
-        "| --- | --- | --- |",
-        *rows,
-        "",
-    ])  # fmt: skip
+    text = "\n".join(
+        [
+            "# Start-up of the twin command",
+            "",
+            f"Command: `python benchmarks/startup.py --repeat {args.repeat}`; median wall time of {args.repeat} fresh "
+            "processes each (after one warm-up), in one session.",
+            "",
+            "| command | median [ms] | ratio to python -c pass |",
+            "| --- | --- | --- |",
+            *rows,
+            "",
+        ]
+    )
     RESULTS.write_text(text, encoding="utf-8")
     print(text)
 

@@ -93,11 +93,24 @@ def run_case(model, folder: Path, text: str, seed: int, baseline: float, client,
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "schedule.toml").write_text(text)
     t0 = time.perf_counter()
-    campaign(model, read_schedule(folder / "schedule.toml", model), folder / "records", seed=seed, tasks=client,
-             progress=False)  # fmt: skip
+    campaign(
+        model,
+        read_schedule(folder / "schedule.toml", model),
+        folder / "records",
+        seed=seed,
+        tasks=client,
+        progress=False,
+    )
     t1 = time.perf_counter()
-    table = track(model, folder / "records", folder / "out", baseline_days=baseline, false_alarms_per_year=rate,
-                  tasks=client, progress=False)  # fmt: skip
+    table = track(
+        model,
+        folder / "records",
+        folder / "out",
+        baseline_days=baseline,
+        false_alarms_per_year=rate,
+        tasks=client,
+        progress=False,
+    )
     return table, t1 - t0, time.perf_counter() - t1
 
 
@@ -129,8 +142,11 @@ def share_modes(donor: Path, case: Path) -> int:
         if not (other.exists() and modes.exists()):
             continue
         with xr.open_dataset(record) as a, xr.open_dataset(other) as b:
-            same = (a.attrs.get("start_time") == b.attrs.get("start_time") and a.displacement.equals(b.displacement)
-                    and a.operating_point.equals(b.operating_point))  # fmt: skip
+            same = (
+                a.attrs.get("start_time") == b.attrs.get("start_time")
+                and a.displacement.equals(b.displacement)
+                and a.operating_point.equals(b.operating_point)
+            )
         if not same:
             continue
         target = case / "out" / "modes" / record.name
@@ -146,8 +162,10 @@ def detection(args, model, root: Path, client) -> list[str]:
     chosen = args.effects or list(effects)
     start = args.baseline_days + 1.0
     days = start + args.after_days
-    rows = ["| effect | seed | size | onset | delay [d] | named | named after [d] | followed at the end (truth) |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    rows = [
+        "| effect | seed | size | onset | delay [d] | named | named after [d] | followed at the end (truth) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     smallest: dict[str, float] = {}
     for label in chosen:
         ref = effects[label]
@@ -160,12 +178,25 @@ def detection(args, model, root: Path, client) -> list[str]:
                 case = root / f"{label.replace(':', '_')}_{size:g}_{shape}"
                 case.mkdir(parents=True, exist_ok=True)
                 (case / "schedule.toml").write_text(text)
-                campaign(model, read_schedule(case / "schedule.toml", model), case / "records", seed=seed,
-                         tasks=client, progress=False)  # fmt: skip
+                campaign(
+                    model,
+                    read_schedule(case / "schedule.toml", model),
+                    case / "records",
+                    seed=seed,
+                    tasks=client,
+                    progress=False,
+                )
                 if donor is not None:
                     share_modes(donor, case)
-                table = track(model, case / "records", case / "out", baseline_days=args.baseline_days,
-                              false_alarms_per_year=args.false_alarms, tasks=client, progress=False)  # fmt: skip
+                table = track(
+                    model,
+                    case / "records",
+                    case / "out",
+                    baseline_days=args.baseline_days,
+                    false_alarms_per_year=args.false_alarms,
+                    tasks=client,
+                    progress=False,
+                )
                 donor = donor or case
                 after = table.alarm_day.values[table.alarm_day.values >= start] if table.sizes.get("alarm") else []
                 delay = float(after[0] - start) if len(after) else float("nan")
@@ -181,12 +212,16 @@ def detection(args, model, root: Path, client) -> list[str]:
                         f"{n} {float(table.parameter.sel(tracked_parameter=n).values[-1]):.3g} "
                         f"[{float(table.parameter_low.sel(tracked_parameter=n).values[-1]):.3g}, "
                         f"{float(table.parameter_high.sel(tracked_parameter=n).values[-1]):.3g}] "
-                        f"({float(truth.get(n, np.zeros(1))[-1]):.3g})" for n in names)  # fmt: skip
+                        f"({float(truth.get(n, np.zeros(1))[-1]):.3g})"
+                        for n in names
+                    )
                 early = int((table.alarm_day.values < start).sum()) if table.sizes.get("alarm") else 0
                 wrong = "" if named in (label, "-") else " (wrong)"
-                rows.append(f"| {label} | {seed} | {size:g} | {shape} | {delay:.2f} | {named}{wrong}"
-                            f"{f' ({early} alarm(s) before the onset)' if early else ''} | "
-                            f"{'not yet' if np.isnan(settled) else f'{settled:.2f}'} | {follow} |")  # fmt: skip
+                rows.append(
+                    f"| {label} | {seed} | {size:g} | {shape} | {delay:.2f} | {named}{wrong}"
+                    f"{f' ({early} alarm(s) before the onset)' if early else ''} | "
+                    f"{'not yet' if np.isnan(settled) else f'{settled:.2f}'} | {follow} |"
+                )
                 if ok and shape == "step":
                     smallest[label] = min(smallest.get(label, np.inf), size)
                 print(rows[-1], flush=True)
@@ -194,8 +229,11 @@ def detection(args, model, root: Path, client) -> list[str]:
             for case in root.glob(f"{label.replace(':', '_')}_*"):
                 shutil.rmtree(case, ignore_errors=True)
     n7 = int(7 * args.records_per_day)
-    rows += ["", "| effect | smallest step detected and named within 7 days | predicted before any data |",
-             "| --- | --- | --- |"]  # fmt: skip
+    rows += [
+        "",
+        "| effect | smallest step detected and named within 7 days | predicted before any data |",
+        "| --- | --- | --- |",
+    ]
     for label in chosen:
         pred = predicted_size(model, effects[label], args.duration, n7)
         rows.append(f"| {label} | {smallest.get(label, float('nan')):g} | {pred:.2g} |")
@@ -203,41 +241,53 @@ def detection(args, model, root: Path, client) -> list[str]:
 
 
 def false_alarms(args, model, root: Path, client) -> list[str]:
-    rows = ["| campaign | days | records | alarms | limit | largest statistic | campaign [s] | track [s] | track on disk [MB] |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    rows = [
+        "| campaign | days | records | alarms | limit | largest statistic | campaign [s] | track [s] | track on disk [MB] |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     total_alarms, total_days = 0, 0.0
     for i in range(args.runs):
         case = root / f"none_{i}"
         text = schedule_text(args.days, args.records_per_day, args.duration, None)
         seed = args.seed + i
-        table, t_campaign, t_track = run_case(model, case, text, seed, args.baseline_days, client,
-                                              args.false_alarms)  # fmt: skip
+        table, t_campaign, t_track = run_case(model, case, text, seed, args.baseline_days, client, args.false_alarms)
         track_bytes = sum(p.stat().st_size for p in (case / "out").rglob("*") if p.is_file())
         n_alarms = int(table.sizes.get("alarm", 0))
         total_alarms += n_alarms
         total_days += args.days - args.baseline_days
-        rows.append(f"| seed {seed} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
-                    f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} | "
-                    f"{t_campaign:.0f} | {t_track:.0f} | {track_bytes / 1e6:.0f} |")  # fmt: skip
+        rows.append(
+            f"| seed {seed} | {args.days:g} | {table.sizes['time']} | {n_alarms} | "
+            f"{float(table.limit):.1f} | {float(np.nanmax(table.statistic.values)):.1f} | "
+            f"{t_campaign:.0f} | {t_track:.0f} | {track_bytes / 1e6:.0f} |"
+        )
         print(rows[-1], flush=True)
         if not args.keep:
             shutil.rmtree(case, ignore_errors=True)
     rate = total_alarms / (total_days / 365.25)
     alarms = f"{total_alarms} alarm{'' if total_alarms == 1 else 's'}"
-    rows += ["", (f"{alarms} in {total_days:g} monitored days (after the baselines): "
-             f"{rate:.2g} per unit-year, for a limit set at {args.false_alarms:g} per unit-year")]  # fmt: skip
+    rows += [
+        "",
+        (
+            f"{alarms} in {total_days:g} monitored days (after the baselines): "
+            f"{rate:.2g} per unit-year, for a limit set at {args.false_alarms:g} per unit-year"
+        ),
+    ]
     return rows
 
 
 def throughput(args, model, root: Path, _client) -> list[str]:
-    rows = ["| workers | records | campaign [s] | track [s] | records tracked per minute |", "| --- | --- | --- | --- | --- |"]
+    rows = [
+        "| workers | records | campaign [s] | track [s] | records tracked per minute |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     times = {}
     for workers in (1, 2):
         case = root / f"scale_{workers}"
         text = schedule_text(args.days, args.records_per_day, args.duration, None)
         with dask_client("local", n_workers=workers) as client:
-            table, t_campaign, t_track = run_case(model, case, text, SEED + 990, args.baseline_days, client,
-                                                  args.false_alarms)  # fmt: skip
+            table, t_campaign, t_track = run_case(
+                model, case, text, SEED + 990, args.baseline_days, client, args.false_alarms
+            )
         n = table.sizes["time"]
         times[workers] = t_track
         rows.append(f"| {workers} | {n} | {t_campaign:.0f} | {t_track:.0f} | {60 * n / t_track:.1f} |")
@@ -249,10 +299,15 @@ def throughput(args, model, root: Path, _client) -> list[str]:
         if not args.keep:
             shutil.rmtree(case, ignore_errors=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    rows += ["", f"1 -> 2 workers: {times[1] / times[2]:.2f} x faster",
-             (f"a year of {args.records_per_day} records of {args.duration:g} s a day: about {year_minutes:.0f} min to "
-             f"track on 2 workers; the track (modes and track.nc) about {per_year / 1e6:.0f} MB on disk; "
-             f"peak memory of this process {peak:.0f} MB")]  # fmt: skip
+    rows += [
+        "",
+        f"1 -> 2 workers: {times[1] / times[2]:.2f} x faster",
+        (
+            f"a year of {args.records_per_day} records of {args.duration:g} s a day: about {year_minutes:.0f} min to "
+            f"track on 2 workers; the track (modes and track.nc) about {per_year / 1e6:.0f} MB on disk; "
+            f"peak memory of this process {peak:.0f} MB"
+        ),
+    ]
     return rows
 
 
@@ -286,10 +341,21 @@ def main() -> None:
     finally:
         if not args.keep:
             shutil.rmtree(root, ignore_errors=True)
-    text = "\n".join([f"# Tracking: {args.part}", "", f"Command: `{command}`", "",
-                      (f"Records: {args.records_per_day} a day of {args.duration:g} s; baseline "
-                      f"{args.baseline_days:g} days; chart set for {args.false_alarms:g} false alarms per unit-year."),
-                      "", *rows, ""])  # fmt: skip
+    text = "\n".join(
+        [
+            f"# Tracking: {args.part}",
+            "",
+            f"Command: `{command}`",
+            "",
+            (
+                f"Records: {args.records_per_day} a day of {args.duration:g} s; baseline "
+                f"{args.baseline_days:g} days; chart set for {args.false_alarms:g} false alarms per unit-year."
+            ),
+            "",
+            *rows,
+            "",
+        ]
+    )
     print(text)
     if args.out:
         args.out.write_text(text)

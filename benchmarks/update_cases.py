@@ -35,8 +35,13 @@ from twin.update.core import MIN_MARGIN
 from twin.update.samplers.gibbs import GIBBS_POLE_MODELS
 
 #: The paper's reported MAP accuracy (relative error), for the table.
-PAPER = {"added_mass": "~1% (modes 1, 2 worse)", "added_damping": "~3% (modes 1, 2 worse)",
-         "bearing": "~1%", "LGB.cxy": "20%", "LGB.cyx": "52%"}  # fmt: skip
+PAPER = {
+    "added_mass": "~1% (modes 1, 2 worse)",
+    "added_damping": "~3% (modes 1, 2 worse)",
+    "bearing": "~1%",
+    "LGB.cxy": "20%",
+    "LGB.cyx": "52%",
+}
 
 
 def truth_values(model, ds) -> dict[str, float]:
@@ -61,8 +66,14 @@ def run(case: str, seed: int, draws: int, chains: int, model, method: str = "pap
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
-        tree = update(model, ds, params, fsi=True, method=method,
-                      options={"draws": draws, "chains": chains, "seed": seed, "progress": False, **options})
+        tree = update(
+            model,
+            ds,
+            params,
+            fsi=True,
+            method=method,
+            options={"draws": draws, "chains": chains, "seed": seed, "progress": False, **options},
+        )
     elapsed = time.perf_counter() - t0
     table = summary(tree["posterior"].to_dataset(), truth_values(model, ds))
     margin = tree["constant_data"]["condensation_margin"].values
@@ -81,11 +92,18 @@ def main() -> None:
     ap.add_argument("--noise-model", choices=NOISE_MODELS, default=None, help="--method gibbs")
     ap.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None, help="--method gibbs")
     ap.add_argument("--pole-model", choices=GIBBS_POLE_MODELS, default=None, help="--method gibbs")
-    ap.add_argument("--combine", choices=("intersection", "independent"), default=None,
-                    help="--method hmc: how each mode's pole and shape errors are combined")
+    ap.add_argument(
+        "--combine",
+        choices=("intersection", "independent"),
+        default=None,
+        help="--method hmc: how each mode's pole and shape errors are combined",
+    )
     args = ap.parse_args()
-    options = {k: getattr(args, k) for k in ("warmup", "noise_model", "collapsed", "pole_model", "combine")
-               if getattr(args, k) is not None}  # fmt: skip
+    options = {
+        k: getattr(args, k)
+        for k in ("warmup", "noise_model", "collapsed", "pole_model", "combine")
+        if getattr(args, k) is not None
+    }
     model = twin.load_model("models/hydro_unit.toml")
     covered, covered_ok, zmax, rows = [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -93,43 +111,68 @@ def main() -> None:
         inside = (table["q05"] <= table["truth"]) & (table["truth"] <= table["q95"])
         flagged = {f"FSI.added_{k}_{i + 1}" for i in np.flatnonzero(margin < MIN_MARGIN) for k in ("mass", "damping")}
         ok = np.array([str(p) not in flagged for p in table["parameter"].values])
-        rows += [(str(p), float(table["map_error"][k]), float(table["std"][k]) / abs(float(table["truth"][k])),
-                  bool(inside[k])) for k, p in enumerate(table["parameter"].values)]  # fmt: skip
+        rows += [
+            (
+                str(p),
+                float(table["map_error"][k]),
+                float(table["std"][k]) / abs(float(table["truth"][k])),
+                bool(inside[k]),
+            )
+            for k, p in enumerate(table["parameter"].values)
+        ]
         covered.append(float(inside.mean()))
         covered_ok.append(float(inside.values[ok].mean()))
         zmax.append(float(np.nanmax(np.abs(table["z_score"].values[ok]))))
         if seed == args.first_seed:
-            print(f"Case {args.case}, seed {seed}: {table.sizes['parameter']} parameters, {args.chains} chain(s) x "
-                  f"{args.draws} draws in {elapsed:.1f} s (including setup)")  # fmt: skip
+            print(
+                f"Case {args.case}, seed {seed}: {table.sizes['parameter']} parameters, {args.chains} chain(s) x "
+                f"{args.draws} draws in {elapsed:.1f} s (including setup)"
+            )
             for m in msgs:
                 print("  warning:", m)
-            print(f"{'parameter':<22} {'truth':>11} {'MAP':>11} {'MAP err':>8} {'std/|truth|':>11} {'z':>6}  "
-                  f"{'R-hat':>5}  paper")  # fmt: skip
+            print(
+                f"{'parameter':<22} {'truth':>11} {'MAP':>11} {'MAP err':>8} {'std/|truth|':>11} {'z':>6}  "
+                f"{'R-hat':>5}  paper"
+            )
             for k, p in enumerate(table["parameter"].values):
                 r = table.isel(parameter=k)
                 mark = " *" if str(p) in flagged else ""
-                print(f"{p:<22} {float(r.truth):>11.4g} {float(r['map']):>11.4g} {float(r.map_error):>+8.2%} "
-                      f"{float(r['std']) / abs(float(r.truth)):>11.2%} {float(r.z_score):>+6.2f}  "
-                      f"{float(r.r_hat) if 'r_hat' in r else float('nan'):>5.3f}  {paper_figure(str(p))}{mark}")  # fmt: skip
+                print(
+                    f"{p:<22} {float(r.truth):>11.4g} {float(r['map']):>11.4g} {float(r.map_error):>+8.2%} "
+                    f"{float(r['std']) / abs(float(r.truth)):>11.2%} {float(r.z_score):>+6.2f}  "
+                    f"{float(r.r_hat) if 'r_hat' in r else float('nan'):>5.3f}  {paper_figure(str(p))}{mark}"
+                )
             print("* mode flagged: its pole lies within 5 pole-sample stds of a resonance of the unobserved DOFs")
         rhat = f"; max R-hat {float(table['r_hat'].max()):.3f}" if "r_hat" in table else ""
-        print(f"seed {seed}: 90% interval coverage {covered[-1]:.0%} (all), {covered_ok[-1]:.0%} (unflagged); "
-              f"max |z| unflagged {zmax[-1]:.1f}{rhat}; {elapsed:.1f} s", flush=True)  # fmt: skip
-    print(f"coverage over {args.seeds} seeds: mean {np.mean(covered):.1%} (all parameters), "
-          f"{np.mean(covered_ok):.1%} (unflagged modes); seeds with coverage >= 80%: "
-          f"{sum(c >= 0.8 for c in covered)}/{args.seeds} (all), {sum(c >= 0.8 for c in covered_ok)}/{args.seeds} "
-          "(unflagged)")  # fmt: skip
-    print("by group over all seeds: 90% coverage; median |MAP error| of the parameters the data determine "
-          "(posterior std < 10% of the truth), and how many they are")
-    for label, test in (("bearings", lambda n: not n.startswith("FSI.")), ("added mass", lambda n: "mass" in n),
-                        ("added damping", lambda n: "damping" in n)):  # fmt: skip
+        print(
+            f"seed {seed}: 90% interval coverage {covered[-1]:.0%} (all), {covered_ok[-1]:.0%} (unflagged); "
+            f"max |z| unflagged {zmax[-1]:.1f}{rhat}; {elapsed:.1f} s",
+            flush=True,
+        )
+    print(
+        f"coverage over {args.seeds} seeds: mean {np.mean(covered):.1%} (all parameters), "
+        f"{np.mean(covered_ok):.1%} (unflagged modes); seeds with coverage >= 80%: "
+        f"{sum(c >= 0.8 for c in covered)}/{args.seeds} (all), {sum(c >= 0.8 for c in covered_ok)}/{args.seeds} "
+        "(unflagged)"
+    )
+    print(
+        "by group over all seeds: 90% coverage; median |MAP error| of the parameters the data determine "
+        "(posterior std < 10% of the truth), and how many they are"
+    )
+    for label, test in (
+        ("bearings", lambda n: not n.startswith("FSI.")),
+        ("added mass", lambda n: "mass" in n),
+        ("added damping", lambda n: "damping" in n),
+    ):
         sel = [r for r in rows if test(r[0])]
         if not sel:
             continue
         det = [abs(r[1]) for r in sel if r[2] < 0.1]
-        print(f"  {label:<14} coverage {np.mean([r[3] for r in sel]):.0%} of {len(sel)}; determined {len(det)}: "
-              f"median |error| {np.median(det) if det else float('nan'):.2%}, 90th percentile "
-              f"{np.quantile(det, 0.9) if det else float('nan'):.2%}")  # fmt: skip
+        print(
+            f"  {label:<14} coverage {np.mean([r[3] for r in sel]):.0%} of {len(sel)}; determined {len(det)}: "
+            f"median |error| {np.median(det) if det else float('nan'):.2%}, 90th percentile "
+            f"{np.quantile(det, 0.9) if det else float('nan'):.2%}"
+        )
 
 
 if __name__ == "__main__":

@@ -125,8 +125,9 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
         if streams == "numpy":
             signals = numpy_signals(model, scenario.truth(), duration_s, seed)
         else:
-            signals = simulate(model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(),
-                               progress=False)  # fmt: skip
+            signals = simulate(
+                model, duration_s=duration_s, fs_hz=256.0, seed=seed, truth=scenario.truth(), progress=False
+            )
         modes = extract(signals, fmax_hz=60.0, progress=False, **loop_extraction(extraction))
         tw = Twin(model, modes)
         if name == "bearings":
@@ -134,15 +135,23 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
             return tw, names, {n: model.parameter(n).nominal for n in names}
         for label in scenario.labels:
             tw.add_effect(label)
-    truth = truth_for_measured(scenario.truth_values(model), tw.measured,
-                               json.loads(modes.attrs.get("truth_modes", "[]")))  # fmt: skip
+    truth = truth_for_measured(
+        scenario.truth_values(model), tw.measured, json.loads(modes.attrs.get("truth_modes", "[]"))
+    )
     return tw, tw.added_parameters(), truth
 
 
-def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None = None,
-                shape_covariance: str = SHAPE_COVARIANCES[0], combine: str | None = None,
-                pole_error: str | None = None, plausible: bool = True,
-                streams: str = "fmu", bootstrap: int = 0) -> list[dict]:  # fmt: skip
+def one_dataset(
+    job: tuple[str, int],
+    duration_s: float,
+    extraction: dict | None = None,
+    shape_covariance: str = SHAPE_COVARIANCES[0],
+    combine: str | None = None,
+    pole_error: str | None = None,
+    plausible: bool = True,
+    streams: str = "fmu",
+    bootstrap: int = 0,
+) -> list[dict]:
     """Simulate (``streams`` as :func:`scenario_record`'s), extract (``extraction``: options of
     :func:`twin.extract.extract` other than its defaults) and update one dataset (``shape_covariance``,
     ``combine`` and ``pole_error`` as the HMC sampler's options, ``plausible`` its priors); one row per
@@ -161,8 +170,14 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         warnings.simplefilter("ignore")
         try:
             options = {"shape_covariance": shape_covariance, "combine": combine, "pole_error": pole_error}
-            post = tw.update(names, seed=seed, progress=False, priors="plausible" if plausible else "flat",
-                             bootstrap=bootstrap, **{k: v for k, v in options.items() if v is not None})  # fmt: skip
+            post = tw.update(
+                names,
+                seed=seed,
+                progress=False,
+                priors="plausible" if plausible else "flat",
+                bootstrap=bootstrap,
+                **{k: v for k, v in options.items() if v is not None},
+            )
         except (UpdateError, TwinError) as err:  # e.g. shape samples that do not span every entry
             return [{"scenario": name, "seed": seed, "refused": str(err)}]
     table = posterior_table(post, tw.model)
@@ -176,12 +191,16 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         boot = post["bootstrap"].to_dataset()
         for p in boot["parameter"].values:
             z, error = boot["z"].sel(parameter=p).values, boot["error"].sel(parameter=p).values
-            seen[str(p)] = {"records_seen": int(boot["records_used"].sel(parameter=p)),
-                            "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum())}
+            seen[str(p)] = {
+                "records_seen": int(boot["records_used"].sel(parameter=p)),
+                "records_seen_first_batch": int(np.isfinite(z[:bootstrap]).sum()),
+            }
             if np.isfinite(z).any():
-                seen[str(p)].update(bootstrap_rms_error=float(np.sqrt(np.nanmean(error**2))),
-                                    bootstrap_mean_error=float(np.nanmean(error)),
-                                    bootstrap_rms_z=float(np.sqrt(np.nanmean(z**2))))
+                seen[str(p)].update(
+                    bootstrap_rms_error=float(np.sqrt(np.nanmean(error**2))),
+                    bootstrap_mean_error=float(np.nanmean(error)),
+                    bootstrap_rms_z=float(np.sqrt(np.nanmean(z**2))),
+                )
             else:
                 seen[str(p)].update(bootstrap_rms_error=None, bootstrap_mean_error=None, bootstrap_rms_z=None)
     sampler_std = draws.std("sample")
@@ -190,12 +209,23 @@ def one_dataset(job: tuple[str, int], duration_s: float, extraction: dict | None
         p = str(p)
         if p not in truth:
             continue
-        rows.append({"scenario": name, "seed": seed, "parameter": p, "group": group(p), "truth": truth[p],
-                     **{v: float(table[v][k]) for v in ("map", "q05", "q95", "r_hat", "ess_bulk")},
-                     "q05_model": float(q_model.sel(parameter=p)[0]), "q95_model": float(q_model.sel(parameter=p)[1]),
-                     "determined": bool(table["determined"][k]), "factor": factors.get(p, 1.0),
-                     "sampler_std": float(sampler_std.sel(parameter=p)) / factors.get(p, 1.0), **seen.get(p, {}),
-                     "elapsed_s": elapsed})  # fmt: skip
+        rows.append(
+            {
+                "scenario": name,
+                "seed": seed,
+                "parameter": p,
+                "group": group(p),
+                "truth": truth[p],
+                **{v: float(table[v][k]) for v in ("map", "q05", "q95", "r_hat", "ess_bulk")},
+                "q05_model": float(q_model.sel(parameter=p)[0]),
+                "q95_model": float(q_model.sel(parameter=p)[1]),
+                "determined": bool(table["determined"][k]),
+                "factor": factors.get(p, 1.0),
+                "sampler_std": float(sampler_std.sel(parameter=p)) / factors.get(p, 1.0),
+                **seen.get(p, {}),
+                "elapsed_s": elapsed,
+            }
+        )
     return rows
 
 
@@ -256,10 +286,12 @@ def report(rows: list[dict], second: str = "adjusted (adjust='jackknife')") -> l
     alone is given with its 90% interval over records (:func:`record_interval`): an undetermined value's wide
     interval covers whatever the truth, and the values of one record err together.
     """
-    lines = ["| scenario | parameter group | values | 90% interval covers: the sampler's posterior | "
-             f"{second} | determined, sampler [90% over records] | determined, {second.split(' (')[0]} | median abs. error of the MAP | not determined (covered) | "
-             "R-hat <= 1.01 (determined) | least bulk ESS (determined) |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    lines = [
+        "| scenario | parameter group | values | 90% interval covers: the sampler's posterior | "
+        f"{second} | determined, sampler [90% over records] | determined, {second.split(' (')[0]} | median abs. error of the MAP | not determined (covered) | "
+        "R-hat <= 1.01 (determined) | least bulk ESS (determined) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     keys = sorted({(r["scenario"], r["group"]) for r in rows}, key=lambda k: (scenario_order(k[0]), k[1]))
     for scenario, grp in keys:
         sel = [r for r in rows if r["scenario"] == scenario and r["group"] == grp]
@@ -277,12 +309,17 @@ def report(rows: list[dict], second: str = "adjusted (adjust='jackknife')") -> l
             determined += f" | {np.mean([_covers(r, 'adjusted') for r in det]):.0%}"
         else:
             determined = "- | -"
-        lines.append(f"| {scenario} | {grp} | {len(sel)} | {model:.0%} | {inside:.0%} | {determined} | {err:.1%} | "
-                     f"{len(und)} ({covered}) | {mixed} | {least} |")  # fmt: skip
+        lines.append(
+            f"| {scenario} | {grp} | {len(sel)} | {model:.0%} | {inside:.0%} | {determined} | {err:.1%} | "
+            f"{len(und)} ({covered}) | {mixed} | {least} |"
+        )
     model = np.mean([_covers(r, "model") for r in rows])
     inside = np.mean([_covers(r, "adjusted") for r in rows])
-    lines += ["", f"All: the 90% intervals cover the truth for {model:.0%} of {len(rows)} values with the model's "
-                  f"posterior (uncalibrated), {inside:.0%} {second}."]  # fmt: skip
+    lines += [
+        "",
+        f"All: the 90% intervals cover the truth for {model:.0%} of {len(rows)} values with the model's "
+        f"posterior (uncalibrated), {inside:.0%} {second}.",
+    ]
     return lines
 
 
@@ -296,9 +333,12 @@ def add_dataset_options(ap: argparse.ArgumentParser, scenarios: str, seeds: int,
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument("--rows", type=Path, default=None, help="also write every row (one per parameter) as JSON")
-    ap.add_argument("--streams", choices=STREAMS, default=STREAMS[0],
-                    help="the records' random numbers: the FMU's own, or numpy's through the same system "
-                         "(numpy_records.py)")
+    ap.add_argument(
+        "--streams",
+        choices=STREAMS,
+        default=STREAMS[0],
+        help="the records' random numbers: the FMU's own, or numpy's through the same system (numpy_records.py)",
+    )
     add_extraction_options(ap)
 
 
@@ -364,13 +404,25 @@ def run_datasets(function, jobs: list[tuple[str, int]], workers: int, **shared) 
 def dataset_command(script: str, args: argparse.Namespace) -> str:
     """The command line of a benchmark over FMU datasets with the options of :func:`add_dataset_options`."""
     streams = "" if args.streams == STREAMS[0] else f" --streams {args.streams}"
-    return (f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
-            f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
-            f"{streams}{extraction_flags(args)}")  # fmt: skip
+    return (
+        f"python benchmarks/{script} --scenarios {args.scenarios} --seeds {args.seeds} "
+        f"--first-seed {args.first_seed} --workers {args.workers} --duration {args.duration:g}"
+        f"{streams}{extraction_flags(args)}"
+    )
 
 
-def dataset_benchmark(description: str, script: str, one_dataset, report, results: Path, title: str, note: str,
-                      scenarios: str, seeds: int, first_seed: int) -> None:  # fmt: skip
+def dataset_benchmark(
+    description: str,
+    script: str,
+    one_dataset,
+    report,
+    results: Path,
+    title: str,
+    note: str,
+    scenarios: str,
+    seeds: int,
+    first_seed: int,
+) -> None:
     """The whole run of a benchmark over FMU datasets without options of its own: parse the options of
     :func:`add_dataset_options` (with these defaults), run ``one_dataset(job, duration_s, extraction, streams)`` for
     every dataset, and write ``title``, the command, ``note`` and ``report(rows)`` to ``results``."""
@@ -379,11 +431,22 @@ def dataset_benchmark(description: str, script: str, one_dataset, report, result
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
-    results_ = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
-                            extraction=extraction_options(args), streams=args.streams)  # fmt: skip
+    results_ = run_datasets(
+        one_dataset,
+        jobs,
+        args.workers,
+        duration_s=args.duration,
+        extraction=extraction_options(args),
+        streams=args.streams,
+    )
     rows = [r for rs in results_ for r in rs]
-    lines = [f"# {title}", "", f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
-             f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}", ""] + report(rows)  # fmt: skip
+    lines = [
+        f"# {title}",
+        "",
+        f"Command: `{dataset_command(script, args)}`; {len(jobs)} datasets in "
+        f"{time.perf_counter() - t0:.0f} s.{' ' + note if note else ''}",
+        "",
+    ] + report(rows)
     write_results(results, lines, rows, args.rows)
 
 
@@ -399,41 +462,76 @@ def write_results(path: Path, lines: list[str], rows: list[dict], rows_path: Pat
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_dataset_options(ap, scenarios=",".join(SCENARIOS), seeds=20, first_seed=101)
-    ap.add_argument("--shape-covariance", choices=SHAPE_COVARIANCES, default=SHAPE_COVARIANCES[0],
-                    help="the update's shape covariance (twin update --shape-covariance; sample: needs "
-                         "--delete-half with more blocks than entries)")
-    ap.add_argument("--combine", choices=("intersection", "independent"), default="intersection",
-                    help="how the update combines each mode's pole and shape errors (twin update --combine)")
-    ap.add_argument("--pole-error", choices=POLE_ERRORS, default=POLE_ERRORS[0],
-                    help="each mean pole's error (twin update --pole-error)")
-    ap.add_argument("--flat-priors", action="store_true",
-                    help="no prior on the effects' parameters (twin update --flat-priors)")
-    ap.add_argument("--bootstrap", type=int, default=DEFAULT_RECORDS, metavar="R",
-                    help="calibrate each posterior on R records simulated at its estimate (twin loop --bootstrap; "
-                         f"default {DEFAULT_RECORDS}, the loop's); 0: none, the second coverage column is the sampler's "
-                         "again")  # fmt: skip
+    ap.add_argument(
+        "--shape-covariance",
+        choices=SHAPE_COVARIANCES,
+        default=SHAPE_COVARIANCES[0],
+        help="the update's shape covariance (twin update --shape-covariance; sample: needs "
+        "--delete-half with more blocks than entries)",
+    )
+    ap.add_argument(
+        "--combine",
+        choices=("intersection", "independent"),
+        default="intersection",
+        help="how the update combines each mode's pole and shape errors (twin update --combine)",
+    )
+    ap.add_argument(
+        "--pole-error",
+        choices=POLE_ERRORS,
+        default=POLE_ERRORS[0],
+        help="each mean pole's error (twin update --pole-error)",
+    )
+    ap.add_argument(
+        "--flat-priors", action="store_true", help="no prior on the effects' parameters (twin update --flat-priors)"
+    )
+    ap.add_argument(
+        "--bootstrap",
+        type=int,
+        default=DEFAULT_RECORDS,
+        metavar="R",
+        help="calibrate each posterior on R records simulated at its estimate (twin loop --bootstrap; "
+        f"default {DEFAULT_RECORDS}, the loop's); 0: none, the second coverage column is the sampler's "
+        "again",
+    )
     args = ap.parse_args()
     jobs = dataset_jobs(args)
     t0 = time.perf_counter()
-    results = run_datasets(one_dataset, jobs, args.workers, duration_s=args.duration,
-                           extraction=extraction_options(args), shape_covariance=args.shape_covariance,
-                           combine=args.combine, pole_error=args.pole_error,
-                           plausible=not args.flat_priors, streams=args.streams, bootstrap=args.bootstrap)  # fmt: skip
+    results = run_datasets(
+        one_dataset,
+        jobs,
+        args.workers,
+        duration_s=args.duration,
+        extraction=extraction_options(args),
+        shape_covariance=args.shape_covariance,
+        combine=args.combine,
+        pole_error=args.pole_error,
+        plausible=not args.flat_priors,
+        streams=args.streams,
+        bootstrap=args.bootstrap,
+    )
     rows = [r for rs in results for r in rs if "refused" not in r]
     refused = [r for rs in results for r in rs if "refused" in r]
-    lines = ["# Calibration of the default APerCEM sampler on FMU data", "",
-             f"Command: `{dataset_command('update_coverage_fmu.py', args)}"
-             f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
-             f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
-             f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
-             f"{' --flat-priors' if args.flat_priors else ''}"
-             f"{f' --bootstrap {args.bootstrap}' if args.bootstrap != DEFAULT_RECORDS else ''}`; "
-             f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
-             ""] + report(rows, f"calibrated on {args.bootstrap} simulated records"
-                          + (" (the default)" if args.bootstrap == DEFAULT_RECORDS else "") if args.bootstrap
-                          else "not calibrated (--bootstrap 0)")  # fmt: skip
-    lines += [f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}"
-              for r in refused]  # fmt: skip
+    lines = [
+        "# Calibration of the default APerCEM sampler on FMU data",
+        "",
+        f"Command: `{dataset_command('update_coverage_fmu.py', args)}"
+        f"{'' if args.shape_covariance == SHAPE_COVARIANCES[0] else ' --shape-covariance ' + args.shape_covariance}"
+        f"{'' if args.combine == 'intersection' else ' --combine ' + args.combine}"
+        f"{'' if args.pole_error == POLE_ERRORS[0] else ' --pole-error ' + args.pole_error}"
+        f"{' --flat-priors' if args.flat_priors else ''}"
+        f"{f' --bootstrap {args.bootstrap}' if args.bootstrap != DEFAULT_RECORDS else ''}`; "
+        f"{len(jobs)} datasets in {time.perf_counter() - t0:.0f} s.",
+        "",
+    ] + report(
+        rows,
+        f"calibrated on {args.bootstrap} simulated records"
+        + (" (the default)" if args.bootstrap == DEFAULT_RECORDS else "")
+        if args.bootstrap
+        else "not calibrated (--bootstrap 0)",
+    )
+    lines += [
+        f"Refused by the update (not counted above): {r['scenario']} seed {r['seed']}: {r['refused']}" for r in refused
+    ]
     write_results(RESULTS, lines, rows, args.rows)
 
 

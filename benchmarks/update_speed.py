@@ -40,14 +40,19 @@ def _ess(az, x: np.ndarray, method: str = "bulk") -> np.ndarray:
     return np.array([az.ess(x[..., k], method=method) for k in range(x.shape[-1])])
 
 
-def _report(label: str, seconds: float, ess: np.ndarray, names: list[str], n_bearings: int,
-            tail: np.ndarray | None = None) -> None:
-    line = (f"{label}: {seconds:.1f} s; bulk ESS of all {ess.size} parameters: median {np.median(ess):.0f}, "
-            f"min {ess.min():.0f} ({names[int(np.argmin(ess))]}); of the bearings: median "
-            f"{np.median(ess[:n_bearings]):.0f}, min {ess[:n_bearings].min():.0f}; min ESS/s {ess.min() / seconds:.1f}")
+def _report(
+    label: str, seconds: float, ess: np.ndarray, names: list[str], n_bearings: int, tail: np.ndarray | None = None
+) -> None:
+    line = (
+        f"{label}: {seconds:.1f} s; bulk ESS of all {ess.size} parameters: median {np.median(ess):.0f}, "
+        f"min {ess.min():.0f} ({names[int(np.argmin(ess))]}); of the bearings: median "
+        f"{np.median(ess[:n_bearings]):.0f}, min {ess[:n_bearings].min():.0f}; min ESS/s {ess.min() / seconds:.1f}"
+    )
     if tail is not None:  # the 5% and 95% quantiles' ESS: what the 90% intervals rest on
-        line += (f"; tail ESS median {np.median(tail):.0f}, min {tail.min():.0f} ({names[int(np.argmin(tail))]}), "
-                 f"min tail ESS/s {tail.min() / seconds:.1f}")
+        line += (
+            f"; tail ESS median {np.median(tail):.0f}, min {tail.min():.0f} ({names[int(np.argmin(tail))]}), "
+            f"min tail ESS/s {tail.min() / seconds:.1f}"
+        )
     print(line)
 
 
@@ -82,27 +87,50 @@ def main() -> None:
         chain = hmc.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed))
         seconds = time.perf_counter() - t0
         x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
-        _report(f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{hmc.WARMUP} warm-up; "
-                f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}", seconds, _ess(az, x[None]), names, Kg,
-                tail=_ess(az, x[None], "tail"))
+        _report(
+            f"twin HMC on the marginal, Case B, 1 chain x {args.draws} draws (+{hmc.WARMUP} warm-up; "
+            f"+ {setup:.1f} s setup), accepted {chain.accepted.mean():.0%}",
+            seconds,
+            _ess(az, x[None]),
+            names,
+            Kg,
+            tail=_ess(az, x[None], "tail"),
+        )
         t0 = time.perf_counter()
         plain = hmc.run_chain(marg, args.draws, rng=np.random.default_rng(args.seed), per_mode_slice=False)
         plain_s = time.perf_counter() - t0
         x_plain = np.concatenate([plain.t, plain.eta.reshape(args.draws, -1)], axis=1)
-        _report(f"the same HMC without the per-mode slice step (its time {plain_s / seconds:.2f} of the default's), "
-                f"accepted {plain.accepted.mean():.0%}", plain_s, _ess(az, x_plain[None]), names, Kg,
-                tail=_ess(az, x_plain[None], "tail"))  # fmt: skip
+        _report(
+            f"the same HMC without the per-mode slice step (its time {plain_s / seconds:.2f} of the default's), "
+            f"accepted {plain.accepted.mean():.0%}",
+            plain_s,
+            _ess(az, x_plain[None]),
+            names,
+            Kg,
+            tail=_ess(az, x_plain[None], "tail"),
+        )
         _compare_marginal(az, marg, seconds, args, names, Kg, x)
         return
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()
-    chain = run_chain(problem, args.draws, burn_in=20, rng=np.random.default_rng(args.seed),
-                      prior=Prior.flat(problem, noise_model=args.noise_model), collapsed=args.collapsed)
+    chain = run_chain(
+        problem,
+        args.draws,
+        burn_in=20,
+        rng=np.random.default_rng(args.seed),
+        prior=Prior.flat(problem, noise_model=args.noise_model),
+        collapsed=args.collapsed,
+    )
     gibbs_s = time.perf_counter() - t0
     x = np.concatenate([chain.t, chain.eta.reshape(args.draws, -1)], axis=1)
-    _report(f"Gibbs ({args.noise_model} noise, {args.pole_model} poles{', collapsed step' if args.collapsed else ''}), "
-            f"Case B, 1 chain x {args.draws} draws (+20 burn-in; + {setup:.1f} s setup)", gibbs_s, _ess(az, x[None]),
-            names, Kg)  # fmt: skip
+    _report(
+        f"Gibbs ({args.noise_model} noise, {args.pole_model} poles{', collapsed step' if args.collapsed else ''}), "
+        f"Case B, 1 chain x {args.draws} draws (+20 burn-in; + {setup:.1f} s setup)",
+        gibbs_s,
+        _ess(az, x[None]),
+        names,
+        Kg,
+    )
     if chain.accepted.any():
         print(f"collapsed step accepted in {chain.accepted.mean():.0%} of the sweeps")
     _emcee_gibbs(az, model, data, params, gibbs_s, args)
@@ -137,8 +165,14 @@ def _compare_marginal(az, marg, seconds: float, args, names: list[str], Kg: int,
             steps += 10
         chains = np.swapaxes(sampler.get_chain(), 0, 1)  # (walkers, steps, n)
         ess = _ess(az, chains)  # counts walkers as chains: an upper bound this early
-        _report(f"emcee on the same marginal ({walkers} walkers, {steps} steps in the same wall time; ESS counts "
-                "walkers as chains)", time.perf_counter() - t0, ess, names, Kg)  # fmt: skip
+        _report(
+            f"emcee on the same marginal ({walkers} walkers, {steps} steps in the same wall time; ESS counts "
+            "walkers as chains)",
+            time.perf_counter() - t0,
+            ess,
+            names,
+            Kg,
+        )
     try:
         import nutpie
         from nutpie.compiled_pyfunc import from_pyfunc
@@ -159,16 +193,24 @@ def _compare_marginal(az, marg, seconds: float, args, names: list[str], Kg: int,
     def make_expand(*_):
         return lambda v, **__: {"theta": np.asarray(v).copy()}
 
-    compiled = from_pyfunc(n, make_logp, make_expand, [np.dtype("float64")], [(n,)], ["theta"],
-                           make_initial_point_fn=lambda _: mode.copy())  # fmt: skip
+    compiled = from_pyfunc(
+        n, make_logp, make_expand, [np.dtype("float64")], [(n,)], ["theta"], make_initial_point_fn=lambda _: mode.copy()
+    )
     t0 = time.perf_counter()
-    trace = one_blas_thread(nutpie.sample)(compiled, draws=args.draws, tune=300, chains=1, cores=1, seed=args.seed,
-                                           progress_bar=False)  # fmt: skip
+    trace = one_blas_thread(nutpie.sample)(
+        compiled, draws=args.draws, tune=300, chains=1, cores=1, seed=args.seed, progress_bar=False
+    )
     nuts_s = time.perf_counter() - t0
     x = trace.posterior["theta"].values
     steps = float(trace.sample_stats["n_steps"].mean())
-    _report(f"nutpie NUTS on the same marginal, 1 chain x {args.draws} draws (+300 tuning), {steps:.0f} gradient "
-            "steps per draw", nuts_s, _ess(az, x), names, Kg)  # fmt: skip
+    _report(
+        f"nutpie NUTS on the same marginal, 1 chain x {args.draws} draws (+300 tuning), {steps:.0f} gradient "
+        "steps per draw",
+        nuts_s,
+        _ess(az, x),
+        names,
+        Kg,
+    )
     ratio = x[0].std(axis=0) / x_hmc.std(axis=0)
     print(f"posterior std, NUTS / twin HMC: median {np.median(ratio):.2f}, range {ratio.min():.2f}-{ratio.max():.2f}")
 
@@ -211,13 +253,17 @@ def _emcee_gibbs(az, model, data, params, gibbs_s: float, args) -> None:
     emcee_s = time.perf_counter() - t0
     chains = sampler.get_chain()[:, :, :Kg]  # (steps, walkers, Kg)
     if steps < 4:
-        print(f"emcee, same posterior ({n_dim} dimensions, {walkers} walkers): {steps} ensemble step(s) in "
-              f"{emcee_s:.1f} s; too few for any ESS estimate (no effective sample in the Gibbs run's wall time)")
+        print(
+            f"emcee, same posterior ({n_dim} dimensions, {walkers} walkers): {steps} ensemble step(s) in "
+            f"{emcee_s:.1f} s; too few for any ESS estimate (no effective sample in the Gibbs run's wall time)"
+        )
         return
     ess_e = np.array([az.ess(np.swapaxes(chains[:, :, k], 0, 1), method="bulk") for k in range(Kg)])
-    print(f"emcee, same posterior ({n_dim} dimensions, {walkers} walkers), {emcee_s:.1f} s: {steps} steps; "
-          f"bulk ESS of the bearings: median {np.median(ess_e):.1f}, min {ess_e.min():.1f}; "
-          f"median ESS/s {np.median(ess_e) / emcee_s:.2f}")  # fmt: skip
+    print(
+        f"emcee, same posterior ({n_dim} dimensions, {walkers} walkers), {emcee_s:.1f} s: {steps} steps; "
+        f"bulk ESS of the bearings: median {np.median(ess_e):.1f}, min {ess_e.min():.1f}; "
+        f"median ESS/s {np.median(ess_e) / emcee_s:.2f}"
+    )
     print("(emcee's ESS counts walkers as chains; after so few steps from a tight ball it is an upper bound)")
 
 

@@ -1,4 +1,4 @@
-"""Shared fixtures: paths to the shipped models and test data."""
+"""Shared fixtures of the tests: synthetic records, paper cases and test data (the shipped models: ../conftest.py)."""
 
 from pathlib import Path
 
@@ -8,28 +8,19 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).resolve().parent / "data"
 
 
-@pytest.fixture(autouse=True)
-def _run_from_root(monkeypatch):
-    """Docstring examples and tests use paths relative to the repository root."""
-    monkeypatch.chdir(ROOT)
-
-
-@pytest.fixture(scope="session")
-def hydro_unit():
-    from twin import load_model
-
-    return load_model(ROOT / "models" / "hydro_unit.toml")
-
-
-@pytest.fixture(scope="session")
-def ross_model():
-    from twin import load_model
-
-    return load_model(ROOT / "models" / "ross_reference.toml")
-
-
-def modal_record(poles, shapes, *, fs_hz, duration_s, seed, noise_ratio=0.05, participation=None,
-                 sinusoid=None, channels=None, attrs=None):  # fmt: skip
+def modal_record(
+    poles,
+    shapes,
+    *,
+    fs_hz,
+    duration_s,
+    seed,
+    noise_ratio=0.05,
+    participation=None,
+    sinusoid=None,
+    channels=None,
+    attrs=None,
+):
     """A synthetic signals Dataset: a sum of modes driven by white noise, plus sensor noise.
 
     Mode ``k`` (pole ``lambda_k``, complex output shape ``phi_k``) has the modal
@@ -61,9 +52,11 @@ def modal_record(poles, shapes, *, fs_hz, duration_s, seed, noise_ratio=0.05, pa
         y += np.cos(2 * np.pi * f * t)[:, None] * np.real(amp) - np.sin(2 * np.pi * f * t)[:, None] * np.imag(amp)
     y += noise_ratio * np.median(y.std(axis=0)) * rng.standard_normal(y.shape)
     names = channels or [f"ch{i}" for i in range(y.shape[1])]
-    return xr.Dataset({"displacement": (("time", "channel"), y, {"units": "m"})},
-                      coords={"time": ("time", t, {"units": "s"}), "channel": names},
-                      attrs={"sampling_rate": fs_hz, **(attrs or {})})  # fmt: skip
+    return xr.Dataset(
+        {"displacement": (("time", "channel"), y, {"units": "m"})},
+        coords={"time": ("time", t, {"units": "s"}), "channel": names},
+        attrs={"sampling_rate": fs_hz, **(attrs or {})},
+    )
 
 
 @pytest.fixture(scope="session")
@@ -79,8 +72,11 @@ def shear_frame():
     import xarray as xr
 
     data = np.load(DATA / "shearframe.npz")
-    ds = xr.Dataset({"displacement": (("time", "channel"), data["response"])},
-                    coords={"channel": [f"storey{i + 1}" for i in range(5)]}, attrs={"sampling_rate": 12.0})  # fmt: skip
+    ds = xr.Dataset(
+        {"displacement": (("time", "channel"), data["response"])},
+        coords={"channel": [f"storey{i + 1}" for i in range(5)]},
+        attrs={"sampling_rate": 12.0},
+    )
     return ds, data["omega_n"], data["xi_ref"], data["phi_ref"]
 
 
@@ -114,7 +110,13 @@ def case_b_posterior(hydro_unit, paper_modes):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        return update(hydro_unit, paper_modes, 'bearings', fsi=True, options={'draws': 500, 'chains': 2, 'seed': 2, 'progress': False})  # fmt: skip
+        return update(
+            hydro_unit,
+            paper_modes,
+            "bearings",
+            fsi=True,
+            options={"draws": 500, "chains": 2, "seed": 2, "progress": False},
+        )
 
 
 @pytest.fixture(scope="session")
@@ -144,14 +146,31 @@ def toy():
     H = rng.standard_normal((I, 3, J, N_R, N_PSI + N_E))
     H[:, 2, :, 0] = 0.0  # the own parameter does not touch row 0: blocks must handle it
     problem = Problem(
-        H0=H[:, 0].copy(), blocks=sparse_blocks(H[:, 1:]), data_index=np.arange(N_PSI),
-        eps_index=N_PSI + np.arange(N_E), psi_hat=rng.standard_normal((I, J, N_PSI)),
-        psi_var=np.full((I, N_PSI), 0.3), global_names=["a"], global_scale=np.ones(1), global_nominal=np.ones(1),
-        mode_names=["b"], mode_scale=np.ones((I, 1)), mode_nominal=np.zeros((I, 1)), modes=np.array([1, 2]),
-        channels=["c"], method="stage 2", eps_std=0.2, margin=np.full(I, np.inf), resonance_hz=np.full(I, np.nan),
-    )  # fmt: skip
-    state = State(np.array([0.4]), np.array([[-0.3], [0.7]]), rng.standard_normal((I, N_PSI + N_E)),
-                  rng.uniform(0.5, 2.0, (I, N_R)))  # fmt: skip
+        H0=H[:, 0].copy(),
+        blocks=sparse_blocks(H[:, 1:]),
+        data_index=np.arange(N_PSI),
+        eps_index=N_PSI + np.arange(N_E),
+        psi_hat=rng.standard_normal((I, J, N_PSI)),
+        psi_var=np.full((I, N_PSI), 0.3),
+        global_names=["a"],
+        global_scale=np.ones(1),
+        global_nominal=np.ones(1),
+        mode_names=["b"],
+        mode_scale=np.ones((I, 1)),
+        mode_nominal=np.zeros((I, 1)),
+        modes=np.array([1, 2]),
+        channels=["c"],
+        method="stage 2",
+        eps_std=0.2,
+        margin=np.full(I, np.inf),
+        resonance_hz=np.full(I, np.nan),
+    )
+    state = State(
+        np.array([0.4]),
+        np.array([[-0.3], [0.7]]),
+        rng.standard_normal((I, N_PSI + N_E)),
+        rng.uniform(0.5, 2.0, (I, N_R)),
+    )
     return problem, state, H
 
 

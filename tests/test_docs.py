@@ -10,8 +10,11 @@ from tests.conftest import ROOT
 
 def test_every_module_is_in_the_api_reference():
     listed = "\n".join(p.read_text() for p in (ROOT / "docs" / "api").glob("*.md"))
-    modules = [m.name for m in pkgutil.walk_packages(twin.__path__, prefix="twin.")
-               if not m.name.startswith(("twin.cli", "twin.__main__"))]  # the CLI: from its parser (docs/cli.md)
+    modules = [
+        m.name
+        for m in pkgutil.walk_packages(twin.__path__, prefix="twin.")
+        if not m.name.startswith(("twin.cli", "twin.__main__"))
+    ]  # the CLI: from its parser (docs/cli.md)
     missing = [m for m in modules if f".. automodule:: {m}\n" not in listed]
     assert missing == []
 
@@ -29,8 +32,14 @@ def test_no_internal_work_numbers_in_the_project():
     for folder in ("twin", "docs", "benchmarks"):
         for path in (ROOT / folder).rglob("*"):
             if path.is_file() and path.suffix in {".py", ".md", ".txt", ".toml", ".c"} and "_build" not in path.parts:
-                found += [f"{path.relative_to(ROOT)}:{n}" for n, line in enumerate(path.read_text().splitlines(), 1)
-                          if pattern.search(line)]
-    found += [f"README.md:{n}" for n, line in enumerate((ROOT / "README.md").read_text().splitlines(), 1)
-              if pattern.search(line)]
+                found += [
+                    f"{path.relative_to(ROOT)}:{n}"
+                    for n, line in enumerate(path.read_text().splitlines(), 1)
+                    if pattern.search(line)
+                ]
+    found += [
+        f"README.md:{n}"
+        for n, line in enumerate((ROOT / "README.md").read_text().splitlines(), 1)
+        if pattern.search(line)
+    ]
     assert found == []

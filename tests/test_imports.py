@@ -34,7 +34,9 @@ def _imports(path: Path) -> set[str]:
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
             found |= {a.name for a in node.names if a.name.split(".")[0] == "twin"}
-        elif isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "twin" and not node.level:
+        elif (
+            isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "twin" and not node.level
+        ):
             for alias in node.names:
                 sub = f"{node.module}.{alias.name}"
                 if _is_module(sub):
@@ -76,7 +78,7 @@ def test_no_import_circle():
         state[node] = "open"
         for dep in sorted(graph.get(node, ())):
             if state.get(dep) == "open":
-                circles.append(" -> ".join(path[path.index(dep):] + [dep]) if dep in path else f"{node} -> {dep}")
+                circles.append(" -> ".join(path[path.index(dep) :] + [dep]) if dep in path else f"{node} -> {dep}")
             elif dep not in state:
                 visit(dep, path + [dep])
         state[node] = "done"
@@ -89,8 +91,12 @@ def test_no_import_circle():
 
 def test_no_import_from_a_later_stage():
     order = {s: k for k, s in enumerate(STAGES)}
-    up = [f"{m} -> {d}" for m, deps in sorted(_graph().items()) for d in sorted(deps)
-          if m != "twin" and order[_stage(d)] > order[_stage(m)]]  # the package's facade re-exports any stage
+    up = [
+        f"{m} -> {d}"
+        for m, deps in sorted(_graph().items())
+        for d in sorted(deps)
+        if m != "twin" and order[_stage(d)] > order[_stage(m)]
+    ]  # the package's facade re-exports any stage
     assert up == []
 
 

@@ -18,8 +18,13 @@ def test_effect_labels_are_split_only_by_the_label_parser():
     text-file reader's ``# key: value`` header lines, which hold no labels."""
     pattern = re.compile(r"""\.(r?partition|r?split)\(\s*["']:["']""")
     allowed = {"twin/fem/effects/registry.py", "twin/extract/readers.py"}
-    found = [f"{name}:{n}" for name, text in _sources() if name not in allowed
-             for n, line in enumerate(text.splitlines(), 1) if pattern.search(line)]  # fmt: skip
+    found = [
+        f"{name}:{n}"
+        for name, text in _sources()
+        if name not in allowed
+        for n, line in enumerate(text.splitlines(), 1)
+        if pattern.search(line)
+    ]
     assert found == []
 
 
@@ -32,17 +37,25 @@ def test_effect_classes_live_in_the_effects_package():
             continue
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, ast.ClassDef) and any(
-                    isinstance(b, ast.Name) and b.id in ("Effect", "RelativeChange") for b in node.bases):  # fmt: skip
+                isinstance(b, ast.Name) and b.id in ("Effect", "RelativeChange") for b in node.bases
+            ):
                 found.append(f"{name}:{node.lineno} class {node.name}")
-            if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id in (
-                    "EFFECTS", "LOCAL_CHANGES", "REPLACES", "EXCLUSIVE", "PER_MODE_NAME") for t in node.targets):  # fmt: skip
+            if isinstance(node, ast.Assign) and any(
+                isinstance(t, ast.Name)
+                and t.id in ("EFFECTS", "LOCAL_CHANGES", "REPLACES", "EXCLUSIVE", "PER_MODE_NAME")
+                for t in node.targets
+            ):
                 found.append(f"{name}:{node.lineno} {ast.unparse(node.targets[0])}")
     assert found == []
 
 
 def _class_names() -> list[tuple[str, int, str]]:
-    return [(name, node.lineno, node.name) for name, text in _sources() for node in ast.walk(ast.parse(text))
-            if isinstance(node, ast.ClassDef)]  # fmt: skip
+    return [
+        (name, node.lineno, node.name)
+        for name, text in _sources()
+        for node in ast.walk(ast.parse(text))
+        if isinstance(node, ast.ClassDef)
+    ]
 
 
 def test_one_candidate_for_the_loop_and_the_tracker():
@@ -55,8 +68,13 @@ def test_evidence_is_computed_in_one_place():
     """ln Z of a hypothesis (Laplace's formula and its exact linear-Gaussian case) is twin.update.evidence's:
     no other module of the diagnosis, the locating scan or the tracker takes a log-determinant of its own."""
     weighing = ["twin/loop/", "twin/track/", "twin/update/laplace.py"]
-    found = [f"{name}:{n}" for name, text in _sources() if any(name.startswith(w) for w in weighing)
-             for n, line in enumerate(text.splitlines(), 1) if "slogdet" in line or "log1p(" in line]  # fmt: skip
+    found = [
+        f"{name}:{n}"
+        for name, text in _sources()
+        if any(name.startswith(w) for w in weighing)
+        for n, line in enumerate(text.splitlines(), 1)
+        if "slogdet" in line or "log1p(" in line
+    ]
     assert found == []
 
 
@@ -64,18 +82,26 @@ def test_one_modal_assignment():
     """Modes are assigned one to one by twin.modes.pairing.assign (Hungarian, with gates) alone: no other module
     calls the Hungarian algorithm or walks a cost matrix's pairs closest first."""
     greedy = re.compile(r"argsort\([^)]*axis=None")
-    found = [f"{name}:{n}" for name, text in _sources() if name != "twin/modes/pairing.py"
-             for n, line in enumerate(text.splitlines(), 1)
-             if "linear_sum_assignment" in line or greedy.search(line)]  # fmt: skip
+    found = [
+        f"{name}:{n}"
+        for name, text in _sources()
+        if name != "twin/modes/pairing.py"
+        for n, line in enumerate(text.splitlines(), 1)
+        if "linear_sum_assignment" in line or greedy.search(line)
+    ]
     assert found == []
 
 
 def test_sub_commands_are_made_one_way():
     """Each command module registers its sub-commands (``add_commands``) through twin.cli.common.command; no
     module makes a sub-parser of its own or reaches for another command module's private helpers."""
-    found = [f"{name}:{n}" for name, text in _sources() if name != "twin/cli/common.py"
-             for n, line in enumerate(text.splitlines(), 1)
-             if "add_parser(" in line or re.search(r"from twin\.cli\.\w+ import _", line)]  # fmt: skip
+    found = [
+        f"{name}:{n}"
+        for name, text in _sources()
+        if name != "twin/cli/common.py"
+        for n, line in enumerate(text.splitlines(), 1)
+        if "add_parser(" in line or re.search(r"from twin\.cli\.\w+ import _", line)
+    ]
     assert found == []
     modules = [name for name, text in _sources() if name.startswith("twin/cli/") and "def add_commands(sub)" in text]
     assert sorted(modules) == ["twin/cli/design.py", "twin/cli/loop.py", "twin/cli/stages.py", "twin/cli/track.py"]

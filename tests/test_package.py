@@ -11,8 +11,11 @@ def test_every_data_file_of_the_package_is_declared():
     runtime must be declared, or a non-editable install cannot load a model or export an FMU."""
     globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["twin"]
     package = ROOT / "twin"
-    data = [p.relative_to(package).as_posix() for p in package.rglob("*")
-            if p.is_file() and p.suffix not in (".py", ".pyc") and "__pycache__" not in p.parts]  # fmt: skip
+    data = [
+        p.relative_to(package).as_posix()
+        for p in package.rglob("*")
+        if p.is_file() and p.suffix not in (".py", ".pyc") and "__pycache__" not in p.parts
+    ]
     assert data, "the package has data files (models, C runtime)"
     undeclared = [f for f in data if not any(fnmatch.fnmatch(f, g) for g in globs)]
     assert undeclared == []

@@ -37,14 +37,28 @@ from twin.errors import ModelError, ModelFileError, TwinError  # noqa: E402
 #: The package's names and the modules they come from, imported on first use (PEP 562): ``import twin`` stays
 #: quick, so the ``twin`` command answers ``--help`` and argument errors at once.
 _LAZY = {
-    "RotorModel": "twin.fem", "load_model": "twin.fem", "shipped_model": "twin.fem",
-    "campbell": "twin.modes", "mac": "twin.modes", "modal": "twin.modes", "pair_modes": "twin.modes",
-}  # fmt: skip
+    "RotorModel": "twin.fem",
+    "load_model": "twin.fem",
+    "shipped_model": "twin.fem",
+    "campbell": "twin.modes",
+    "mac": "twin.modes",
+    "modal": "twin.modes",
+    "pair_modes": "twin.modes",
+}
 
 __all__ = [
-    "ModelError", "ModelFileError", "RotorModel", "TwinError", "__version__",
-    "campbell", "load_model", "mac", "modal", "pair_modes", "shipped_model",
-]  # fmt: skip
+    "ModelError",
+    "ModelFileError",
+    "RotorModel",
+    "TwinError",
+    "__version__",
+    "campbell",
+    "load_model",
+    "mac",
+    "modal",
+    "pair_modes",
+    "shipped_model",
+]
 
 
 def __getattr__(name: str):

@@ -121,8 +121,11 @@ def check_folder(path: str | Path, flag: str | None = None, make: bool = False) 
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
     if not existing.is_dir():
-        raise TwinError(f"{what} is a file, not a folder" if existing == path else
-                        f"cannot write into {what}: {existing} is a file, not a folder")  # fmt: skip
+        raise TwinError(
+            f"{what} is a file, not a folder"
+            if existing == path
+            else f"cannot write into {what}: {existing} is a file, not a folder"
+        )
     problem = _unwritable(existing)
     if problem:
         where = "it is not writable" if existing == path else f"{existing}, where it would be made, is not writable"

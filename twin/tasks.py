@@ -115,8 +115,12 @@ def dask_mapper(client: Any, *, progress: bool = False, desc: str = "tasks") -> 
             return []
         # containers (a dict of start values, a tuple of labels) are small, and scatter would take a dict's keys
         # for names: they go with the tasks; models and updating problems are scattered once
-        scattered = {k: v if isinstance(v, (dict, list, tuple, set, str, int, float, type(None)))
-                     else client.scatter(v, broadcast=True, hash=False) for k, v in shared.items()}  # fmt: skip
+        scattered = {
+            k: v
+            if isinstance(v, (dict, list, tuple, set, str, int, float, type(None)))
+            else client.scatter(v, broadcast=True, hash=False)
+            for k, v in shared.items()
+        }
         futures = client.map(function, items, pure=False, **scattered)
         with bar(total=len(futures), desc=desc, progress=progress, leave=False) as finished:
             for _ in as_completed(futures):
@@ -207,14 +211,23 @@ def dask_client(
         # do it: with it, 20 records' extractions on two workers ran at 29.0 records a minute against 32.9
         # without (80 others in a track: 28.3 against 28.9). The local workers run without it (their
         # dashboard's profile page stays empty).
-        environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
-                   if k != "MALLOC_TRIM_THRESHOLD_"}  # fmt: skip
+        environ = {
+            k: v
+            for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
+            if k != "MALLOC_TRIM_THRESHOLD_"
+        }
         settings = {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False}
         from twin.progress import stage
 
         with dask.config.set(settings), stage(f"start {workers} Dask workers"):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address=":0", silence_logs=logging.ERROR)  # fmt: skip
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=":0",
+                silence_logs=logging.ERROR,
+            )
         client = Client(cluster)
         log.info("local Dask cluster at %s, %d workers", cluster.scheduler_address, workers)
         try:

@@ -32,8 +32,13 @@ def execute(source: Path, target: Path, timeout_s: int = CELL_TIMEOUT_S) -> None
     notebook = nbformat.read(source, as_version=4)
     with tempfile.TemporaryDirectory(prefix="twin-docs-kernel-") as sockets:
         config = Config({"KernelManager": {"transport": "ipc", "ip": str(Path(sockets) / "kernel")}})
-        client = NotebookClient(notebook, timeout=timeout_s, kernel_name="python3", config=config,
-                                resources={"metadata": {"path": str(target.parent)}})
+        client = NotebookClient(
+            notebook,
+            timeout=timeout_s,
+            kernel_name="python3",
+            config=config,
+            resources={"metadata": {"path": str(target.parent)}},
+        )
         client.execute()
     nbformat.write(notebook, target)
 

@@ -1,6 +1,5 @@
 """benchmarks/jackknife.py: the jackknife of the posterior mode, which the benchmarks measure the update's spread with."""
 
-
 import numpy as np
 import pytest
 
@@ -73,6 +72,7 @@ def test_independent_modes_are_left_about_as_they_are(hydro_unit):
     problem = build_problem(hydro_unit, data, NAMES, pole_model="marginal")
     marg = marginal_problem(problem, data["pole"].transpose("mode", "sample").values)
     zero = np.zeros(marg.size)
-    factors = correlation_factors(marg, hydro_unit, data, NAMES, fsi=False, eps_std=1e-6, prior_mean=zero,
-                                  prior_precision=zero)  # fmt: skip
+    factors = correlation_factors(
+        marg, hydro_unit, data, NAMES, fsi=False, eps_std=1e-6, prior_mean=zero, prior_precision=zero
+    )
     assert ((factors > 0.7) & (factors < 1.4)).all(), factors

@@ -53,8 +53,9 @@ def files(tmp_path_factory):
     write_modes(modes, tmp / "modes.nc")
     (tmp / "pull.toml").write_text("[magnetic_pull]\nstiffness = 5e7\n")
     (tmp / "fsi.toml").write_text("[fsi_per_mode]\nadded_mass = [1e5, -2.0]\nadded_damping = [0.0, 0.0]\n")
-    (tmp / "model.toml").write_text(Path("models/hydro_unit.toml").read_text()
-                                    + "\n[effects.fsi]\nadded_mass = -1.0\nadded_damping = 0.0\n")  # fmt: skip
+    (tmp / "model.toml").write_text(
+        Path("models/hydro_unit.toml").read_text() + "\n[effects.fsi]\nadded_mass = -1.0\nadded_damping = 0.0\n"
+    )
     return tmp
 
 
@@ -62,25 +63,42 @@ def files(tmp_path_factory):
     "argv, message",
     [
         (["extract", "{f}/backwards.nc", "-o", "{o}/m.nc", "--samples", "5"], "backwards.nc: the time runs backwards"),
-        (["extract", "{f}/rate.nc", "-o", "{o}/m.nc", "--samples", "5"],
-         "rate.nc: the sampling_rate attribute says 64 Hz but the time coordinate steps by 0.03125 s (32 Hz)"),
-        (["extract", "{f}/hole.nc", "-o", "{o}/m.nc", "--samples", "5"],
-         "hole.nc: the time axis is not evenly spaced: a step of 10.0312 s (a hole: 320 samples missing)"),
+        (
+            ["extract", "{f}/rate.nc", "-o", "{o}/m.nc", "--samples", "5"],
+            "rate.nc: the sampling_rate attribute says 64 Hz but the time coordinate steps by 0.03125 s (32 Hz)",
+        ),
+        (
+            ["extract", "{f}/hole.nc", "-o", "{o}/m.nc", "--samples", "5"],
+            "hole.nc: the time axis is not evenly spaced: a step of 10.0312 s (a hole: 320 samples missing)",
+        ),
         (["compare", "hydro_unit", "{f}/empty.nc"], "empty.nc: it holds no mode"),
         (["diagnose", "hydro_unit", "{f}/empty.nc", "--scheduler", "sync"], "empty.nc: it holds no mode"),
-        (["update", "hydro_unit", "{f}/empty.nc", "--params", "UGB.kxx", "-o", "{o}/p.nc"], "empty.nc: it holds no mode"),
-        (["loop", "hydro_unit", "{f}/empty.nc", "--out", "{o}/loop", "--scheduler", "sync"], "empty.nc: it holds no mode"),
-        (["simulate", "hydro_unit", "--truth", "{f}/pull.toml", "--duration", "5", "-o", "{o}/s.nc"],
-         "pull.toml: [magnetic_pull]: key 'stiffness': MAG.stiffness = 5e+07 is outside its physical bounds (<= 0"),
-        (["synthesize-modes", "hydro_unit", "--truth", "{f}/fsi.toml", "-o", "{o}/m.nc"],
-         "fsi.toml: [fsi_per_mode]: key 'added_mass': FSI.added_mass_2 = -2 is outside its physical bounds (>= 0"),
+        (
+            ["update", "hydro_unit", "{f}/empty.nc", "--params", "UGB.kxx", "-o", "{o}/p.nc"],
+            "empty.nc: it holds no mode",
+        ),
+        (
+            ["loop", "hydro_unit", "{f}/empty.nc", "--out", "{o}/loop", "--scheduler", "sync"],
+            "empty.nc: it holds no mode",
+        ),
+        (
+            ["simulate", "hydro_unit", "--truth", "{f}/pull.toml", "--duration", "5", "-o", "{o}/s.nc"],
+            "pull.toml: [magnetic_pull]: key 'stiffness': MAG.stiffness = 5e+07 is outside its physical bounds (<= 0",
+        ),
+        (
+            ["synthesize-modes", "hydro_unit", "--truth", "{f}/fsi.toml", "-o", "{o}/m.nc"],
+            "fsi.toml: [fsi_per_mode]: key 'added_mass': FSI.added_mass_2 = -2 is outside its physical bounds (>= 0",
+        ),
         (["modal", "{f}/model.toml"], "model.toml: [effects.fsi]: key 'added_mass': FSI.added_mass = -1 is outside"),
         (["modal", "hydro_unit", "--speed", "-134"], "argument --speed: must be a finite number >= 0, got -134"),
         (["campbell", "hydro_unit", "--max-speed", "nan", "-o", "{o}/c.png"], "argument --max-speed: must be a finite"),
-        (["extract", "{f}/good.nc", "-o", "{o}/m.nc", "--samples", "0"], "argument --samples: must be an integer >= 1, got 0"),
+        (
+            ["extract", "{f}/good.nc", "-o", "{o}/m.nc", "--samples", "0"],
+            "argument --samples: must be an integer >= 1, got 0",
+        ),
         (["demo", "--hidden", "magnetic_pul", "--out", "{o}/demo"], "hidden change 'magnetic_pul': unknown"),
     ],
-)  # fmt: skip
+)
 def test_bad_input_is_one_line_before_any_work(files, tmp_path, capsys, monkeypatch, argv, message):
     import twin.tasks
 
@@ -127,8 +145,10 @@ def test_an_unwritable_output_is_refused_before_the_work(files, tmp_path, capsys
 
 
 def test_a_one_channel_record_is_extracted(files, tmp_path, capsys):
-    assert main(["extract", str(files / "one_channel.nc"), "-o", str(tmp_path / "m.nc"), "--samples", "5",
-                 "--fmax", "8"]) == 0  # fmt: skip
+    assert (
+        main(["extract", str(files / "one_channel.nc"), "-o", str(tmp_path / "m.nc"), "--samples", "5", "--fmax", "8"])
+        == 0
+    )
     from twin.modes import read_modes
 
     modes = read_modes(tmp_path / "m.nc")
@@ -138,7 +158,9 @@ def test_a_one_channel_record_is_extracted(files, tmp_path, capsys):
 
 
 def test_no_truth_is_a_truth_as_the_demo_takes_it(tmp_path, capsys):
-    assert main(["synthesize-modes", "hydro_unit", "--truth", "none", "--samples", "3", "-o", str(tmp_path / "m.nc")]) == 0
+    assert (
+        main(["synthesize-modes", "hydro_unit", "--truth", "none", "--samples", "3", "-o", str(tmp_path / "m.nc")]) == 0
+    )
     assert "none (the model as it is)" in capsys.readouterr().out
 
 
@@ -164,7 +186,9 @@ def test_warnings_are_one_line_and_name_what_they_assume(files, tmp_path, capsys
     err = capsys.readouterr().err
     assert "twin: warning: fs = 20 Hz is low for modes up to" in err and "UserWarning" not in err
     assert "twin: simulate 2 s of hydro_unit at 20 Hz through its FMU" in err  # the stage, on a terminal as in a log
-    assert main(["extract", str(files / "good.nc"), "-o", str(tmp_path / "m.nc"), "--fmax", "14", "--samples", "5"]) == 0
+    assert (
+        main(["extract", str(files / "good.nc"), "-o", str(tmp_path / "m.nc"), "--fmax", "14", "--samples", "5"]) == 0
+    )
     out, err = capsys.readouterr()
     assert "fmax = 14 Hz is above 40% of the sampling rate (12.8 Hz)" in err
     assert "MPC: modal phase collinearity" in out and "MPD: mean phase deviation [deg]" in out
@@ -197,16 +221,35 @@ def test_the_help_says_what_the_command_does(capsys, command, said):
 def test_a_measurement_table_comes_in_with_its_units(tmp_path, capsys):
     t = np.arange(12000) / 32.0
     rng = np.random.default_rng(2)
-    y = np.column_stack([np.sin(2 * np.pi * 2 * t + p) for p in (0.0, 1.0, 2.0)]) * 0.01 + rng.standard_normal((12000, 3))
-    (tmp_path / "probes.txt").write_text("# sampling_rate: 32\nA B C\n" + "\n".join(" ".join(f"{v:.6f}" for v in r) for r in y))
+    y = np.column_stack([np.sin(2 * np.pi * 2 * t + p) for p in (0.0, 1.0, 2.0)]) * 0.01 + rng.standard_normal(
+        (12000, 3)
+    )
+    (tmp_path / "probes.txt").write_text(
+        "# sampling_rate: 32\nA B C\n" + "\n".join(" ".join(f"{v:.6f}" for v in r) for r in y)
+    )
     assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc")]) == 2
     assert "channel 'A' has no units" in capsys.readouterr().err and not (tmp_path / "s.nc").exists()
     assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc"), "--units", "A=um,=mm/s"]) == 2
     assert "--units takes one value or NAME=VALUE pairs" in capsys.readouterr().err
-    assert main(["import", str(tmp_path / "probes.txt"), "-o", str(tmp_path / "s.nc"), "--units", "A=um,B=um,C=mm/s",
-                 "--channels", "UGB_x,UGB_y,LGB_x"]) == 0  # fmt: skip
-    assert "12000 samples at 32 Hz of UGB_x (displacement, um), UGB_y (displacement, um), LGB_x (velocity, mm/s)" \
-        in capsys.readouterr().out  # fmt: skip
+    assert (
+        main(
+            [
+                "import",
+                str(tmp_path / "probes.txt"),
+                "-o",
+                str(tmp_path / "s.nc"),
+                "--units",
+                "A=um,B=um,C=mm/s",
+                "--channels",
+                "UGB_x,UGB_y,LGB_x",
+            ]
+        )
+        == 0
+    )
+    assert (
+        "12000 samples at 32 Hz of UGB_x (displacement, um), UGB_y (displacement, um), LGB_x (velocity, mm/s)"
+        in capsys.readouterr().out
+    )
     from twin.extract.signals import check_record
     import xarray as xr
 

@@ -36,7 +36,9 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("twin: error: ") and "no such file" in err and "Traceback" not in err
     # an output in a missing folder: the folder is made (as --plot and --out do)
-    assert main(["campbell", "ross_reference", "--points", "2", "--modes", "2", "-o", str(tmp_path / "no" / "c.png")]) == 0
+    assert (
+        main(["campbell", "ross_reference", "--points", "2", "--modes", "2", "-o", str(tmp_path / "no" / "c.png")]) == 0
+    )
     assert (tmp_path / "no" / "c.png").is_file()
     capsys.readouterr()
 
@@ -49,11 +51,13 @@ def test_errors_are_one_line_with_status_2(tmp_path, capsys):
         (["synthesize-modes", "hydro_unit", "-o", "{tmp}"], "it is a folder"),
         (["compare", "hydro_unit", "{tmp}"], "is a folder, not a modes file"),
         (["compare", "hydro_unit", "{tmp}/text.nc"], "text.nc: not a NetCDF file"),
-        (["update", "hydro_unit", "{tmp}/m.nc", "--params", "MAG.stiffness", "-o", "{tmp}/p.nc"],
-         "'MAG.stiffness'; it comes with the effect 'magnetic_pull': add it first"),
+        (
+            ["update", "hydro_unit", "{tmp}/m.nc", "--params", "MAG.stiffness", "-o", "{tmp}/p.nc"],
+            "'MAG.stiffness'; it comes with the effect 'magnetic_pull': add it first",
+        ),
         (["demo", "--out", "{tmp}/text.nc"], "--out {tmp}/text.nc is a file, not a folder"),
     ],
-)  # fmt: skip
+)
 def test_bad_paths_and_names_fail_early_on_one_line(tmp_path, capsys, argv, message):
     from twin import load_model
     from twin.modes import write_modes
@@ -79,6 +83,7 @@ def test_help_of_every_command_has_a_description_an_example_and_its_defaults(cap
         for action in sub._actions:
             if action.option_strings and action.default not in (None, False, "==SUPPRESS==") and action.help:
                 assert "default" in sub._get_formatter()._get_help_string(action), (name, action.dest)
+
     def flat(name):
         return " ".join(commands[name].format_help().split())
 
@@ -106,8 +111,12 @@ def test_output_into_a_closed_pipe_is_not_an_error():
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "modal", "models/hydro_unit.toml"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "twin.cli", "modal", "models/hydro_unit.toml"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        bufsize=0,
+    )
     proc.stdout.readline()  # like `| head -1`
     proc.stdout.close()
     _, err = proc.communicate(timeout=60)
@@ -116,8 +125,23 @@ def test_output_into_a_closed_pipe_is_not_an_error():
 
 def test_export_fmu_command(tmp_path, capsys):
     out = tmp_path / "unit.fmu"
-    assert main(["export-fmu", "models/hydro_unit.toml", "-o", str(out), "--basis", "modal", "--fmax", "60",
-                 "--inputs", "runner.x, runner.y"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "export-fmu",
+                "models/hydro_unit.toml",
+                "-o",
+                str(out),
+                "--basis",
+                "modal",
+                "--fmax",
+                "60",
+                "--inputs",
+                "runner.x, runner.y",
+            ]
+        )
+        == 0
+    )
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(out)) == []
@@ -133,8 +157,14 @@ def _hidden_pull_modes(tmp_path):
     from twin.fem.truthfile import Truth
     from twin.update import synthesize_modes
 
-    data = synthesize_modes(load_model("models/hydro_unit.toml"), Truth((MagneticPull(-1e8),)), n_modes=13,
-                            samples=50, seed=3, pole_variance=(0.01, 0.01))  # fmt: skip
+    data = synthesize_modes(
+        load_model("models/hydro_unit.toml"),
+        Truth((MagneticPull(-1e8),)),
+        n_modes=13,
+        samples=50,
+        seed=3,
+        pole_variance=(0.01, 0.01),
+    )
     return str(write_modes(data, tmp_path / "modes.nc"))
 
 
@@ -148,14 +178,31 @@ def test_compare_and_diagnose_commands(tmp_path, capsys):
     assert "error E = 0.18%" in out and "unweighted RMS 3.42%" in out and "GEN_y" in out
     assert "E weighs each mode's error by the inverse variance of its measured pole" in out
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["errors.png", "mac.png", "spectra.png"]
-    assert main(["diagnose", "models/hydro_unit.toml", modes, "--json", "--workers", "2",  # a local Dask cluster
-                 "--candidates", "magnetic_pull,seal_cross_coupling,bearing_change:UGB"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "diagnose",
+                "models/hydro_unit.toml",
+                modes,
+                "--json",
+                "--workers",
+                "2",  # a local Dask cluster
+                "--candidates",
+                "magnetic_pull,seal_cross_coupling,bearing_change:UGB",
+            ]
+        )
+        == 0
+    )
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"] == "missing effect" and report["ranking"][0]["effect"] == "magnetic_pull"
     assert report["ranking"][0]["error_after"] < 0.2 * report["error"]
     assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["error"] == pytest.approx(0.001847, rel=1e-3)  # a zero-valued effect changes nothing
-    assert main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_pull", "--scheduler", "sync"]) == 0
+    assert json.loads(capsys.readouterr().out)["error"] == pytest.approx(
+        0.001847, rel=1e-3
+    )  # a zero-valued effect changes nothing
+    assert (
+        main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_pull", "--scheduler", "sync"]) == 0
+    )
     assert "ln B: the log Bayes factor of the model with the candidate" in capsys.readouterr().out
     assert main(["diagnose", "models/hydro_unit.toml", modes, "--candidates", "magnetic_push"]) == 2
     assert "no candidate effect ['magnetic_push']" in capsys.readouterr().err
@@ -168,11 +215,48 @@ def test_update_with_an_added_effect_then_compare(tmp_path, capsys):
     post = str(tmp_path / "posterior.nc")
     history = tmp_path / "history.csv"
     assert main(["compare", "models/hydro_unit.toml", modes, "--history", str(history)]) == 0
-    assert main(["update", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--params", "MAG.stiffness",
-                 "--draws", "200", "--chains", "2", "--seed", "1", "-o", post, "--scheduler", "sync"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "update",
+                "models/hydro_unit.toml",
+                modes,
+                "--effect",
+                "magnetic_pull",
+                "--params",
+                "MAG.stiffness",
+                "--draws",
+                "200",
+                "--chains",
+                "2",
+                "--seed",
+                "1",
+                "-o",
+                post,
+                "--scheduler",
+                "sync",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
-    assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "magnetic_pull", "--posterior", post,
-                 "--json", "--history", str(history)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "compare",
+                "models/hydro_unit.toml",
+                modes,
+                "--effect",
+                "magnetic_pull",
+                "--posterior",
+                post,
+                "--json",
+                "--history",
+                str(history),
+            ]
+        )
+        == 0
+    )
     after = json.loads(capsys.readouterr().out)["error"]
     assert after < 0.2 * 0.001847
     steps = read_history(history)
@@ -190,20 +274,66 @@ def test_laplace_update_then_the_next_round_from_the_command_line(tmp_path, caps
     """update --method laplace writes a posterior.nc; compare and diagnose --posterior add its effects themselves."""
     modes = _hidden_pull_modes(tmp_path)
     post = str(tmp_path / "laplace.nc")
-    assert main(["update", "models/hydro_unit.toml", modes, "--method", "laplace", "--effect", "magnetic_pull",
-                 "--params", "MAG.stiffness", "-o", post]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "update",
+                "models/hydro_unit.toml",
+                modes,
+                "--method",
+                "laplace",
+                "--effect",
+                "magnetic_pull",
+                "--params",
+                "MAG.stiffness",
+                "-o",
+                post,
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "Laplace update of 1 parameters" in printed and "MAG.stiffness" in printed
     assert main(["compare", "models/hydro_unit.toml", modes, "--posterior", post, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["error"] < 0.2 * 0.001847
-    assert main(["diagnose", "models/hydro_unit.toml", modes, "--posterior", post, "--scheduler", "sync",
-                 "--candidates", "seal_cross_coupling,thrust_tilt:thrust"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "diagnose",
+                "models/hydro_unit.toml",
+                modes,
+                "--posterior",
+                post,
+                "--scheduler",
+                "sync",
+                "--candidates",
+                "seal_cross_coupling,thrust_tilt:thrust",
+            ]
+        )
+        == 0
+    )
     assert "verdict: nothing missing" in capsys.readouterr().out
     import arviz
 
     assert float(arviz.from_netcdf(post).posterior["theta"].mean()) == pytest.approx(-1e8, rel=0.05)
-    assert main(["update", "models/hydro_unit.toml", modes, "--method", "laplace", "--params", "UGB.kxx",
-                 "--draws", "10", "-o", post]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "update",
+                "models/hydro_unit.toml",
+                modes,
+                "--method",
+                "laplace",
+                "--params",
+                "UGB.kxx",
+                "--draws",
+                "10",
+                "-o",
+                post,
+            ]
+        )
+        == 2
+    )
     assert "--method laplace takes no sampler settings (--draws)" in capsys.readouterr().err
 
 
@@ -215,7 +345,9 @@ def test_per_mode_fsi_from_the_command_line(tmp_path, capsys):
     from twin.fem.truthfile import paper_truth
     from twin.update import synthesize_modes
 
-    data = synthesize_modes(load_model("models/hydro_unit.toml"), paper_truth(), samples=30, seed=4).isel(mode=[0, 2, 3, 4])
+    data = synthesize_modes(load_model("models/hydro_unit.toml"), paper_truth(), samples=30, seed=4).isel(
+        mode=[0, 2, 3, 4]
+    )
     modes = str(write_modes(data, tmp_path / "modes.nc"))
     assert main(["compare", "models/hydro_unit.toml", modes, "--effect", "fsi_per_mode", "--json"]) == 0
     before = json.loads(capsys.readouterr().out)["error"]
@@ -232,9 +364,28 @@ def test_loop_command_writes_the_rounds_the_history_and_the_posterior(tmp_path, 
 
     modes = _hidden_pull_modes(tmp_path)
     out = tmp_path / "loop"
-    assert main(["loop", "models/hydro_unit.toml", modes, "--out", str(out),
-                 "--candidates", "magnetic_pull,seal_cross_coupling,thrust_tilt:thrust", "--draws", "200", "--chains", "2",
-                 "--seed", "1", "--scheduler", "sync"]) == 0  # fmt: skip  (the default update: the Gibbs sampler)
+    assert (
+        main(
+            [
+                "loop",
+                "models/hydro_unit.toml",
+                modes,
+                "--out",
+                str(out),
+                "--candidates",
+                "magnetic_pull,seal_cross_coupling,thrust_tilt:thrust",
+                "--draws",
+                "200",
+                "--chains",
+                "2",
+                "--seed",
+                "1",
+                "--scheduler",
+                "sync",
+            ]
+        )
+        == 0
+    )  # (the default update: the Gibbs sampler)
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
     assert "updated MAG.stiffness = -" in printed and "an effect is added at zero" in printed
@@ -264,8 +415,10 @@ def test_the_command_starts_without_the_numerical_stack():
     import subprocess
     import sys
 
-    code = ("import sys; from twin.cli.parser import build_parser; build_parser(); "
-            "print(sorted(m for m in ('numpy', 'xarray', 'scipy', 'distributed', 'fmpy') if m in sys.modules))")  # fmt: skip
+    code = (
+        "import sys; from twin.cli.parser import build_parser; build_parser(); "
+        "print(sorted(m for m in ('numpy', 'xarray', 'scipy', 'distributed', 'fmpy') if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 
@@ -277,12 +430,49 @@ def test_loop_after_an_extraction_with_documented_options_goes_to_the_end(tmp_pa
     truth = tmp_path / "truth.toml"
     truth.write_text("[seal_cross_coupling]\nkxy = 4e7\n")
     signals, modes, out = tmp_path / "signals.nc", tmp_path / "modes.nc", tmp_path / "loop"
-    assert main(["simulate", "hydro_unit", "--duration", "600", "--truth", str(truth), "--seed", "21",
-                 "-o", str(signals), "-q"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "simulate",
+                "hydro_unit",
+                "--duration",
+                "600",
+                "--truth",
+                str(truth),
+                "--seed",
+                "21",
+                "-o",
+                str(signals),
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert main(["extract", str(signals), "--samples", "15", "--fmax", "60", "-o", str(modes), "-q"]) == 0
     capsys.readouterr()
-    assert main(["loop", "hydro_unit", str(modes), "--out", str(out), "--candidates", "seal_cross_coupling",
-                 "--bootstrap", "3", "--draws", "100", "--seed", "1", "--scheduler", "sync", "-q"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "loop",
+                "hydro_unit",
+                str(modes),
+                "--out",
+                str(out),
+                "--candidates",
+                "seal_cross_coupling",
+                "--bootstrap",
+                "3",
+                "--draws",
+                "100",
+                "--seed",
+                "1",
+                "--scheduler",
+                "sync",
+                "-q",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "seal_cross_coupling" in printed
     assert (out / "posterior.nc").is_file() and (out / "history.csv").is_file()

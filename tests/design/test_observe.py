@@ -8,7 +8,14 @@ import scipy.signal as ss_signal
 
 from twin import load_model, shipped_model
 from twin.design import Excitation, observability
-from twin.design.observe import mode_clusters, mode_prominence, mode_snr, target_modes, target_summary, unobservable_text
+from twin.design.observe import (
+    mode_clusters,
+    mode_prominence,
+    mode_snr,
+    target_modes,
+    target_summary,
+    unobservable_text,
+)
 from twin.design.spectrum import Spectrum, spectrum
 from twin.errors import ModelError
 from twin.fmu.excitation import sensor_noise, turbulence_force
@@ -151,9 +158,12 @@ def test_judge_targets_marks_what_a_simulated_record_holds_and_leaves_a_measured
 
     settings = {"channels": list(hydro_unit.channels), "duration_s": 1200.0, "fmin_hz": 0.0, "fmax_hz": 40.0}
     modes = xr.Dataset({"frequency": ("mode", [2.92, 10.15])}, attrs={"settings": json.dumps(settings)})
-    simulated = xr.Dataset(attrs={"model_source": str(shipped_model("hydro_unit")),
-                                  "settings": json.dumps({"turbulence_asd": 3000.0, "noise_std_m": 1e-6,
-                                                          "fs_hz": 256.0})})  # fmt: skip
+    simulated = xr.Dataset(
+        attrs={
+            "model_source": str(shipped_model("hydro_unit")),
+            "settings": json.dumps({"turbulence_asd": 3000.0, "noise_std_m": 1e-6, "fs_hz": 256.0}),
+        }
+    )
     judged = judge_targets(modes, simulated)
     targets = {round(t["frequency_hz"], 1): t for t in json.loads(judged.attrs["target_observability"])}
     assert targets[2.9]["found"] and targets[10.1]["found"] and not targets[11.7]["found"]

@@ -11,6 +11,7 @@ from twin.design.sensors import candidate_nodes, design_sensors, write_layout
 from twin.errors import ModelError
 
 from tests.conftest import DATA
+
 #: 5 min at 512 Hz: the beam's first two bending modes (25.5 and 101.7 Hz) are the targets up to 150 Hz.
 BEAM_RECORD = Excitation(fs_hz=512.0, duration_s=300.0)
 
@@ -71,9 +72,15 @@ def test_an_added_pair_never_raises_a_parameters_expected_std():
     """
     from twin.fem.truthfile import paper_truth
 
-    d = design_sensors(load_model(shipped_model("hydro_unit")), 2, names=["LGB.kxx", "LGB.kyy"],
-                       candidates=[0, 7, 23], excitation=Excitation(duration_s=3600.0), truth=paper_truth(),
-                       progress=False)  # fmt: skip
+    d = design_sensors(
+        load_model(shipped_model("hydro_unit")),
+        2,
+        names=["LGB.kxx", "LGB.kyy"],
+        candidates=[0, 7, 23],
+        excitation=Excitation(duration_s=3600.0),
+        truth=paper_truth(),
+        progress=False,
+    )
     rel = d.relative_std.values
     assert np.all(np.diff(rel, axis=0) <= 1e-9 * rel[:-1]), rel
     assert np.all(np.diff(d.n_observable.values) >= 0)
@@ -105,8 +112,27 @@ def test_sensors_command_writes_the_model_and_prints_the_gains(tmp_path, capsys)
     from twin.cli import main
 
     out = tmp_path / "beam2.toml"
-    assert main(["sensors", str(DATA / "beam.toml"), "--add", "1", "--fs", "512", "--duration", "300",
-                 "--fmax", "150", "-o", str(out), "--design", str(tmp_path / "d.nc")]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "sensors",
+                str(DATA / "beam.toml"),
+                "--add",
+                "1",
+                "--fs",
+                "512",
+                "--duration",
+                "300",
+                "--fmax",
+                "150",
+                "-o",
+                str(out),
+                "--design",
+                str(tmp_path / "d.nc"),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "+2" in text and "--noise-std" in text
     assert load_model(out).n_nodes == 9 and (tmp_path / "d.nc").is_file()
@@ -161,8 +187,14 @@ def test_the_exciter_stub_modes_are_masked_at_every_node_and_the_turbine_shaft_p
     from twin.fem.truthfile import paper_truth
 
     unit = load_model(shipped_model("hydro_unit"))
-    d = design_sensors(unit, 1, candidates=[1, 21], truth=paper_truth(), progress=False,
-                       excitation=Excitation(duration_s=3600.0, noise_std_m=1e-7))  # fmt: skip
+    d = design_sensors(
+        unit,
+        1,
+        candidates=[1, 21],
+        truth=paper_truth(),
+        progress=False,
+        excitation=Excitation(duration_s=3600.0, noise_std_m=1e-7),
+    )
     f = d.frequency.values
     pair, stub = (np.abs(f - 97.14) < 0.1), (np.abs(f - 94.58) < 0.05) | (np.abs(f - 97.50) < 0.05)
     assert int(d.node[1]) == 21 and pair.sum() == 2 and stub.sum() == 2

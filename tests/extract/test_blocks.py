@@ -59,8 +59,10 @@ def test_shape_samples_follow_a_chosen_number_of_blocks():
 
 def test_few_blocks_warn_that_the_standard_errors_are_rough():
     ds = simulate_record(FRAME, duration_s=240.0, fs_hz=20.0, snr_db=40.0, quantities="velocity", seed=3)
-    with pytest.warns(TwinWarning, match=f"from {FEW_BLOCKS - 2} blocks: each standard error rests on "
-                                         f"{FEW_BLOCKS - 3} degrees of freedom"):  # fmt: skip
+    with pytest.warns(
+        TwinWarning,
+        match=f"from {FEW_BLOCKS - 2} blocks: each standard error rests on {FEW_BLOCKS - 3} degrees of freedom",
+    ):
         extract(ds, samples=FEW_BLOCKS - 2, progress=False)
 
 

@@ -18,8 +18,10 @@ from twin.modes.shapes import mac
 
 # the toy records here have 2-3 channels and low rates on purpose: extract's warnings about that are expected
 # (test_bad_requests_are_clear_errors checks them)
-pytestmark = [pytest.mark.filterwarnings("ignore:signals. \\d channel:twin.errors.TwinWarning"),
-              pytest.mark.filterwarnings("ignore:signals. sampled at:twin.errors.TwinWarning")]  # fmt: skip
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:signals. \\d channel:twin.errors.TwinWarning"),
+    pytest.mark.filterwarnings("ignore:signals. sampled at:twin.errors.TwinWarning"),
+]
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +34,16 @@ def gyro_record(make_record):
     lam, right, left = lam[keep], right[keep], left[keep]
     ports = [ss.port_index("4.x"), ss.port_index("4.y")]
     fs = 500.0
-    ds = make_record(lam, (ss.C @ right.T).T, fs_hz=fs, duration_s=600.0, seed=3, noise_ratio=0.05,
-                     participation=(left @ ss.B[:, ports]) / fs * 1e3, channels=list(model.channels))  # fmt: skip
+    ds = make_record(
+        lam,
+        (ss.C @ right.T).T,
+        fs_hz=fs,
+        duration_s=600.0,
+        seed=3,
+        noise_ratio=0.05,
+        participation=(left @ ss.B[:, ports]) / fs * 1e3,
+        channels=list(model.channels),
+    )
     return model, ds
 
 
@@ -68,8 +78,15 @@ def test_gyroscopic_circular_modes_are_found_with_their_phase(gyro_record):
 def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     poles = np.array([-0.01 * 2 * np.pi * 3.1 + 2j * np.pi * 3.1, -0.02 * 2 * np.pi * 7.0 + 2j * np.pi * 7.0])
     shapes = np.array([[1.0, 1j, 0.4], [0.3, -0.5, 1.0]])
-    ds = make_record(poles, shapes, fs_hz=32.0, duration_s=1200.0, seed=5,
-                     sinusoid=(2.25, 40.0 * np.array([1.0, -1j, 0.2])), attrs={"speed_rpm": 135.0})  # fmt: skip
+    ds = make_record(
+        poles,
+        shapes,
+        fs_hz=32.0,
+        duration_s=1200.0,
+        seed=5,
+        sinusoid=(2.25, 40.0 * np.array([1.0, -1j, 0.2])),
+        attrs={"speed_rpm": 135.0},
+    )
     m = extract(ds, samples=20, max_order=40, progress=False, remove_harmonics=False)
     for f in (3.1, 7.0):
         assert np.min(np.abs(m.frequency.values / f - 1)) < 5e-3
@@ -92,8 +109,10 @@ def test_running_speed_harmonic_is_rejected_and_reported(make_record):
     assert m.sizes["mode"] == 2
     for u in json.loads(m.attrs["undetermined_poles"]):
         assert min(abs(u["frequency_hz"] / f - 1) for f in (3.1, 7.0)) > 5e-3
-        assert u["frequency_se_hz"] > u["damping_ratio"] * u["frequency_hz"] / 2 or u["damping_ratio_se"] > 0.5 * u["damping_ratio"]
-
+        assert (
+            u["frequency_se_hz"] > u["damping_ratio"] * u["frequency_hz"] / 2
+            or u["damping_ratio_se"] > 0.5 * u["damping_ratio"]
+        )
 
 
 def test_shear_frame_reference(shear_frame):
@@ -117,8 +136,11 @@ def test_shear_frame_reference(shear_frame):
     assert np.all(np.abs(m.damping_ratio.values - z_ref) < 2.5 * m.damping_ratio_se.values)
     # with 99 block rows a noise cluster at 2.66 Hz has no counterpart in 45% of the reduced records' orders:
     # its samples, held at the full-record pole there, scatter within its bandwidth only when that is ignored
-    with pytest.warns(TwinWarning, match=r"signals: 2.65\d Hz left out: stable over the model orders, but its "
-                                         r"frequency .* scatters over the samples by 1.\d times"):  # fmt: skip
+    with pytest.warns(
+        TwinWarning,
+        match=r"signals: 2.65\d Hz left out: stable over the model orders, but its "
+        r"frequency .* scatters over the samples by 1.\d times",
+    ):
         longer = extract(ds, samples=10, block_rows=99, progress=False)
     assert longer.sizes["mode"] == 5
     assert np.all(np.abs(longer.frequency.values / f_ref - 1)[1:] < 0.005)
@@ -167,8 +189,15 @@ def test_poor_records_warn_before_the_work(make_record, tmp_path):
 
 def test_files_and_command_line(make_record, tmp_path, capsys):
     poles = np.array([-0.02 * 2 * np.pi * 2.0 + 2j * np.pi * 2.0, -0.01 * 2 * np.pi * 5.0 + 2j * np.pi * 5.0])
-    ds = make_record(poles, np.array([[1.0, 1j], [1.0, -0.5]]), fs_hz=20.0, duration_s=1000.0, seed=1,
-                     channels=["A_x", "A_y"], attrs={"truth": "{}", "seed": 1})  # fmt: skip
+    ds = make_record(
+        poles,
+        np.array([[1.0, 1j], [1.0, -0.5]]),
+        fs_hz=20.0,
+        duration_s=1000.0,
+        seed=1,
+        channels=["A_x", "A_y"],
+        attrs={"truth": "{}", "seed": 1},
+    )
     signals = tmp_path / "signals.nc"
     ds.to_netcdf(signals)
     out, png = tmp_path / "modes.nc", tmp_path / "stab.png"
@@ -189,7 +218,10 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     assert main(["extract", str(signals), "-o", str(out), "--samples", "10", "--first-lag", "1"]) == 0
     assert json.loads(xr.load_dataset(out).attrs["settings"])["first_lag"] == 1
     honest = tmp_path / "honest.nc"
-    assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread", "all"]) == 0
+    assert (
+        main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--delete-half", "--order-spread", "all"])
+        == 0
+    )
     settings = json.loads(xr.load_dataset(honest).attrs["settings"])
     assert settings["delete_blocks"] == 5 and settings["order_spread"] == "all" and settings["blocks"] == 10
     assert main(["extract", str(signals), "-o", str(honest), "--samples", "12", "--blocks", "6", "--delete-half"]) == 0
@@ -199,7 +231,12 @@ def test_files_and_command_line(make_record, tmp_path, capsys):
     assert main(["extract", str(signals), "-o", str(honest), "--samples", "10", "--shape-samples", "30"]) == 0
     raw = xr.load_dataset(honest)
     settings = json.loads(raw.attrs["settings"])
-    assert (settings["samples"], settings["shape_samples"], settings["delete_blocks"], raw.sizes["sample"]) == (10, 30, 1, 30)
+    assert (settings["samples"], settings["shape_samples"], settings["delete_blocks"], raw.sizes["sample"]) == (
+        10,
+        30,
+        1,
+        30,
+    )
     # delete-one gives one sample per block: asking for more is named, with nothing written
     assert main(["extract", str(signals), "-o", str(tmp_path / "one.nc"), "--samples", "12", "--blocks", "6"]) == 2
     assert "one sample per block" in capsys.readouterr().err and not (tmp_path / "one.nc").exists()
@@ -259,8 +296,11 @@ def test_a_record_without_modes_is_a_no_mode_error():
     from twin.errors import NoModeError
 
     rng = np.random.default_rng(3)
-    ds = xr.Dataset({"displacement": (("time", "channel"), 1e-6 * rng.standard_normal((20 * 600, 4)))},
-                    coords={"channel": ["a", "b", "c", "d"]}, attrs={"sampling_rate": 20.0})  # fmt: skip
+    ds = xr.Dataset(
+        {"displacement": (("time", "channel"), 1e-6 * rng.standard_normal((20 * 600, 4)))},
+        coords={"channel": ["a", "b", "c", "d"]},
+        attrs={"sampling_rate": 20.0},
+    )
     with pytest.raises(NoModeError, match="no physical mode found between") as caught:
         extract(ds, progress=False)
     assert isinstance(caught.value, SignalError) and caught.value.block_rows >= 1

@@ -7,8 +7,15 @@ import numpy as np
 import pytest
 
 from twin.extract import extract
-from twin.extract.corpus import (cantilever, close_pair, frequency_limit, score, shear_frame, simulate_record,
-                                 truth_modes)  # fmt: skip
+from twin.extract.corpus import (
+    cantilever,
+    close_pair,
+    frequency_limit,
+    score,
+    shear_frame,
+    simulate_record,
+    truth_modes,
+)
 from twin.extract.signals import check_record
 
 V, A = "velocity", "acceleration"
@@ -50,8 +57,10 @@ def test_a_record_is_in_its_quantities_and_units_at_its_signal_to_noise_ratio():
 
 def test_fewer_modes_are_visible_in_more_noise():
     frame = shear_frame(5, damping_ratio=0.01)
-    counts = [int(truth_modes(frame, simulate_record(frame, duration_s=60.0, fs_hz=20.0, snr_db=snr,
-                                                     seed=1)).visible.sum()) for snr in (40, 10, 0, -10)]  # fmt: skip
+    counts = [
+        int(truth_modes(frame, simulate_record(frame, duration_s=60.0, fs_hz=20.0, snr_db=snr, seed=1)).visible.sum())
+        for snr in (40, 10, 0, -10)
+    ]
     assert counts[0] == 5 and counts == sorted(counts, reverse=True) and counts[-1] < 5
 
 
@@ -96,7 +105,8 @@ def test_the_modes_found_do_not_move_with_the_number_of_samples():
     frame = shear_frame(10, stiffness_n_m=1.6e8, damping_ratio=0.002)
     ds = simulate_record(frame, duration_s=240.0, fs_hz=100.0, snr_db=40.0, quantities=[V, V, V, A, A] * 2, seed=5)
     truth = truth_modes(frame, ds)
-    found = [score(*(_extract(ds, samples=j)[v].values for v in ("frequency", "sensor_shape")), truth)
-             for j in (4, 15, 60)]  # fmt: skip
+    found = [
+        score(*(_extract(ds, samples=j)[v].values for v in ("frequency", "sensor_shape")), truth) for j in (4, 15, 60)
+    ]
     assert all(s["found"] == found[0]["found"] and not s["spurious"] for s in found)
     assert len(found[0]["found"]) == 10

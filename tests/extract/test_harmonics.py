@@ -30,7 +30,9 @@ def test_harmonic_flagged_with_its_order_and_a_lightly_damped_mode_not():
     t = np.arange(n) / fs
     lam = -0.005 * 2 * np.pi * 3.0 + 2j * np.pi * 3.0  # 0.5% damped mode at 3 Hz
     q = sg.lfilter([1.0], [1.0, -np.exp(lam / fs)], rng.standard_normal(n) + 1j * rng.standard_normal(n))
-    y = np.column_stack([q.real, q.imag]) + 3.0 * np.column_stack([np.cos(2 * np.pi * 2.25 * t), np.sin(2 * np.pi * 2.25 * t)])
+    y = np.column_stack([q.real, q.imag]) + 3.0 * np.column_stack(
+        [np.cos(2 * np.pi * 2.25 * t), np.sin(2 * np.pi * 2.25 * t)]
+    )
     spec = np.fft.rfft(y, axis=0)
     h = harmonic_test(spec, n, fs, 1e-5 + 2j * np.pi * 2.25, running_speed_hz=2.25)
     assert h is not None and h["kurtosis"] < 1.8 and h["running_speed_multiple"] == 1

@@ -20,13 +20,19 @@ def _write(tmp_path, name, header, rows, comments=""):
 def samples():
     t = np.arange(2000) / 100.0
     rng = np.random.default_rng(0)
-    return t, np.column_stack([np.sin(2 * np.pi * 3 * t), np.cos(2 * np.pi * 5 * t)]) + 0.1 * rng.standard_normal((2000, 2))
+    return t, np.column_stack([np.sin(2 * np.pi * 3 * t), np.cos(2 * np.pi * 5 * t)]) + 0.1 * rng.standard_normal(
+        (2000, 2)
+    )
 
 
 def test_a_csv_with_time_and_units_in_its_header_is_a_record_in_si(tmp_path, samples):
     t, y = samples
-    path = _write(tmp_path, "probes.csv", "time [ms],UGB_x [um],HEAD_x [g]",
-                  [f"{1000 * a:.3f},{b:.6f},{c:.6f}" for a, b, c in zip(t, *y.T)])  # fmt: skip
+    path = _write(
+        tmp_path,
+        "probes.csv",
+        "time [ms],UGB_x [um],HEAD_x [g]",
+        [f"{1000 * a:.3f},{b:.6f},{c:.6f}" for a, b, c in zip(t, *y.T)],
+    )
     ds = import_record(path)
     assert ds["channel"].values.tolist() == ["UGB_x", "HEAD_x"] and ds.attrs["sampling_rate"] == pytest.approx(100.0)
     assert ds["quantity"].values.tolist() == ["displacement", "acceleration"]
@@ -38,7 +44,10 @@ def test_a_text_table_with_the_rate_in_a_comment_and_the_units_given(tmp_path, s
     _, y = samples
     path = _write(tmp_path, "probes.txt", "A B", [f"{b:.6f} {c:.6f}" for b, c in y], "# sampling_rate: 100\n")
     ds = import_record(path, units={"A": "mil", "B": "mm/s"}, channels=["UGB_x", "UGB_y"])
-    assert ds["quantity"].values.tolist() == ["displacement", "velocity"] and ds["units"].values.tolist() == ["mil", "mm/s"]
+    assert ds["quantity"].values.tolist() == ["displacement", "velocity"] and ds["units"].values.tolist() == [
+        "mil",
+        "mm/s",
+    ]
     assert ds["channel"].values.tolist() == ["UGB_x", "UGB_y"] and ds.attrs["sampling_rate"] == 100.0
 
 
@@ -51,12 +60,21 @@ def test_a_text_table_with_the_rate_in_a_comment_and_the_units_given(tmp_path, s
         ("A [um],B [um]", ["1,2", "3", "5,6"], {"fs_hz": 10.0}, "row 3 has 1 values, the header 2 columns"),
         ("1,2", ["1,2", "3,4"], {"fs_hz": 10.0}, "the first line must name the columns"),
         ("A [um],B [N]", ["1,2", "3,4", "5,6"], {"fs_hz": 10.0}, "units 'N' are not of a displacement"),
-        ("A [um],B [um]", ["1,2", "3,4", "5,6"], {"fs_hz": 10.0, "quantities": {"B": "velocity"}},
-         "channel 'B': units 'um' are not units of velocity"),
-        ("A [um],B [um]", ["1,2", "3,4", "5,6"], {"fs_hz": 10.0, "units": {"C": "um"}}, "units for 'C', which the file"),
+        (
+            "A [um],B [um]",
+            ["1,2", "3,4", "5,6"],
+            {"fs_hz": 10.0, "quantities": {"B": "velocity"}},
+            "channel 'B': units 'um' are not units of velocity",
+        ),
+        (
+            "A [um],B [um]",
+            ["1,2", "3,4", "5,6"],
+            {"fs_hz": 10.0, "units": {"C": "um"}},
+            "units for 'C', which the file",
+        ),
         ("time [s],A [um]", ["0,1", "0.1,2", "0.05,3"], {}, "the time does not increase at sample 2"),
     ],
-)  # fmt: skip
+)
 def test_every_problem_names_the_file_and_where(tmp_path, header, rows, kwargs, message):
     path = _write(tmp_path, "bad.csv", header, rows)
     with pytest.raises(SignalError, match=re.escape(message)):

@@ -8,15 +8,17 @@ from twin.extract.options import jackknife_plan
 
 
 def test_bad_options_fail_when_made_naming_the_option():
-    for fields, message in [({"max_order": 1}, "max_order must be at least 2"),
-                            ({"samples": 1}, "samples must be at least 2"),
-                            ({"first_lag": 0}, "first_lag must be a whole number"),
-                            ({"order_spread": "some"}, "order_spread must be one of shapes, all, none"),
-                            ({"orders_per_mode": 0}, "orders_per_mode must be at least 1"),
-                            ({"shape_block_rows": "longer"}, "shape_block_rows must be 'auto' or at least 0"),
-                            ({"channels": "A_x"}, "channels must be a list of channel names"),
-                            ({"samples": 10, "shape_samples": 15}, "shape_samples must be a whole multiple of samples = 10"),
-                            ({"samples": 10, "blocks": 10, "delete_blocks": 10}, "delete_blocks:")]:  # fmt: skip
+    for fields, message in [
+        ({"max_order": 1}, "max_order must be at least 2"),
+        ({"samples": 1}, "samples must be at least 2"),
+        ({"first_lag": 0}, "first_lag must be a whole number"),
+        ({"order_spread": "some"}, "order_spread must be one of shapes, all, none"),
+        ({"orders_per_mode": 0}, "orders_per_mode must be at least 1"),
+        ({"shape_block_rows": "longer"}, "shape_block_rows must be 'auto' or at least 0"),
+        ({"channels": "A_x"}, "channels must be a list of channel names"),
+        ({"samples": 10, "shape_samples": 15}, "shape_samples must be a whole multiple of samples = 10"),
+        ({"samples": 10, "blocks": 10, "delete_blocks": 10}, "delete_blocks:"),
+    ]:
         with pytest.raises(SignalError, match=message):
             ExtractOptions(**fields)
     with pytest.raises(SignalError, match="the extraction has no option colour"):

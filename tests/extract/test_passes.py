@@ -22,8 +22,9 @@ SHAPES = np.array([[1.0, 0.8, 0.3j, -0.5], [0.4, -0.9, 1.0, 0.6j], [0.5, 0.5, -0
 @pytest.fixture(scope="module")
 def close_pair(make_record):
     """600 s at 20 Hz on four channels: two modes 0.2 Hz (five bandwidths) apart, and one at 6 Hz."""
-    return make_record(POLES, SHAPES, fs_hz=FS, duration_s=600.0, seed=5, noise_ratio=0.05,
-                       channels=["A_x", "A_y", "B_x", "B_y"])  # fmt: skip
+    return make_record(
+        POLES, SHAPES, fs_hz=FS, duration_s=600.0, seed=5, noise_ratio=0.05, channels=["A_x", "A_y", "B_x", "B_y"]
+    )
 
 
 def _extract(ds, **kw):
@@ -60,7 +61,10 @@ def test_extract_auto_reads_slow_modes_shapes_at_longer_lags_and_the_poles_at_it
     settings = json.loads(both.attrs["settings"])
     assert settings["block_rows"] == 6 and settings["shape_block_rows"] == want
     assert both.shape_block_rows.values.tolist() == [want, want, 6]
-    assert first.shape_block_rows.values.tolist() == [6, 6, 6] and json.loads(first.attrs["settings"])["shape_block_rows"] == 6
+    assert (
+        first.shape_block_rows.values.tolist() == [6, 6, 6]
+        and json.loads(first.attrs["settings"])["shape_block_rows"] == 6
+    )
     # the poles and their samples are the first pass's either way
     np.testing.assert_array_equal(both.pole.values, first.pole.values)
     # the slow modes' shapes and their samples come from the second pass: different samples of the same modes
@@ -90,8 +94,20 @@ def test_the_command_line_takes_a_number_or_auto(tmp_path, close_pair, capsys):
 
     close_pair.to_netcdf(tmp_path / "signals.nc")
     out = tmp_path / "modes.nc"
-    args = ["extract", str(tmp_path / "signals.nc"), "-o", str(out), "--samples", "10", "--fmax", "8",
-            "--block-rows", "6", "--max-order", "20"]
+    args = [
+        "extract",
+        str(tmp_path / "signals.nc"),
+        "-o",
+        str(out),
+        "--samples",
+        "10",
+        "--fmax",
+        "8",
+        "--block-rows",
+        "6",
+        "--max-order",
+        "20",
+    ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main(args + ["--shape-block-rows", "auto"]) == 0

@@ -15,17 +15,28 @@ from twin.modes import mac
 
 @pytest.mark.parametrize(
     "units, quantity, factor",
-    [("m", "displacement", 1.0), ("um", "displacement", 1e-6), ("µm", "displacement", 1e-6),
-     ("mil", "displacement", 25.4e-6), ("mm", "displacement", 1e-3), ("mm/s", "velocity", 1e-3),
-     ("in/s", "velocity", 0.0254), ("ips", "velocity", 0.0254), ("m/s^2", "acceleration", 1.0),
-     ("g", "acceleration", 9.80665), ("mm/s**2", "acceleration", 1e-3)],
-)  # fmt: skip
+    [
+        ("m", "displacement", 1.0),
+        ("um", "displacement", 1e-6),
+        ("µm", "displacement", 1e-6),
+        ("mil", "displacement", 25.4e-6),
+        ("mm", "displacement", 1e-3),
+        ("mm/s", "velocity", 1e-3),
+        ("in/s", "velocity", 0.0254),
+        ("ips", "velocity", 0.0254),
+        ("m/s^2", "acceleration", 1.0),
+        ("g", "acceleration", 9.80665),
+        ("mm/s**2", "acceleration", 1e-3),
+    ],
+)
 def test_units_as_instruments_write_them_are_taken_to_si(units, quantity, factor):
     assert si_factor(units, quantity, "A_x") == pytest.approx(factor, rel=1e-12)
 
 
 def test_units_of_another_quantity_or_unknown_are_named():
-    with pytest.raises(SignalError, match=r"channel 'A_x': units 'mm/s' are not units of displacement \(its SI unit: m\)"):
+    with pytest.raises(
+        SignalError, match=r"channel 'A_x': units 'mm/s' are not units of displacement \(its SI unit: m\)"
+    ):
         si_factor("mm/s", "displacement", "channel 'A_x'")
     with pytest.raises(SignalError, match="units 'bananas/s' are not units twin can read"):
         si_factor("bananas/s", "velocity", "channel 'A_x'")
@@ -36,11 +47,16 @@ def test_units_of_another_quantity_or_unknown_are_named():
 def _record(y, quantities=None, units=None, fs=32.0):
     names = [f"ch{k}" for k in range(y.shape[1])]
     if quantities is None:
-        return xr.Dataset({"displacement": (("time", "channel"), y, {} if units is None else {"units": units})},
-                          coords={"channel": names}, attrs={"sampling_rate": fs})  # fmt: skip
-    return xr.Dataset({"signal": (("time", "channel"), y)},
-                      coords={"channel": names, "quantity": ("channel", quantities), "units": ("channel", units)},
-                      attrs={"sampling_rate": fs})  # fmt: skip
+        return xr.Dataset(
+            {"displacement": (("time", "channel"), y, {} if units is None else {"units": units})},
+            coords={"channel": names},
+            attrs={"sampling_rate": fs},
+        )
+    return xr.Dataset(
+        {"signal": (("time", "channel"), y)},
+        coords={"channel": names, "quantity": ("channel", quantities), "units": ("channel", units)},
+        attrs={"sampling_rate": fs},
+    )
 
 
 def test_a_displacement_record_of_earlier_versions_reads_unchanged_and_its_units_are_read():

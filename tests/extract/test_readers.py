@@ -31,12 +31,28 @@ def test_uff_58_time_responses_give_names_units_quantities_and_rate(tmp_path, y)
     uff = pyuff.UFF(str(path))
     kinds = [("UGB_x", "um", 8), ("UGB_y", "mm/s", 11), ("HEAD_x", "g", 12)]
     for k, (name, units, code) in enumerate(kinds):
-        uff.write_sets(pyuff.prepare_58(func_type=1, rsp_node=k + 1, rsp_dir=1, ref_node=0, ref_dir=0, abscissa_spacing=1,
-                                        rsp_ent_name=name, data=y[:, k], x=np.arange(len(y)) / FS, abscissa_min=0.0, abscissa_inc=1 / FS,
-                                        abscissa_spec_data_type=17, ordinate_spec_data_type=code, orddenom_spec_data_type=0,
-                                        z_axis_spec_data_type=0,
-                                        ordinate_axis_units_lab=units, id4="2026-05-01T06:00:00Z"),
-                       mode="add")  # fmt: skip
+        uff.write_sets(
+            pyuff.prepare_58(
+                func_type=1,
+                rsp_node=k + 1,
+                rsp_dir=1,
+                ref_node=0,
+                ref_dir=0,
+                abscissa_spacing=1,
+                rsp_ent_name=name,
+                data=y[:, k],
+                x=np.arange(len(y)) / FS,
+                abscissa_min=0.0,
+                abscissa_inc=1 / FS,
+                abscissa_spec_data_type=17,
+                ordinate_spec_data_type=code,
+                orddenom_spec_data_type=0,
+                z_axis_spec_data_type=0,
+                ordinate_axis_units_lab=units,
+                id4="2026-05-01T06:00:00Z",
+            ),
+            mode="add",
+        )
     ds = import_record(path)
     assert ds["channel"].values.tolist() == ["UGB_x", "UGB_y", "HEAD_x"]
     assert ds["quantity"].values.tolist() == ["displacement", "velocity", "acceleration"]
@@ -47,7 +63,9 @@ def test_uff_58_time_responses_give_names_units_quantities_and_rate(tmp_path, y)
 def test_uff_without_time_responses_is_refused_by_name(tmp_path):
     pyuff = pytest.importorskip("pyuff")
     path = tmp_path / "geometry.uff"
-    pyuff.UFF(str(path)).write_sets(pyuff.prepare_15(node_nums=[1, 2], x=[0.0, 1.0], y=[0.0, 0.0], z=[0.0, 0.0]), mode="add")
+    pyuff.UFF(str(path)).write_sets(
+        pyuff.prepare_15(node_nums=[1, 2], x=[0.0, 1.0], y=[0.0, 0.0], z=[0.0, 0.0]), mode="add"
+    )
     with pytest.raises(SignalError, match=r"geometry.uff: no time response \(dataset 58"):
         import_record(path)
 
@@ -56,9 +74,12 @@ def test_tdms_channels_with_their_properties(tmp_path, y):
     nptdms = pytest.importorskip("nptdms")
     path = tmp_path / "run.tdms"
     start = np.datetime64("2026-05-01T06:00:00")
-    channels = [nptdms.ChannelObject("probes", name, y[:, k], properties={
-        "unit_string": units, "wf_increment": 1 / FS, "wf_start_time": start})
-        for k, (name, units) in enumerate([("UGB_x", "um"), ("UGB_y", "um"), ("HEAD_x", "m/s^2")])]  # fmt: skip
+    channels = [
+        nptdms.ChannelObject(
+            "probes", name, y[:, k], properties={"unit_string": units, "wf_increment": 1 / FS, "wf_start_time": start}
+        )
+        for k, (name, units) in enumerate([("UGB_x", "um"), ("UGB_y", "um"), ("HEAD_x", "m/s^2")])
+    ]
     with nptdms.TdmsWriter(str(path)) as writer:
         writer.write_segment(channels)
     ds = import_record(path)

@@ -20,7 +20,10 @@ def test_a_pole_whose_damping_the_blocks_cannot_tell_is_judged_on_its_frequency(
     p = np.array([-0.1 + 50j, -0.1 + 80j])
     # the first: damping scattering by 3 bandwidths, frequency pinned (a light mode in short blocks);
     # the second: the frequency wandering too (a noise pole)
-    samples = p[:, None] + np.array([[1.0], [1.0]]) * rng.standard_normal((2, 15)) \
-        + 1j * np.array([[0.01], [1.0]]) * rng.standard_normal((2, 15))  # fmt: skip
+    samples = (
+        p[:, None]
+        + np.array([[1.0], [1.0]]) * rng.standard_normal((2, 15))
+        + 1j * np.array([[0.01], [1.0]]) * rng.standard_normal((2, 15))
+    )
     assert pole_determined(p, samples).tolist() == [False, False]
     assert pole_determined(p, samples, damping_judged=np.array([False, False])).tolist() == [True, False]

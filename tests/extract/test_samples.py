@@ -45,8 +45,10 @@ def test_order_deviations_carry_the_spread_over_orders():
     aligned = align_phase(s / np.linalg.norm(s, axis=1, keepdims=True), ref)
     # every order used J / 5 times, so the shape deviations have the orders' spread times the same scale,
     # over sqrt(5): the mean of 5 orders
-    assert np.isclose(np.sum(np.abs(ds[0]) ** 2) / np.sum(np.abs(dp[0]) ** 2),
-                      np.sum(np.abs(aligned - aligned.mean(axis=0)) ** 2) / np.sum(np.abs(p - p.mean()) ** 2) / 5)
+    assert np.isclose(
+        np.sum(np.abs(ds[0]) ** 2) / np.sum(np.abs(dp[0]) ** 2),
+        np.sum(np.abs(aligned - aligned.mean(axis=0)) ** 2) / np.sum(np.abs(p - p.mean()) ** 2) / 5,
+    )
     assert not dp[1].any() and not ds[1].any()  # one order: nothing to spread
 
 
@@ -134,8 +136,15 @@ def test_more_samples_than_blocks_estimate_the_same_standard_error(make_record):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             for m_samples in se:
-                m = extract(ds, samples=m_samples, blocks=20, max_order=16, progress=False, delete_blocks=None,
-                            order_spread="none")  # fmt: skip
+                m = extract(
+                    ds,
+                    samples=m_samples,
+                    blocks=20,
+                    max_order=16,
+                    progress=False,
+                    delete_blocks=None,
+                    order_spread="none",
+                )
                 assert m.sizes["sample"] == m_samples and json.loads(m.attrs["settings"])["blocks"] == 20
                 se[m_samples].append([float(m.frequency_se[0]), float(m.damping_ratio_se[0])])
     a, b = np.array(se[20]), np.array(se[60])

@@ -12,8 +12,11 @@ from twin.extract.signals import check_record
 
 def record(y=None, fs=100.0, names=("A_x", "A_y", "B_x")):
     y = np.random.default_rng(0).standard_normal((4000, len(names))) if y is None else y
-    return xr.Dataset({"displacement": (("time", "channel"), y)}, coords={"channel": list(names)},
-                      attrs={} if fs is None else {"sampling_rate": fs})  # fmt: skip
+    return xr.Dataset(
+        {"displacement": (("time", "channel"), y)},
+        coords={"channel": list(names)},
+        attrs={} if fs is None else {"sampling_rate": fs},
+    )
 
 
 def test_good_record_is_zero_mean_and_keeps_names():
@@ -96,8 +99,11 @@ def test_a_hole_in_the_time_axis_is_refused_not_spliced():
 
 def test_a_sampling_rate_that_contradicts_the_time_axis_is_refused():
     t = np.arange(4000) / 256
-    with pytest.raises(SignalError, match=r"sampling_rate attribute says 512 Hz but the time coordinate steps by "
-                                          r"0.00390625 s \(256 Hz\)"):  # fmt: skip
+    with pytest.raises(
+        SignalError,
+        match=r"sampling_rate attribute says 512 Hz but the time coordinate steps by "
+        r"0.00390625 s \(256 Hz\)",
+    ):
         check_record(timed(t, 512.0), "rec.nc")
     assert check_record(timed(t, 256.0)).fs_hz == 256.0
     start = np.datetime64("2026-06-01T12:00")  # datetimes are seconds too

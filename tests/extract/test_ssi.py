@@ -76,7 +76,7 @@ def test_leading_triplets_by_lanczos_equal_the_full_svd():
     rng = np.random.default_rng(3)
     y = rng.standard_normal((20000, 4))
     for k in range(1, 4):
-        y[k:] += 0.6 ** k * y[:-k]
+        y[k:] += 0.6**k * y[:-k]
     R = block_covariances(y, 120).covariance()
     H = hankel(R, 60)
     U, s = ssi.leading_singular(H, 20)

@@ -25,8 +25,13 @@ def _diagram(rows: list[tuple[np.ndarray, complex, np.ndarray]], seed: int = 0) 
             pole.append(lam * (1 + 1e-4 * rng.standard_normal()))
             shape.append(phi)
     n = len(order)
-    return Diagram(order=np.array(order), pole=np.array(pole), shape=np.array(shape),
-                   status=np.full(n, 3, dtype=np.int8), cluster=np.full(n, -1))  # fmt: skip
+    return Diagram(
+        order=np.array(order),
+        pole=np.array(pole),
+        shape=np.array(shape),
+        status=np.full(n, 3, dtype=np.int8),
+        cluster=np.full(n, -1),
+    )
 
 
 def test_fragments_of_one_mode_are_joined_and_a_neighbour_kept_apart():

@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from twin.fem.elements import (
-    Bearing, Disk, Material, ShaftElement, ThrustBearing, cowper_shear_factor, node_dofs,
-)  # fmt: skip
+    Bearing,
+    Disk,
+    Material,
+    ShaftElement,
+    ThrustBearing,
+    cowper_shear_factor,
+    node_dofs,
+)
 
 STEEL = Material("steel", 2.06e11, 7.98e10, 7850.0)
 
@@ -48,8 +54,12 @@ def test_euler_bernoulli_limit_when_shear_stiffness_grows():
         tim = ShaftElement(0, length, 0.2, 0.05, STEEL)
         eb = ShaftElement(0, length, 0.2, 0.05, STEEL, shear=False)
         phis.append(tim.phi)
-        diffs.append([np.abs(getattr(tim, m)() - getattr(eb, m)()).max() / np.abs(getattr(eb, m)()).max()
-                      for m in ("K", "M", "G")])  # fmt: skip
+        diffs.append(
+            [
+                np.abs(getattr(tim, m)() - getattr(eb, m)()).max() / np.abs(getattr(eb, m)()).max()
+                for m in ("K", "M", "G")
+            ]
+        )
     diffs = np.array(diffs)
     np.testing.assert_allclose(phis[1:], np.array(phis[:-1]) / 100.0, rtol=1e-12)
     assert np.all(diffs[1:] < diffs[:-1])  # converges monotonically ...
@@ -61,8 +71,18 @@ def test_euler_bernoulli_stiffness_matrix_closed_form():
     el = ShaftElement(0, 0.5, 0.1, 0.0, STEEL, shear=False)
     EI, L = STEEL.E * el.second_moment, 0.5
     Kxz = el.K()[np.ix_([0, 3, 4, 7], [0, 3, 4, 7])]
-    expected = EI / L**3 * np.array([[12, 6 * L, -12, 6 * L], [6 * L, 4 * L**2, -6 * L, 2 * L**2],
-                                     [-12, -6 * L, 12, -6 * L], [6 * L, 2 * L**2, -6 * L, 4 * L**2]])  # fmt: skip
+    expected = (
+        EI
+        / L**3
+        * np.array(
+            [
+                [12, 6 * L, -12, 6 * L],
+                [6 * L, 4 * L**2, -6 * L, 2 * L**2],
+                [-12, -6 * L, 12, -6 * L],
+                [6 * L, 2 * L**2, -6 * L, 4 * L**2],
+            ]
+        )
+    )
     np.testing.assert_allclose(Kxz, expected, rtol=1e-13)
 
 

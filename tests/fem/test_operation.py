@@ -85,12 +85,20 @@ def test_a_law_on_a_bearing_of_a_small_model(tmp_path):
         (CONDITION.replace("[20.0, 60.0]", "[60.0, 20.0]"), "[[condition]] 'temperature'", "range", "low < high"),
         (CONDITION + LAW.replace("B0.kxx", "B0.kxxx"), "[[law]] 'B0.kxxx'", "parameter", "no parameter 'B0.kxxx'"),
         (CONDITION + LAW.replace("temperature =", "temp ="), "[[law]] 'B0.kxx'", "slopes", "no condition 'temp'"),
-        (CONDITION + LAW.replace("-5.0e3", "-5.0e5"), "[[law]] 'B0.kxx'", "slopes",
-         "at temperature = 60 degC the law gives B0.kxx = -9e+06 N/m, outside its physical bounds (>= 0)"),
+        (
+            CONDITION + LAW.replace("-5.0e3", "-5.0e5"),
+            "[[law]] 'B0.kxx'",
+            "slopes",
+            "at temperature = 60 degC the law gives B0.kxx = -9e+06 N/m, outside its physical bounds (>= 0)",
+        ),
         (LAW, "[[law]] #1", None, "declare them in [[condition]] tables"),
         (CONDITION + LAW + LAW, "[[law]] 'B0.kxx'", "parameter", "a second law for 'B0.kxx'"),
-        (CONDITION + LAW.replace("slopes = { temperature = -5.0e3 }", "slopes = {}"), "[[law]] 'B0.kxx'", "slopes",
-         "expected a table of slopes"),
+        (
+            CONDITION + LAW.replace("slopes = { temperature = -5.0e3 }", "slopes = {}"),
+            "[[law]] 'B0.kxx'",
+            "slopes",
+            "expected a table of slopes",
+        ),
     ],
 )
 def test_operation_tables_errors_name_the_table_and_key(tmp_path, text, where, key, problem):

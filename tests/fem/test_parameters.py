@@ -14,7 +14,9 @@ def test_term_checks_its_block():
 
 
 def test_footprint_sums_overlapping_terms():
-    p = Parameter("p", 2.0, "N/m", (Term("K", (0, 2), np.ones((2, 2))), Term("K", (2,), [[3.0]]), Term("C", (1,), [[1.0]])))
+    p = Parameter(
+        "p", 2.0, "N/m", (Term("K", (0, 2), np.ones((2, 2))), Term("K", (2,), [[3.0]]), Term("C", (1,), [[1.0]]))
+    )
     K = p.footprint("K", 3).toarray()
     np.testing.assert_array_equal(K, [[1, 0, 1], [0, 0, 0], [1, 0, 4]])
     assert p.dofs == (0, 1, 2) and p.kinds == ("C", "K")

@@ -24,7 +24,17 @@ def fmu_reference(ss, n, me=0.0, node=8, phase=0.0, asd=0.0, seed=1, inputs=None
     if steady:
         omega = ss.speed_rpm * RPM_TO_RAD_S
         g = gaussian_stream((seed & (2**64 - 1)) ^ STEADY_STREAM, disc.phi.shape[0])
-        x0 = steady_state(steady_start(disc, omega, ss.node_ports(28)), disc, t0_s=t0, omega_rad_s=omega,
-                          me_kgm=me, phase_rad=phase, unbalance_ports=ss.node_ports(node), turbulence_asd=asd, g=g,
-                          turbulence_ports=ss.node_ports(28) if asd > 0 else [], f0=turbulence[0])  # fmt: skip
+        x0 = steady_state(
+            steady_start(disc, omega, ss.node_ports(28)),
+            disc,
+            t0_s=t0,
+            omega_rad_s=omega,
+            me_kgm=me,
+            phase_rad=phase,
+            unbalance_ports=ss.node_ports(node),
+            turbulence_asd=asd,
+            g=g,
+            turbulence_ports=ss.node_ports(28) if asd > 0 else [],
+            f0=turbulence[0],
+        )
     return simulate_reference(disc, ss.C, zoh=zoh, foh=foh, x0=x0)

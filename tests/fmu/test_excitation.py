@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from twin.fmu.excitation import (excitation_forces, gaussian_stream, sensor_noise, splitmix64, turbulence_force,
-                                 unbalance_force)  # fmt: skip
+from twin.fmu.excitation import (
+    excitation_forces,
+    gaussian_stream,
+    sensor_noise,
+    splitmix64,
+    turbulence_force,
+    unbalance_force,
+)
 from twin.fmu.statespace import full_state_space
 
 
@@ -43,13 +49,15 @@ def test_excitation_forces_put_each_force_at_its_node_and_nowhere_else(hydro_uni
     turbulence = turbulence_force(n, 3000.0, 5, h)
     f = excitation_forces(ss, t, 8, 100.0, 28, turbulence, phase_rad=0.3)
     omega = ss.speed_rpm * 2 * np.pi / 60
-    np.testing.assert_array_equal(f[:, [ss.port_index("8.x"), ss.port_index("8.y")]],
-                                  unbalance_force(t, 100.0, 0.3, omega))  # fmt: skip
+    np.testing.assert_array_equal(
+        f[:, [ss.port_index("8.x"), ss.port_index("8.y")]], unbalance_force(t, 100.0, 0.3, omega)
+    )
     np.testing.assert_array_equal(f[:, [ss.port_index("28.x"), ss.port_index("28.y")]], turbulence)
     assert np.count_nonzero(f.any(axis=0)) == 4
     # one node for both: the forces add
     both = excitation_forces(ss, t, 28, 100.0, 28, turbulence)
-    np.testing.assert_allclose(both[:, [ss.port_index("28.x"), ss.port_index("28.y")]],
-                               unbalance_force(t, 100.0, 0.0, omega) + turbulence)  # fmt: skip
+    np.testing.assert_allclose(
+        both[:, [ss.port_index("28.x"), ss.port_index("28.y")]], unbalance_force(t, 100.0, 0.0, omega) + turbulence
+    )
     with pytest.raises(ValueError, match=r"turbulence must be 16 samples of x and y, shape \(16, 2\), got \(15, 2\)"):
         excitation_forces(ss, t, 8, 100.0, 28, turbulence[:15])

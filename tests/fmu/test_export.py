@@ -14,7 +14,6 @@ from twin.fmu.excitation import excitation_forces, sensor_noise, turbulence_forc
 from tests.fmu.reference import H, fmu_reference
 
 
-
 @pytest.fixture(scope="module")
 def unit_fmu(tmp_path_factory, hydro_unit):
     return export_fmu(hydro_unit, tmp_path_factory.mktemp("fmu") / "unit.fmu", step_s=H, inputs=["runner.x", "GEN.y"])
@@ -28,7 +27,9 @@ def test_fmu_is_valid_and_self_contained(unit_fmu):
     os.umask(umask)
     assert unit_fmu.stat().st_mode & 0o777 == 0o666 & ~umask  # usual permissions, not the temp file's 0600
     names = zipfile.ZipFile(unit_fmu).namelist()
-    assert {"modelDescription.xml", "resources/twin_lti.bin", "sources/twin_lti.c", "sources/fmi2Functions.h"} <= set(names)
+    assert {"modelDescription.xml", "resources/twin_lti.bin", "sources/twin_lti.c", "sources/fmi2Functions.h"} <= set(
+        names
+    )
     assert any(n.startswith("binaries/") for n in names)
     md = fmpy.read_model_description(str(unit_fmu))
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
@@ -45,12 +46,25 @@ def test_fmu_equals_the_numpyfmu_reference(unit_fmu, hydro_unit):
     u["time"] = t
     u["F_runner_x"] = 2e4 * np.sin(2 * np.pi * 3.3 * t)
     u["F_GEN_y"] = 1e4 * (t > 1.0)
-    res = fmpy.simulate_fmu(str(unit_fmu), stop_time=t[-1], step_size=H, output_interval=H, input=u,
-                            start_values={"steady_start": False, "unbalance_me": 40.0, "unbalance_phase": 0.3, "turbulence_asd": 5e3,
-                                          "turbulence_seed": 9})  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(unit_fmu),
+        stop_time=t[-1],
+        step_size=H,
+        output_interval=H,
+        input=u,
+        start_values={
+            "steady_start": False,
+            "unbalance_me": 40.0,
+            "unbalance_phase": 0.3,
+            "turbulence_asd": 5e3,
+            "turbulence_seed": 9,
+        },
+    )
     ss = full_state_space(hydro_unit)
     # external inputs are held over each step (ZOH); the built-in excitation uses FOH
-    ref = fmu_reference(ss, n, me=40.0, phase=0.3, asd=5e3, seed=9, inputs={"28.x": u["F_runner_x"], "8.y": u["F_GEN_y"]})
+    ref = fmu_reference(
+        ss, n, me=40.0, phase=0.3, asd=5e3, seed=9, inputs={"28.x": u["F_runner_x"], "8.y": u["F_GEN_y"]}
+    )
     y = np.column_stack([res[c] for c in ss.outputs])
     np.testing.assert_allclose(res["time"], t, rtol=1e-12, atol=1e-12)
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
@@ -58,9 +72,20 @@ def test_fmu_equals_the_numpyfmu_reference(unit_fmu, hydro_unit):
 
 def test_sensor_noise_and_unbalance_node(unit_fmu, hydro_unit):
     n = 300
-    res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"steady_start": False, "unbalance_me": 10.0, "unbalance_node": 28, "noise_std": 2e-6, "noise_seed": 4,
-                                          "turbulence_asd": 0.0})  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(unit_fmu),
+        stop_time=(n - 1) * H,
+        step_size=H,
+        output_interval=H,
+        start_values={
+            "steady_start": False,
+            "unbalance_me": 10.0,
+            "unbalance_node": 28,
+            "noise_std": 2e-6,
+            "noise_seed": 4,
+            "turbulence_asd": 0.0,
+        },
+    )
     ss = full_state_space(hydro_unit)
     ref = fmu_reference(ss, n, me=10.0, node=28) + sensor_noise(n, 8, 2e-6, 4)
     y = np.column_stack([res[c] for c in ss.outputs])
@@ -71,8 +96,13 @@ def test_modal_basis_fmu(tmp_path, hydro_unit):
     fmu = export_fmu(hydro_unit, tmp_path / "modal.fmu", basis="modal", fmax_hz=100.0)
     assert validate_fmu(str(fmu)) == []
     n = 800
-    res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0, "steady_start": False})
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        stop_time=(n - 1) * H,
+        step_size=H,
+        output_interval=H,
+        start_values={"turbulence_asd": 1e4, "unbalance_me": 0.0, "steady_start": False},
+    )
     ss = truncated_state_space(full_state_space(hydro_unit), 100.0)
     ref = fmu_reference(ss, n, asd=1e4)
     y = np.column_stack([res[c] for c in ss.outputs])
@@ -80,8 +110,9 @@ def test_modal_basis_fmu(tmp_path, hydro_unit):
 
 
 def _run(fmu, step, stop, **start):
-    res = fmpy.simulate_fmu(str(fmu), stop_time=stop, step_size=step, output_interval=step,
-                            start_values={"steady_start": False, **start})  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(fmu), stop_time=stop, step_size=step, output_interval=step, start_values={"steady_start": False, **start}
+    )
     return np.column_stack([res[name] for name in res.dtype.names[1:]])
 
 
@@ -135,8 +166,13 @@ def test_export_errors_leave_no_file(tmp_path, hydro_unit):
 
 def test_unbalance_defaults_to_the_generator_node(unit_fmu, hydro_unit):
     n = 200
-    res = fmpy.simulate_fmu(str(unit_fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0, "steady_start": False})  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(unit_fmu),
+        stop_time=(n - 1) * H,
+        step_size=H,
+        output_interval=H,
+        start_values={"unbalance_me": 10.0, "turbulence_asd": 0.0, "steady_start": False},
+    )
     ref = fmu_reference(full_state_space(hydro_unit), n, me=10.0, node=hydro_unit.regions["generator"][0])
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
@@ -146,8 +182,9 @@ def test_resources_in_a_folder_with_spaces_and_percent_signs(unit_fmu, tmp_path)
     # FMI 2 passes the resource location as a percent-encoded file:// URI
     folder = tmp_path / "odd name %41 é"
     zipfile.ZipFile(unit_fmu).extractall(folder)
-    res = fmpy.simulate_fmu(str(folder), stop_time=10 * H, step_size=H, output_interval=H,
-                            start_values={"unbalance_me": 1.0})  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(folder), stop_time=10 * H, step_size=H, output_interval=H, start_values={"unbalance_me": 1.0}
+    )
     assert len(res) == 11 and np.abs(res["GEN_x"]).max() > 0
 
 
@@ -162,8 +199,14 @@ def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
     res = fmpy.simulate_fmu(str(unit_fmu), output_interval=H)  # the default experiment, as a host runs it
     n = len(res)
     assert abs(res["time"][-1] - stop) < H / 2
-    ref = fmu_reference(full_state_space(hydro_unit), n, me=DEFAULT_UNBALANCE_ME, asd=DEFAULT_TURBULENCE_ASD,
-                     node=hydro_unit.regions["generator"][0], steady=True)  # fmt: skip
+    ref = fmu_reference(
+        full_state_space(hydro_unit),
+        n,
+        me=DEFAULT_UNBALANCE_ME,
+        asd=DEFAULT_TURBULENCE_ASD,
+        node=hydro_unit.regions["generator"][0],
+        steady=True,
+    )
     y = np.column_stack([res[c] for c in hydro_unit.channels])
     assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
-    assert np.all(np.std(y[n // 2:], axis=0) > 1e-7)  # every channel moves by more than 0.1 um
+    assert np.all(np.std(y[n // 2 :], axis=0) > 1e-7)  # every channel moves by more than 0.1 um

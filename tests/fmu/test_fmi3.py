@@ -21,8 +21,17 @@ START = {"unbalance_me": 40.0, "turbulence_asd": 5e3, "turbulence_seed": 9, "noi
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory, hydro_unit):
     folder = tmp_path_factory.mktemp("fmi3")
-    return {version: export_fmu(hydro_unit, folder / f"modal{version}.fmu", basis="modal", fmax_hz=FMAX,
-                                inputs=["runner.x"], fmi_version=version) for version in (2, 3)}  # fmt: skip
+    return {
+        version: export_fmu(
+            hydro_unit,
+            folder / f"modal{version}.fmu",
+            basis="modal",
+            fmax_hz=FMAX,
+            inputs=["runner.x"],
+            fmi_version=version,
+        )
+        for version in (2, 3)
+    }
 
 
 def _outputs(fmu):
@@ -31,8 +40,9 @@ def _outputs(fmu):
 
 def _run(fmu, stop, fmi_type="CoSimulation", **kw):
     names = _outputs(fmu)
-    res = fmpy.simulate_fmu(str(fmu), fmi_type=fmi_type, stop_time=stop, output_interval=H, start_values=START,
-                            output=names, **kw)  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(fmu), fmi_type=fmi_type, stop_time=stop, output_interval=H, start_values=START, output=names, **kw
+    )
     if fmi_type == "ModelExchange":
         res = res[np.r_[res["time"][1:] != res["time"][:-1], True]]  # the row after each time event
     return np.column_stack([res[n] for n in names])
@@ -67,23 +77,34 @@ def test_co_simulation_is_the_fmi_2_run_bit_for_bit_and_the_modal_reference(fmus
 
 def _run_rest(fmu, n):
     names = _outputs(fmu)
-    res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) * H, step_size=H, output_interval=H,
-                            start_values={**START, "steady_start": False}, output=names)  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        stop_time=(n - 1) * H,
+        step_size=H,
+        output_interval=H,
+        start_values={**START, "steady_start": False},
+        output=names,
+    )
     return [res[c] for c in names]
 
 
 def test_model_exchange_converges_to_the_co_simulation(fmus):
     cs = _run(fmus[3], 0.5, step_size=H)
     rms = np.sqrt(np.mean(cs**2, axis=0))
-    errors = [np.max(np.abs(_run(fmus[3], 0.5, "ModelExchange", relative_tolerance=rtol) - cs) / rms)
-              for rtol in (1e-6, 1e-9)]  # fmt: skip
+    errors = [
+        np.max(np.abs(_run(fmus[3], 0.5, "ModelExchange", relative_tolerance=rtol) - cs) / rms) for rtol in (1e-6, 1e-9)
+    ]
     assert errors[1] < 1e-5 and errors[1] < errors[0] / 10, errors
 
 
 def _slave(fmu, name="a"):
     md = fmpy.read_model_description(str(fmu))
-    s = FMU3Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
-                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)  # fmt: skip
+    s = FMU3Slave(
+        guid=md.guid,
+        unzipDirectory=fmpy.extract(str(fmu)),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName=name,
+    )
     s.instantiate()
     s.enterInitializationMode(startTime=0.0)
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -136,7 +157,19 @@ def test_sources_build_for_fmi_3_with_a_function_prefix(tmp_path, fmus):
     src = tmp_path / "src"
     zipfile.ZipFile(fmus[3]).extractall(src)
     lib = tmp_path / "unit.so"
-    subprocess.run([find_compiler(), "-shared", "-fPIC", "-DFMI3_FUNCTION_PREFIX=unit_", f"-I{src / 'sources'}",
-                    str(src / "sources" / "twin_lti.c"), "-o", str(lib), "-lm"], check=True)  # fmt: skip
+    subprocess.run(
+        [
+            find_compiler(),
+            "-shared",
+            "-fPIC",
+            "-DFMI3_FUNCTION_PREFIX=unit_",
+            f"-I{src / 'sources'}",
+            str(src / "sources" / "twin_lti.c"),
+            "-o",
+            str(lib),
+            "-lm",
+        ],
+        check=True,
+    )
     symbols = subprocess.run(["nm", "-D", str(lib)], capture_output=True, text=True, check=True).stdout
     assert "unit_fmi3DoStep" in symbols and " fmi3DoStep" not in symbols and "fmi2DoStep" not in symbols

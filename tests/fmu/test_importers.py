@@ -16,8 +16,9 @@ H = H_NS * 1e-9
 
 @pytest.fixture(scope="module")
 def fmu(tmp_path_factory, hydro_unit):
-    return export_fmu(hydro_unit, tmp_path_factory.mktemp("fmu") / "unit.fmu", step_s=H, basis="modal",
-                      fmax_hz=60.0, inputs=[])  # fmt: skip
+    return export_fmu(
+        hydro_unit, tmp_path_factory.mktemp("fmu") / "unit.fmu", step_s=H, basis="modal", fmax_hz=60.0, inputs=[]
+    )
 
 
 def _libcosim_run(path, steps, starts, instances=("unit",)):
@@ -32,8 +33,10 @@ def _libcosim_run(path, steps, starts, instances=("unit",)):
     vr = {v.name: v.valueReference for v in md.modelVariables}
     outputs = [vr[v.name] for v in md.modelVariables if v.causality == "output"]
     execution = CosimExecution.from_step_size(step_size=H_NS)
-    slaves = [execution.add_local_slave(local_slave=CosimLocalSlave(fmu_path=str(path), instance_name=name))
-              for name in instances]  # fmt: skip
+    slaves = [
+        execution.add_local_slave(local_slave=CosimLocalSlave(fmu_path=str(path), instance_name=name))
+        for name in instances
+    ]
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer=observer)
     for slave, values in zip(slaves, starts):
@@ -64,8 +67,12 @@ def test_the_fmu_manipulation_toolbox_finds_it_conformant(tmp_path, hydro_unit, 
     """FMI 2.0 and 3.0, co-simulation and model exchange in one FMU each."""
     pytest.importorskip("fmu_manipulation_toolbox", reason="pip install fmu-manipulation-toolbox (in the test extra)")
     fmu = export_fmu(hydro_unit, tmp_path / f"unit{version}.fmu", basis="modal", fmax_hz=60.0, fmi_version=version)
-    proc = subprocess.run([sys.executable, "-m", "fmu_manipulation_toolbox", "-input", str(fmu), "-check"],
-                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-m", "fmu_manipulation_toolbox", "-input", str(fmu), "-check"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     text = proc.stdout + proc.stderr
     assert f"compliant with FMI-{version}.0" in text, text
     assert "No semantic error" in text, text

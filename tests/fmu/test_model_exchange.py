@@ -19,13 +19,21 @@ START = {"steady_start": True, "noise_std": 0.0, "unbalance_me": 100.0, "turbule
 
 @pytest.fixture(scope="module")
 def modal_fmu(tmp_path_factory, hydro_unit):
-    return export_fmu(hydro_unit, tmp_path_factory.mktemp("me") / "modal.fmu", basis="modal", fmax_hz=FMAX,
-                      inputs=["runner.x"])  # fmt: skip
+    return export_fmu(
+        hydro_unit, tmp_path_factory.mktemp("me") / "modal.fmu", basis="modal", fmax_hz=FMAX, inputs=["runner.x"]
+    )
 
 
 def _cs(fmu, stop, names):
-    res = fmpy.simulate_fmu(str(fmu), fmi_type="CoSimulation", stop_time=stop, step_size=H, output_interval=H,
-                            start_values=START, output=names)  # fmt: skip
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        fmi_type="CoSimulation",
+        stop_time=stop,
+        step_size=H,
+        output_interval=H,
+        start_values=START,
+        output=names,
+    )
     return np.column_stack([res[n] for n in names])
 
 
@@ -37,8 +45,11 @@ class Host:
         self.md = fmpy.read_model_description(str(fmu))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.nx = sum(1 for v in self.md.modelVariables if v.derivative is not None)
-        self.fmu = FMU2Model(guid=self.md.guid, unzipDirectory=fmpy.extract(str(fmu)),
-                             modelIdentifier=self.md.modelExchange.modelIdentifier)  # fmt: skip
+        self.fmu = FMU2Model(
+            guid=self.md.guid,
+            unzipDirectory=fmpy.extract(str(fmu)),
+            modelIdentifier=self.md.modelExchange.modelIdentifier,
+        )
         self.fmu.instantiate()
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
@@ -96,8 +107,15 @@ def test_fmpy_simulates_it_as_model_exchange_to_its_tolerance(modal_fmu):
     cs = _cs(modal_fmu, 0.5, outputs)
     errors = []
     for rtol in (1e-6, 1e-9):
-        res = fmpy.simulate_fmu(str(modal_fmu), fmi_type="ModelExchange", stop_time=0.5, output_interval=H,
-                                start_values=START, output=outputs, relative_tolerance=rtol)  # fmt: skip
+        res = fmpy.simulate_fmu(
+            str(modal_fmu),
+            fmi_type="ModelExchange",
+            stop_time=0.5,
+            output_interval=H,
+            start_values=START,
+            output=outputs,
+            relative_tolerance=rtol,
+        )
         after = np.r_[res["time"][1:] != res["time"][:-1], True]  # the row after each event
         me = np.column_stack([res[n] for n in outputs])[after]
         np.testing.assert_allclose(res["time"][after], np.arange(len(cs)) * H, atol=1e-12)

@@ -23,8 +23,12 @@ class Instance:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.outputs = [self.vr[v.name] for v in self.md.modelVariables if v.causality == "output"]
         self.messages = []
-        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=fmpy.extract(str(path)),
-                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)  # fmt: skip
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=fmpy.extract(str(path)),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         self.callbacks = fmi2CallbackFunctions()
         self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)  # kept alive with the instance
         self.slave.instantiate(callbacks=self.callbacks)
@@ -104,9 +108,14 @@ def test_every_error_says_why(fmu):
     with pytest.raises(Exception):
         a.slave.doStep(0.0, H)
     a.start()
-    calls = [lambda: a.slave.getReal([999]), lambda: a.slave.setReal([a.vr["unbalance_me"]], [1.0]),
-             lambda: a.slave.setInteger([a.vr["noise_seed"]], [3]), lambda: a.slave.getInteger([4242]),
-             lambda: a.slave.getBoolean([1]), lambda: a.slave.doStep(0.0, -H)]  # fmt: skip
+    calls = [
+        lambda: a.slave.getReal([999]),
+        lambda: a.slave.setReal([a.vr["unbalance_me"]], [1.0]),
+        lambda: a.slave.setInteger([a.vr["noise_seed"]], [3]),
+        lambda: a.slave.getInteger([4242]),
+        lambda: a.slave.getBoolean([1]),
+        lambda: a.slave.doStep(0.0, -H),
+    ]
     for call in calls:
         with pytest.raises(Exception):
             call()
@@ -150,8 +159,19 @@ def test_sources_build_with_a_function_prefix(tmp_path, hydro_unit):
         src = tmp_path / ident
         zipfile.ZipFile(export_fmu(hydro_unit, tmp_path / f"{ident}.fmu", name=ident)).extractall(src)
         obj = tmp_path / f"{ident}.o"
-        subprocess.run([cc, "-c", "-fPIC", f"-DFMI2_FUNCTION_PREFIX={ident}_", f"-I{src / 'sources'}",
-                        str(src / "sources" / "twin_lti.c"), "-o", str(obj)], check=True)  # fmt: skip
+        subprocess.run(
+            [
+                cc,
+                "-c",
+                "-fPIC",
+                f"-DFMI2_FUNCTION_PREFIX={ident}_",
+                f"-I{src / 'sources'}",
+                str(src / "sources" / "twin_lti.c"),
+                "-o",
+                str(obj),
+            ],
+            check=True,
+        )
         objects.append(obj)
     lib = tmp_path / "both.so"
     subprocess.run([cc, "-shared", *map(str, objects), "-o", str(lib), "-lm"], check=True)

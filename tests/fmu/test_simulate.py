@@ -70,12 +70,29 @@ def test_simulate_command(tmp_path, capsys):
     out = tmp_path / "s.nc"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert main(["simulate", "models/hydro_unit.toml", "--duration", "1", "--fs", "256", "--seed", "2",
-                     "-o", str(out)]) == 0  # fmt: skip
+        assert (
+            main(
+                ["simulate", "models/hydro_unit.toml", "--duration", "1", "--fs", "256", "--seed", "2", "-o", str(out)]
+            )
+            == 0
+        )
     ds = xr.open_dataset(out)
     assert ds.sizes["time"] == 256 and ds.attrs["seed"] == 2
-    assert main(["simulate", "models/hydro_unit.toml", "--duration", "1", "--truth", str(tmp_path / "none.toml"),
-                 "-o", str(tmp_path / "t.nc")]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "simulate",
+                "models/hydro_unit.toml",
+                "--duration",
+                "1",
+                "--truth",
+                str(tmp_path / "none.toml"),
+                "-o",
+                str(tmp_path / "t.nc"),
+            ]
+        )
+        == 2
+    )
     assert "no such file" in capsys.readouterr().err
 
 
@@ -86,8 +103,17 @@ def test_one_hour_with_the_paper_truth_has_the_predicted_variance(tmp_path, hydr
     from twin.fmu.truth import truth_state_space
 
     out = tmp_path / "signals.nc"
-    simulate(hydro_unit, duration_s=3600.0, fs_hz=256.0, seed=1, truth=paper_truth(), unbalance_me=0.0,
-             noise_ratio=0.0, output=out, progress=False)  # fmt: skip
+    simulate(
+        hydro_unit,
+        duration_s=3600.0,
+        fs_hz=256.0,
+        seed=1,
+        truth=paper_truth(),
+        unbalance_me=0.0,
+        noise_ratio=0.0,
+        output=out,
+        progress=False,
+    )
     ds = xr.open_dataset(out)
     x = ds.displacement.values
     assert x.shape == (3600 * 256, 8) and np.all(np.isfinite(x))

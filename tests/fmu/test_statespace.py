@@ -28,8 +28,15 @@ def test_exact_discretisation_matches_a_tight_ode_solution(hold):
         k = min(int(np.floor(time / h + 1e-12)), len(u) - 2)
         return u[k] if hold == "zoh" else u[k] + (u[k + 1] - u[k]) * (time - t[k]) / h
 
-    sol = solve_ivp(lambda s, x: ss.A @ x + ss.B[:, 0] * force(s), (0, t[-1]), [0.0, 0.0], t_eval=t,
-                    rtol=1e-12, atol=1e-14, max_step=h / 20)  # fmt: skip
+    sol = solve_ivp(
+        lambda s, x: ss.A @ x + ss.B[:, 0] * force(s),
+        (0, t[-1]),
+        [0.0, 0.0],
+        t_eval=t,
+        rtol=1e-12,
+        atol=1e-14,
+        max_step=h / 20,
+    )
     np.testing.assert_allclose(y[:, 0], sol.y[0], atol=1e-9 * np.abs(sol.y[0]).max())
 
 
@@ -76,8 +83,9 @@ def test_a_model_with_per_mode_fsi_is_simulated_with_it(hydro_unit):
     ss = model_state_space(hydro_unit.with_effects(effect))
     expected = truth_state_space(hydro_unit, Truth((effect,)))
     np.testing.assert_allclose(np.sort_complex(ss.poles), np.sort_complex(expected.poles), rtol=1e-12)
-    np.testing.assert_allclose(ss.C @ ss.B, expected.C @ expected.B, rtol=1e-9, atol=1e-12 * np.abs(expected.C @
-                               expected.B).max())  # fmt: skip
+    np.testing.assert_allclose(
+        ss.C @ ss.B, expected.C @ expected.B, rtol=1e-9, atol=1e-12 * np.abs(expected.C @ expected.B).max()
+    )
     dry, wet = modal(hydro_unit).pole.values, ss.poles
     dry, wet = dry[dry.imag > 0], wet[wet.imag > 0]
     dry, wet = dry[np.argsort(dry.imag)], wet[np.argsort(wet.imag)]

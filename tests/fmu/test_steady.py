@@ -27,9 +27,18 @@ def test_the_first_seconds_have_the_stationary_variance(tmp_path, hydro_unit):
     runs = {True: [], False: []}
     for steady in runs:
         for seed in range(60):
-            res = fmpy.simulate_fmu(str(fmu), stop_time=1.0, step_size=H, output_interval=H,
-                                    start_values={"unbalance_me": 0.0, "turbulence_asd": asd, "turbulence_seed": seed,
-                                                  "steady_start": steady})  # fmt: skip
+            res = fmpy.simulate_fmu(
+                str(fmu),
+                stop_time=1.0,
+                step_size=H,
+                output_interval=H,
+                start_values={
+                    "unbalance_me": 0.0,
+                    "turbulence_asd": asd,
+                    "turbulence_seed": seed,
+                    "steady_start": steady,
+                },
+            )
             runs[steady].append(np.column_stack([res[c] for c in ss.outputs]))
     ratio = {k: np.var(np.array(v), axis=0).mean(axis=0) / stationary for k, v in runs.items()}
     # 60 records: each channel's variance is known to about sqrt(2/60) = 18%, less averaged over 1 s

@@ -60,8 +60,9 @@ def test_modal_synthesis_with_equal_values_reproduces_the_altered_fem_response(h
     np.testing.assert_allclose(np.sort_complex(got), np.sort_complex(expected[targets]), rtol=1e-9)
     # and the same modal system as taking those modes straight from the altered FEM
     lam, right, left = state_modes(full.A)
-    direct = modal_state_space(lam[targets], full.C @ right[targets].T, left[targets] @ full.B, full.ports,
-                               full.outputs, full.speed_rpm)  # fmt: skip
+    direct = modal_state_space(
+        lam[targets], full.C @ right[targets].T, left[targets] @ full.B, full.ports, full.outputs, full.speed_rpm
+    )
     for s in 2j * np.pi * np.array([1.0, 15.0, 16.01, 40.0]):
         h_direct = direct.C @ np.linalg.solve(s * np.eye(12) - direct.A, direct.B)
         h_syn = ss.C @ np.linalg.solve(s * np.eye(12) - ss.A, ss.B)

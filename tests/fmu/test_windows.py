@@ -18,8 +18,11 @@ HOST = Path(__file__).parent / "data" / "fmi2_host.c"
 
 
 def _wine() -> str | None:
-    return shutil.which("wine64") or shutil.which("wine") or next(
-        (p for p in ("/usr/lib/wine/wine64",) if Path(p).is_file()), None)  # fmt: skip
+    return (
+        shutil.which("wine64")
+        or shutil.which("wine")
+        or next((p for p in ("/usr/lib/wine/wine64",) if Path(p).is_file()), None)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -51,8 +54,13 @@ def test_the_win64_dll_runs_under_wine_as_the_linux_binary_does(fmus, tmp_path):
     dll = "Z:" + str(unzipped / "binaries" / "win64" / "hydro_unit.dll").replace("/", "\\")
     resources = "file:///Z:" + (unzipped / "resources").as_posix()
     n = 200
-    proc = subprocess.run([wine, str(host), dll, guid, resources, str(n)], capture_output=True, text=True,
-                          timeout=600, env={"WINEDEBUG": "-all", "HOME": str(Path.home()), "PATH": "/usr/bin:/bin"})  # fmt: skip
+    proc = subprocess.run(
+        [wine, str(host), dll, guid, resources, str(n)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={"WINEDEBUG": "-all", "HOME": str(Path.home()), "PATH": "/usr/bin:/bin"},
+    )
     assert proc.returncode == 0, proc.stderr
     windows = np.array([[float(x) for x in line.split()] for line in proc.stdout.splitlines()])
     res = fmpy.simulate_fmu(str(fmu), stop_time=(n - 1) / 256, step_size=1 / 256, output_interval=1 / 256)

@@ -19,12 +19,39 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     # 10 min instead of 20: the same loop at a fraction of the cost, on twice the reference pull so that it
     # stands five times above the noise floor of the shorter record. The posterior is calibrated on the demo's
     # default records (twin.harness.demo.DEMO_RECORDS), which run on the default local cluster
-    assert main(["demo", "--out", str(out), "--duration", "600", "--samples", "10", "--hidden", "magnetic_pull@2",
-                 "--workers", "2"]) == 0
+    assert (
+        main(
+            [
+                "demo",
+                "--out",
+                str(out),
+                "--duration",
+                "600",
+                "--samples",
+                "10",
+                "--hidden",
+                "magnetic_pull@2",
+                "--workers",
+                "2",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "round 1: missing effect (magnetic_pull)" in printed and "round 2: nothing missing" in printed
-    for name in ("report.md", "signals.nc", "modes.nc", "diagnosis.json", "history.csv", "history.png",
-                 "stabilisation.png", "errors.png", "mac.png", "spectra.png", "hydro_unit.fmu"):  # fmt: skip
+    for name in (
+        "report.md",
+        "signals.nc",
+        "modes.nc",
+        "diagnosis.json",
+        "history.csv",
+        "history.png",
+        "stabilisation.png",
+        "errors.png",
+        "mac.png",
+        "spectra.png",
+        "hydro_unit.fmu",
+    ):
         assert (out / name).stat().st_size > 100, name
     report = (out / "report.md").read_text()
     assert "Round 1: **missing effect** (magnetic_pull)" in report and "![history](history.png)" in report
@@ -38,7 +65,10 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
     assert np.isnan(low[:2]).all() and errors[-1] * 0.5 < low[-1] < high[-1] < 0.2 * errors[0]
     assert "| E, 90% over the posterior [%] |" in report
     # the update is the APerCEM sampler's (HMC on the marginal): its posterior, interval and diagnostics in the report
-    assert "jointly: APerCEM, HMC on the marginal (pole deviations and shapes integrated out), 4 chains x 500 draws" in report
+    assert (
+        "jointly: APerCEM, HMC on the marginal (pole deviations and shapes integrated out), 4 chains x 500 draws"
+        in report
+    )
     row = next(line for line in report.splitlines() if line.startswith("| MAG.stiffness"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert " to " in cells[3] and float(cells[5]) <= 1.01 and float(cells[6]) >= 400, cells  # R-hat, bulk ESS
@@ -61,10 +91,13 @@ def test_demo_refuses_an_unknown_hidden_effect(tmp_path):
 # them); they are checked against their own posterior std (|z| < 3) instead.
 # The scenarios run as one sweep, one Dask task each, on a local cluster of two workers.
 HIDDEN_CASES = {
-    "magnetic_pull": (), "fsi": (), "seal_cross_coupling": (), "thrust_tilt:thrust": (),
+    "magnetic_pull": (),
+    "fsi": (),
+    "seal_cross_coupling": (),
+    "thrust_tilt:thrust": (),
     "bearing_change:UGB": ("UGB.stiffness_change",),
     "bearing_change:LGB": ("LGB.stiffness_change",),
-}  # fmt: skip
+}
 NO_EFFECT_SEED = 5
 
 

@@ -10,12 +10,22 @@ from twin.harness.scenarios import REFERENCE_EFFECTS, parse_scenario
 def test_reference_sizes_scaled_and_combined(hydro_unit):
     s = parse_scenario("magnetic_pull@2.5+bearing_change:LGB@0.5")
     assert s.labels == ("magnetic_pull", "bearing_change:LGB")
-    assert s.truth_values(hydro_unit) == {"MAG.stiffness": -2.5e8, "LGB.stiffness_change": -1.5e7,
-                                          "LGB.damping_change": -1.5e8}  # fmt: skip
+    assert s.truth_values(hydro_unit) == {
+        "MAG.stiffness": -2.5e8,
+        "LGB.stiffness_change": -1.5e7,
+        "LGB.damping_change": -1.5e8,
+    }
     assert s.expected() == "missing effect: magnetic_pull, bearing_change:LGB"
     assert parse_scenario("fsi_per_mode@0.5").effects[0].added_mass[0] == pytest.approx(5e4)
-    assert set(REFERENCE_EFFECTS) == {"fsi", "fsi_per_mode", "magnetic_pull", "seal_cross_coupling",
-                                      "bearing_change:UGB", "bearing_change:LGB", "thrust_tilt:thrust"}  # fmt: skip
+    assert set(REFERENCE_EFFECTS) == {
+        "fsi",
+        "fsi_per_mode",
+        "magnetic_pull",
+        "seal_cross_coupling",
+        "bearing_change:UGB",
+        "bearing_change:LGB",
+        "thrust_tilt:thrust",
+    }
 
 
 def test_local_changes_and_the_old_name(hydro_unit):
@@ -30,14 +40,17 @@ def test_local_changes_and_the_old_name(hydro_unit):
     assert parse_scenario("magnetic_pull@2.5+seal_cross_coupling").folder == "magnetic_pull_x2.5+seal_cross_coupling"
 
 
-@pytest.mark.parametrize("spec, message", [
-    ("gravity", "unknown 'gravity'; choose from magnetic_pull"),
-    ("magnetic_pull@-1", "must be positive"),
-    ("magnetic_pull@x", "LABEL or LABEL@FACTOR"),
-    ("magnetic_pull+magnetic_pull@2", "'magnetic_pull' appears twice"),
-    ("fsi+fsi_per_mode", "describe the same physics"),
-    ("shaft_stiffness:top", "a shaft element is a number"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("gravity", "unknown 'gravity'; choose from magnetic_pull"),
+        ("magnetic_pull@-1", "must be positive"),
+        ("magnetic_pull@x", "LABEL or LABEL@FACTOR"),
+        ("magnetic_pull+magnetic_pull@2", "'magnetic_pull' appears twice"),
+        ("fsi+fsi_per_mode", "describe the same physics"),
+        ("shaft_stiffness:top", "a shaft element is a number"),
+    ],
+)
 def test_bad_specs_are_named(spec, message):
     with pytest.raises(TwinError, match=message):
         parse_scenario(spec)

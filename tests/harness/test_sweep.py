@@ -11,9 +11,24 @@ from twin.harness.sweep import Settings, scenario_grid, sweep, tabulate
 
 def _row(verdict, missing, before, after, params, location=""):
     params = {n: dict(zip(("map", "std", "truth"), v)) for n, v in params.items()}  # a Laplace update: no R-hat
-    return {"verdict": verdict, "missing": missing, "top_score": 40.0, "lead": 12.0, "error_before": before,
-            "error_after": after, "error_after_interval": (np.nan, np.nan), "parameters": params, "location": location, "elapsed_s": 1.0, "warnings": [],
-            "final_verdict": "nothing missing", "rounds": 2, "chi2_before": 900.0, "chi2_after": 18.0, "n_data": 20}  # fmt: skip
+    return {
+        "verdict": verdict,
+        "missing": missing,
+        "top_score": 40.0,
+        "lead": 12.0,
+        "error_before": before,
+        "error_after": after,
+        "error_after_interval": (np.nan, np.nan),
+        "parameters": params,
+        "location": location,
+        "elapsed_s": 1.0,
+        "warnings": [],
+        "final_verdict": "nothing missing",
+        "rounds": 2,
+        "chi2_before": 900.0,
+        "chi2_after": 18.0,
+        "n_data": 20,
+    }
 
 
 def test_table_and_pass_rule():
@@ -24,7 +39,7 @@ def test_table_and_pass_rule():
         _row("missing effect", "thrust_tilt:thrust", 0.02, 0.003, {"thrust.k_tilt_change": (0.8e9, 1e8, 1e9)}),
         _row("nothing missing", "", 0.003, 0.003, {}),
         _row("missing effect", "fsi", 0.05, 0.015, {"FSI.added_mass": (6e4, 1e3, 6e4)}),  # falls 70% only
-    ]  # fmt: skip
+    ]
     t = tabulate(scenarios, rows, Settings())
     assert t["passed"].values.tolist() == [True, False, True, True, False]
     # strictly, the tilt stiffness 20% off (2 std) fails: it is not within 10%
@@ -39,16 +54,21 @@ def test_table_and_pass_rule():
 
 
 def test_wrong_verdict_fails_the_scenario():
-    t = tabulate([("none", 1), ("fsi", 1)], [_row("missing effect", "fsi", 0.01, 0.001, {}),
-                                             _row("missing effect", "magnetic_pull", 0.05, 0.001, {})], Settings())
+    t = tabulate(
+        [("none", 1), ("fsi", 1)],
+        [_row("missing effect", "fsi", 0.01, 0.001, {}), _row("missing effect", "magnetic_pull", 0.05, 0.001, {})],
+        Settings(),
+    )
     assert t["passed"].values.tolist() == [False, False]
 
 
 def test_change_outside_the_library_passes_when_called_unexplained_and_located():
-    rows = [_row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:18"),
-            _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:5"),
-            _row("missing effect", "fsi", 0.02, 0.001, {}),
-            _row("unexplained", "", 0.02, 0.02, {}, location="disk_mass:generator")]  # fmt: skip
+    rows = [
+        _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:18"),
+        _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:5"),
+        _row("missing effect", "fsi", 0.02, 0.001, {}),
+        _row("unexplained", "", 0.02, 0.02, {}, location="disk_mass:generator"),
+    ]
     scenarios = [("shaft_stiffness_loss", s) for s in (1, 2, 3)] + [("disk_mass:generator@1.1", 1)]
     t = tabulate(scenarios, rows, Settings())
     assert t["passed"].values.tolist() == [True, False, False, True]
@@ -60,11 +80,17 @@ def test_change_outside_the_library_passes_when_called_unexplained_and_located()
 def test_two_hidden_effects_pass_only_when_both_are_named():
     scenarios = [("magnetic_pull+seal_cross_coupling", 1)] * 3
     both = {"MAG.stiffness": (-1.02e8, 4e6, -1e8), "SEAL.kxy": (4.9e7, 2e6, 5e7)}
-    rows = [_row("missing effect", "seal_cross_coupling+magnetic_pull", 0.05, 0.002, both),
-            _row("missing effect", "magnetic_pull", 0.05, 0.004, {"MAG.stiffness": (-1.3e8, 4e6, -1e8)}),
-            _row("missing effect", "magnetic_pull+seal_cross_coupling+fsi", 0.05, 0.002, both)]  # fmt: skip
+    rows = [
+        _row("missing effect", "seal_cross_coupling+magnetic_pull", 0.05, 0.002, both),
+        _row("missing effect", "magnetic_pull", 0.05, 0.004, {"MAG.stiffness": (-1.3e8, 4e6, -1e8)}),
+        _row("missing effect", "magnetic_pull+seal_cross_coupling+fsi", 0.05, 0.002, both),
+    ]
     t = tabulate(scenarios, rows, Settings())
-    assert t["passed"].values.tolist() == [True, False, False]  # the order does not matter; one missing or one extra fails
+    assert t["passed"].values.tolist() == [
+        True,
+        False,
+        False,
+    ]  # the order does not matter; one missing or one extra fails
 
 
 def test_scenario_file(tmp_path):
@@ -101,8 +127,23 @@ def test_sweep_command_runs_scenarios_as_dask_tasks(tmp_path, capsys):
     out = tmp_path / "sweep"
     # 10-min records (the hidden-effect tests use 20 min), so twice the reference pull (the 80% fall needs the error
     # five times its noise floor): both scenarios at once on a 2-worker local cluster
-    code = main(["sweep", "--hidden", "magnetic_pull@2,none", "--seeds", "1", "--duration", "600", "--samples", "10",
-                 "--out", str(out), "--workers", "2"])  # fmt: skip
+    code = main(
+        [
+            "sweep",
+            "--hidden",
+            "magnetic_pull@2,none",
+            "--seeds",
+            "1",
+            "--duration",
+            "600",
+            "--samples",
+            "10",
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+        ]
+    )
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "2 of 2 scenarios passed" in printed

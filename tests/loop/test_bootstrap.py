@@ -57,10 +57,16 @@ def test_factors_are_the_records_rms_error_in_the_posterior_s_std(hydro_unit):
     # the records that have it, in the std of the measured posterior's draws
     tw, post = _seal_update(hydro_unit, draws=50)
     estimate = {"SEAL.kxy": 5.0e7}
-    fits = [{"SEAL.kxy": (5.0e7 + 1e6, 1e6)}, {"SEAL.kxy": (5.0e7 - 4e6, 2e6)}, "record 3: no mode",
-            {"SEAL.kxy": (5.0e7, 5e5)}, {"SEAL.kxy": (5.0e7 + 3e6, 1e6)}]  # fmt: skip
-    factors = bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
-                                tasks=lambda function, items, **shared: fits)  # fmt: skip
+    fits = [
+        {"SEAL.kxy": (5.0e7 + 1e6, 1e6)},
+        {"SEAL.kxy": (5.0e7 - 4e6, 2e6)},
+        "record 3: no mode",
+        {"SEAL.kxy": (5.0e7, 5e5)},
+        {"SEAL.kxy": (5.0e7 + 3e6, 1e6)},
+    ]
+    factors = bootstrap_factors(
+        tw.model, tw.model, tw.modes, post, estimate, records=5, tasks=lambda function, items, **shared: fits
+    )
     np.testing.assert_allclose(factors["error"].sel(parameter="SEAL.kxy").values, [1e6, -4e6, np.nan, 0.0, 3e6])
     np.testing.assert_allclose(factors["z"].sel(parameter="SEAL.kxy").values, [1.0, -2.0, np.nan, 0.0, 3.0])
     assert float(factors["rms_z"][0]) == pytest.approx(np.sqrt((1 + 4 + 0 + 9) / 4))
@@ -76,8 +82,15 @@ def test_factors_are_the_records_rms_error_in_the_posterior_s_std(hydro_unit):
     # seen on 2 records of 5: two more batches of 5 (MAX_BATCHES), which find none, then too few to calibrate
     batches = iter([fits[:2] + ["x"] * 3, ["x"] * 5, ["x"] * 5])
     with pytest.raises(TwinError, match=f"fitted on 2 of {5 * MAX_BATCHES}"):
-        bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
-                          tasks=lambda function, items, **shared: next(batches))  # fmt: skip
+        bootstrap_factors(
+            tw.model,
+            tw.model,
+            tw.modes,
+            post,
+            estimate,
+            records=5,
+            tasks=lambda function, items, **shared: next(batches),
+        )
     with pytest.raises(TwinError, match=f"integer >= {MIN_RECORDS}"):
         bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=2)
     with pytest.raises(TwinError, match="lacks SEAL.kxy"):
@@ -107,10 +120,16 @@ def test_a_parameter_seen_on_too_few_records_is_seen_on_more(hydro_unit):
     # and nothing to calibrate on
     asked.clear()
     with pytest.raises(TwinError, match="fitted on 0 of 5"):
-        bootstrap_factors(tw.model, tw.model, tw.modes, post, estimate, records=5,
-                          tasks=lambda function, items, **shared: asked.append(items) or [unseen] * len(items))  # fmt: skip
+        bootstrap_factors(
+            tw.model,
+            tw.model,
+            tw.modes,
+            post,
+            estimate,
+            records=5,
+            tasks=lambda function, items, **shared: asked.append(items) or [unseen] * len(items),
+        )
     assert len(asked) == 1
-
 
 
 def test_calibrated_stretches_determined_draws_only_and_keeps_the_mean(hydro_unit):
@@ -295,8 +314,11 @@ def test_a_calibration_that_cannot_run_keeps_the_sampler_s_posterior_with_a_warn
     monkeypatch.setattr(twin.loop.bootstrap, "bootstrap_factors", fails)
     tw = Twin(hydro_unit, read_modes(DATA / "modes_seal_10130.nc"))
     tw.add_effect("seal_cross_coupling")
-    with pytest.warns(TwinWarning, match=r"could not be calibrated on simulated records \(the update's density was "
-                                         r"fitted on 0 of 3 simulated records\); it is the sampler's own"):  # fmt: skip
+    with pytest.warns(
+        TwinWarning,
+        match=r"could not be calibrated on simulated records \(the update's density was "
+        r"fitted on 0 of 3 simulated records\); it is the sampler's own",
+    ):
         post = tw.update(tw.added_parameters(), seed=1, draws=100, progress=False, bootstrap=3)
     assert "bootstrap_calibration" not in post.attrs and tw.posterior is post
     assert tw.history[-1].action == "update SEAL.kxy (not calibrated)" and tw.history[-1].interval is not None

@@ -9,8 +9,15 @@ from twin.loop.candidates import add_effects, candidates, select
 
 def test_library_follows_the_model(hydro_unit, ross_model):
     labels = [c.label for c in candidates(hydro_unit)]
-    assert labels[:7] == ["fsi", "fsi_per_mode", "magnetic_pull", "seal_cross_coupling", "bearing_change:UGB",
-                          "bearing_change:LGB", "thrust_tilt:thrust"]  # fmt: skip
+    assert labels[:7] == [
+        "fsi",
+        "fsi_per_mode",
+        "magnetic_pull",
+        "seal_cross_coupling",
+        "bearing_change:UGB",
+        "bearing_change:LGB",
+        "thrust_tilt:thrust",
+    ]
     assert labels == [effect_label(e) for e in library_effects(hydro_unit)]
     # the ROSS rotor declares no regions and no thrust bearing: only its bearings can change
     ross = [parse_label(c.label) for c in candidates(ross_model)]

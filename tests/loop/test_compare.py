@@ -14,8 +14,9 @@ from twin.update import synthesize_modes
 
 
 def _data(model, truth, seed=3, variance=(0.01, 0.01), samples=100):
-    return synthesize_modes(model, truth, n_modes=None if truth.per_mode else 13, samples=samples, seed=seed,
-                            pole_variance=variance)  # fmt: skip
+    return synthesize_modes(
+        model, truth, n_modes=None if truth.per_mode else 13, samples=samples, seed=seed, pole_variance=variance
+    )
 
 
 def test_error_is_the_rms_relative_pole_distance():
@@ -23,7 +24,9 @@ def test_error_is_the_rms_relative_pole_distance():
     model = meas * np.array([1.01, 1.0])
     assert overall_error(model, meas) == pytest.approx(0.01 / np.sqrt(2), rel=1e-12)
     # equal relative uncertainties: the weighted error is the plain RMS
-    assert overall_error(model, meas, 1e-3 * np.abs(meas)[:, None] * [1, 1]) == pytest.approx(0.01 / np.sqrt(2), rel=1e-12)
+    assert overall_error(model, meas, 1e-3 * np.abs(meas)[:, None] * [1, 1]) == pytest.approx(
+        0.01 / np.sqrt(2), rel=1e-12
+    )
 
 
 def test_error_weighs_each_pole_part_by_its_inverse_variance():
@@ -56,7 +59,9 @@ def test_hidden_effect_shows_in_the_table(hydro_unit):
     paired = np.isin(meas.mode, table["mode"])
     assert paired.all()  # every measured mode counts
     assert table.attrs["error_rms"] == pytest.approx(overall_error(_poles(table), meas.pole[paired]), rel=1e-9)
-    assert table.attrs["error"] == pytest.approx(overall_error(_poles(table), meas.pole[paired], meas.sigma[paired]), rel=1e-9)
+    assert table.attrs["error"] == pytest.approx(
+        overall_error(_poles(table), meas.pole[paired], meas.sigma[paired]), rel=1e-9
+    )
     # E is the comparison's chi2 written as a relative pole error
     norm = np.sum((np.abs(meas.pole[paired])[:, None] / meas.sigma[paired]) ** 2)
     assert table.attrs["error"] == pytest.approx(np.sqrt(2 * table.attrs["chi2"] / norm), rel=1e-9)
@@ -108,7 +113,7 @@ def test_no_measured_mode_is_ever_dropped(hydro_unit):
     assert len(table.attrs["poorly_paired"]) >= 1
     low = table["mac"].values < table.attrs["min_mac"]
     assert set(table["mode"].values[low]) == set(table.attrs["poorly_paired"])
-    z = table["z_frequency"].values**2 + table["z_damping"].values**2
+    z = table["z_frequency"].values ** 2 + table["z_damping"].values ** 2
     assert table.attrs["chi2"] == pytest.approx(z.sum()) and z[low].sum() > 0.5 * z.sum()  # and they weigh most
 
 

@@ -31,8 +31,9 @@ HIDDEN = {
 
 
 def _modes(model, effects, seed=3):
-    return synthesize_modes(model, Truth(tuple(effects)), n_modes=13, samples=100, seed=seed,
-                            pole_variance=(0.01, 0.01))  # fmt: skip
+    return synthesize_modes(
+        model, Truth(tuple(effects)), n_modes=13, samples=100, seed=seed, pole_variance=(0.01, 0.01)
+    )
 
 
 @pytest.mark.parametrize("label", list(HIDDEN))
@@ -114,8 +115,11 @@ def test_fits_stay_inside_the_physical_bounds(hydro_unit):
     meas = measured_modes(_modes(hydro_unit, [ThrustTilt("thrust", 8e8)]))
     f = fit(hydro_unit.with_effects(MagneticPull()), meas, ["MAG.stiffness"], "magnetic_pull")
     assert f.values[0] <= 0.0 and f.at_bound == ["MAG.stiffness"]
-    g = fit(hydro_unit.with_effects(ThrustTilt("thrust")), measured_modes(_modes(hydro_unit, [ThrustTilt("thrust", -4.8e8)])),
-            ["thrust.k_tilt_change"])  # fmt: skip
+    g = fit(
+        hydro_unit.with_effects(ThrustTilt("thrust")),
+        measured_modes(_modes(hydro_unit, [ThrustTilt("thrust", -4.8e8)])),
+        ["thrust.k_tilt_change"],
+    )
     assert g.values[0] >= -hydro_unit.parameter("thrust.k_tilt").nominal  # the total tilt stiffness stays >= 0
 
 
@@ -155,5 +159,6 @@ def test_candidate_fits_on_a_dask_cluster_give_the_same_diagnosis(hydro_unit, da
     assert there.missing == here.missing == ("magnetic_pull",)
     assert [f.label for f in there.fits] == labels  # results come back in the candidates' order
     # the workers run one BLAS thread each, so sums run in another order: equal to the optimiser's tolerance
-    np.testing.assert_allclose([f.log_bayes_factor for f in there.fits], [f.log_bayes_factor for f in here.fits],
-                               rtol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        [f.log_bayes_factor for f in there.fits], [f.log_bayes_factor for f in here.fits], rtol=1e-6
+    )

@@ -26,8 +26,15 @@ def test_file_is_a_plain_csv_with_the_error_in_percent(tmp_path):
 
     h = history_dataset(["start", "add a, b"], [0.0851, 0.00226], [912.5, 14.0], "m.nc", [None, (0.0022, 0.0031)])
     frame = pd.read_csv(write_history(h, tmp_path / "h.csv"))
-    assert frame.columns.tolist() == ["step", "action", "error_percent", "chi2", "modes", "error_low_percent",
-                                      "error_high_percent"]  # fmt: skip
+    assert frame.columns.tolist() == [
+        "step",
+        "action",
+        "error_percent",
+        "chi2",
+        "modes",
+        "error_low_percent",
+        "error_high_percent",
+    ]
     assert frame["error_percent"].tolist() == pytest.approx([8.51, 0.226]) and frame["action"][1] == "add a, b"
     assert np.isnan(frame["error_low_percent"][0]) and frame["error_high_percent"][1] == pytest.approx(0.31)
     back = read_history(tmp_path / "h.csv")
@@ -58,8 +65,9 @@ def test_the_error_interval_is_the_quantiles_of_e_over_the_draws(hydro_unit):
     meas = measured_modes(synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3))
     model = hydro_unit.with_effects(MagneticPull(0.0))
     values = np.random.default_rng(1).normal(-1e8, 3e6, (2, 20))
-    post = xr.Dataset({"theta": (("chain", "draw", "parameter"), values[..., None])},
-                      coords={"parameter": ["MAG.stiffness"]})  # fmt: skip
+    post = xr.Dataset(
+        {"theta": (("chain", "draw", "parameter"), values[..., None])}, coords={"parameter": ["MAG.stiffness"]}
+    )
     errors = [compare(model.with_values({"MAG.stiffness": v}), meas).attrs["error"] for v in values.ravel()]
     assert error_interval(model, post, meas, draws=40) == pytest.approx(tuple(np.quantile(errors, [0.05, 0.95])))
     at_map = compare(model.with_values({"MAG.stiffness": -1e8}), meas).attrs["error"]
@@ -79,10 +87,13 @@ def test_append_refuses_other_modes_and_leaves_the_file(tmp_path):
 
 @pytest.mark.parametrize(
     "text, message",
-    [("a,b\n1,2\n", "not a twin history"), ("step,action,error_percent,chi2,modes\n0,start,lots,1,m.nc\n", "row 2 is not"),
-     ("step,action,error_percent,chi2,modes\n0,start\n", "row 2 is not"),
-     ("step,action,error_percent,chi2,modes\n0,start,1,1,a.nc\n1,x,1,1,b.nc\n", "different measured modes")],
-)  # fmt: skip
+    [
+        ("a,b\n1,2\n", "not a twin history"),
+        ("step,action,error_percent,chi2,modes\n0,start,lots,1,m.nc\n", "row 2 is not"),
+        ("step,action,error_percent,chi2,modes\n0,start\n", "row 2 is not"),
+        ("step,action,error_percent,chi2,modes\n0,start,1,1,a.nc\n1,x,1,1,b.nc\n", "different measured modes"),
+    ],
+)
 def test_malformed_history_is_named(tmp_path, text, message):
     path = tmp_path / "h.csv"
     path.write_text(text)

@@ -13,8 +13,9 @@ from twin.update.laplace import log_evidence_as_is
 
 @pytest.fixture(scope="module")
 def weak_element(hydro_unit):
-    data = synthesize_modes(hydro_unit, Truth((ShaftStiffnessChange(6, -0.3),)), n_modes=13, samples=100, seed=9,
-                            pole_variance=(0.01, 0.01))  # fmt: skip
+    data = synthesize_modes(
+        hydro_unit, Truth((ShaftStiffnessChange(6, -0.3),)), n_modes=13, samples=100, seed=9, pole_variance=(0.01, 0.01)
+    )
     return measured_modes(data)
 
 

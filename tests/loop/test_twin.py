@@ -16,8 +16,9 @@ from twin.update import synthesize_modes
 
 @pytest.mark.slow
 def test_the_loop_brings_the_error_down_and_keeps_the_history(hydro_unit, tmp_path):
-    data = synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=100, seed=4,
-                            pole_variance=(0.01, 0.01))  # fmt: skip
+    data = synthesize_modes(
+        hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=100, seed=4, pole_variance=(0.01, 0.01)
+    )
     tw = Twin(hydro_unit, data)
     d = tw.diagnose()
     assert d.missing == ("magnetic_pull",)
@@ -38,8 +39,9 @@ def test_the_loop_brings_the_error_down_and_keeps_the_history(hydro_unit, tmp_pa
 
 
 def test_laplace_update_identifies_the_added_effect_and_refuses_bad_method(hydro_unit):
-    data = synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=100, seed=4,
-                            pole_variance=(0.01, 0.01))  # fmt: skip
+    data = synthesize_modes(
+        hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=100, seed=4, pole_variance=(0.01, 0.01)
+    )
     tw = Twin(hydro_unit, data)
     tw.add_effect("magnetic_pull")
     post = tw.update("MAG.stiffness", method="laplace")["constant_data"]
@@ -61,8 +63,12 @@ def test_run_goes_round_the_loop_to_the_end(hydro_unit):
     truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
     data = synthesize_modes(hydro_unit, truth, n_modes=13, samples=100, seed=6, pole_variance=(0.01, 0.01))
     tw = Twin(hydro_unit, data)
-    last = tw.run(candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB", "thrust_tilt:thrust"],
-                  draws=200, chains=2, seed=3)  # the default: the APerCEM Gibbs sampler
+    last = tw.run(
+        candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB", "thrust_tilt:thrust"],
+        draws=200,
+        chains=2,
+        seed=3,
+    )  # the default: the APerCEM Gibbs sampler
     assert last.verdict == "nothing missing" and len(tw.diagnoses) == 2
     assert set(tw.added) == {"magnetic_pull", "seal_cross_coupling"}
     assert tw.history[-1].error < 0.2 * tw.history[0].error
@@ -70,7 +76,10 @@ def test_run_goes_round_the_loop_to_the_end(hydro_unit):
     assert tw.model.parameter("SEAL.kxy").nominal == pytest.approx(4e7, rel=0.05)
     theta = tw.posterior["posterior"]["theta"]
     assert set(theta["parameter"].values) == {"MAG.stiffness", "SEAL.kxy"}
-    assert tw.history[-1].action == "update SEAL.kxy, MAG.stiffness" or tw.history[-1].action == "update MAG.stiffness, SEAL.kxy"
+    assert (
+        tw.history[-1].action == "update SEAL.kxy, MAG.stiffness"
+        or tw.history[-1].action == "update MAG.stiffness, SEAL.kxy"
+    )
 
 
 def test_per_mode_effect_is_sized_to_the_measured_modes(hydro_unit):

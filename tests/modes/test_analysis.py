@@ -55,8 +55,9 @@ def test_simply_supported_timoshenko_beam_frequencies_converge_to_exact(slendern
     # 80 elements must agree with the exact value far better than either mesh alone.
     d = 0.2
     length = slenderness * d
-    coarse, fine = (modal(_pinned_beam(n, length, d), speed_rpm=0.0, n_modes=6).natural_frequency.values
-                    for n in (40, 80))  # fmt: skip
+    coarse, fine = (
+        modal(_pinned_beam(n, length, d), speed_rpm=0.0, n_modes=6).natural_frequency.values for n in (40, 80)
+    )
     for n in (1, 2, 3):
         exact = _timoshenko_simply_supported(n, length, d)
         # each bending mode appears twice (x and y planes)

@@ -10,11 +10,20 @@ from twin.modes.modesfile import join_complex, read_modes, split_complex, write_
 
 def test_round_trip_keeps_complex_values(tmp_path):
     rng = np.random.default_rng(0)
-    ds = xr.Dataset({
-        "pole": (("mode", "sample"), rng.standard_normal((2, 3)) + 1j * rng.standard_normal((2, 3)), {"units": "1/s"}),
-        "shape": (("mode", "sample", "channel"), rng.standard_normal((2, 3, 4)) + 1j * rng.standard_normal((2, 3, 4))),
-        "frequency": ("mode", [1.0, 2.0], {"units": "Hz"}),
-    })  # fmt: skip
+    ds = xr.Dataset(
+        {
+            "pole": (
+                ("mode", "sample"),
+                rng.standard_normal((2, 3)) + 1j * rng.standard_normal((2, 3)),
+                {"units": "1/s"},
+            ),
+            "shape": (
+                ("mode", "sample", "channel"),
+                rng.standard_normal((2, 3, 4)) + 1j * rng.standard_normal((2, 3, 4)),
+            ),
+            "frequency": ("mode", [1.0, 2.0], {"units": "Hz"}),
+        }
+    )
     split = split_complex(ds)
     assert {"pole_real", "pole_imag", "shape_real", "shape_imag"} <= set(split.data_vars)
     assert split.pole_real.attrs["units"] == "1/s"

@@ -16,9 +16,18 @@ from twin.modes.sensitivity import pole_jacobian, solve_modes
 
 @pytest.mark.parametrize(
     "name",
-    ["runner.m", "generator.Id", "UGB.kxy", "LGB.cxx", "thrust.k_tilt", "MAG.stiffness", "SEAL.kxy",
-     "FSI.added_damping", "LGB.stiffness_change"],
-)  # fmt: skip
+    [
+        "runner.m",
+        "generator.Id",
+        "UGB.kxy",
+        "LGB.cxx",
+        "thrust.k_tilt",
+        "MAG.stiffness",
+        "SEAL.kxy",
+        "FSI.added_damping",
+        "LGB.stiffness_change",
+    ],
+)
 def test_pole_derivatives_match_central_differences(hydro_unit, name):
     model = dataclasses.replace(
         hydro_unit, effects=(MagneticPull(), SealCrossCoupling(), FluidAddedMass(), BearingChange("LGB"))

@@ -14,7 +14,9 @@ from twin.update import synthesize_modes
 @pytest.fixture(scope="module")
 def before_after(hydro_unit):
     data = synthesize_modes(hydro_unit, Truth((MagneticPull(-1e8),)), n_modes=13, samples=20, seed=3)
-    return compare(hydro_unit, data), compare(add_effects(hydro_unit, ["magnetic_pull"]), data, values={"MAG.stiffness": -1e8})
+    return compare(hydro_unit, data), compare(
+        add_effects(hydro_unit, ["magnetic_pull"]), data, values={"MAG.stiffness": -1e8}
+    )
 
 
 def test_mac_matrix_keeps_the_paired_and_in_band_model_modes(before_after):
@@ -55,14 +57,17 @@ def test_the_spectra_of_a_record_are_its_psd_peaking_at_its_modes(tmp_path, make
     from twin.report.figures import psd_figure, record_psd
 
     poles = [-0.02 * 2 * np.pi * 2 + 2j * np.pi * 2, -0.01 * 2 * np.pi * 5 + 2j * np.pi * 5]
-    record = make_record(poles, [[1e-6, 0.05e-6j], [0.05e-6, 1e-6]], fs_hz=32.0, duration_s=400.0, seed=2,
-                         channels=["A_x", "A_y"])  # fmt: skip
+    record = make_record(
+        poles, [[1e-6, 0.05e-6j], [0.05e-6, 1e-6]], fs_hz=32.0, duration_s=400.0, seed=2, channels=["A_x", "A_y"]
+    )
     freq, psd, channels = record_psd(record, ["A_x", "A_y", "B_x"], 2.0)  # B_x: not in the record
     assert channels == ("A_x", "A_y")
     assert freq[np.argmax(psd[:, 0])] == pytest.approx(2.0, abs=2 * freq[1])
     assert freq[np.argmax(psd[:, 1])] == pytest.approx(5.0, abs=2 * freq[1])
     # the PSD integrates to the channel's variance [µm²]
     assert np.sum(psd[:, 0]) * freq[1] == pytest.approx(1e12 * record["displacement"].values[:, 0].var(), rel=0.05)
-    table = xr.Dataset({"measured_frequency": ("mode", [2.0, 5.0]), "model_frequency": ("mode", [2.1, 4.9])},
-                       coords={"channel": ["A_x", "A_y"]})  # fmt: skip
+    table = xr.Dataset(
+        {"measured_frequency": ("mode", [2.0, 5.0]), "model_frequency": ("mode", [2.1, 4.9])},
+        coords={"channel": ["A_x", "A_y"]},
+    )
     assert psd_figure(record, [table], ["model"], tmp_path / "spectra.png").stat().st_size > 10_000

@@ -15,8 +15,10 @@ CHROMIUM = next((shutil.which(b) for b in ("chromium", "chromium-browser", "goog
 
 def _report(folder):
     plot_history(history_dataset(["start", "update"], [0.05, 0.001], [900.0, 19.0]), folder / "history.png")
-    text = ("# twin demo\n\nThe error **fell**.\n\n| step | E [%] |\n| --- | --- |\n| 0 | 5.000 |\n| 1 | 0.100 |\n\n"
-            "![history](history.png)\n")  # fmt: skip
+    text = (
+        "# twin demo\n\nThe error **fell**.\n\n| step | E [%] |\n| --- | --- |\n| 0 | 5.000 |\n| 1 | 0.100 |\n\n"
+        "![history](history.png)\n"
+    )
     (folder / "report.md").write_text(text)
     return write_html_report(folder / "report.md", title="twin demo")
 
@@ -41,14 +43,27 @@ def test_missing_figure_is_named_and_nothing_is_written(tmp_path):
 def test_page_renders_in_a_headless_browser(tmp_path):
     """Chromium loads the page alone (moved away from its figures): every image decodes, the table has its rows."""
     page = _report(tmp_path).read_text()
-    probe = ("<script>window.addEventListener('load', () => { const imgs = [...document.images]; "
-             "document.body.setAttribute('data-check', imgs.length + ' images, ' + "
-             "imgs.filter(i => i.complete && i.naturalWidth > 100).length + ' decoded, ' + "
-             "document.querySelectorAll('tr').length + ' rows'); });</script>")  # fmt: skip
+    probe = (
+        "<script>window.addEventListener('load', () => { const imgs = [...document.images]; "
+        "document.body.setAttribute('data-check', imgs.length + ' images, ' + "
+        "imgs.filter(i => i.complete && i.naturalWidth > 100).length + ' decoded, ' + "
+        "document.querySelectorAll('tr').length + ' rows'); });</script>"
+    )
     alone = tmp_path / "alone"
     alone.mkdir()
     (alone / "page.html").write_text(page.replace("</body>", probe + "</body>"))
-    out = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000",
-                          "--dump-dom", (alone / "page.html").as_uri()],
-                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    out = subprocess.run(
+        [
+            CHROMIUM,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            (alone / "page.html").as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert 'data-check="1 images, 1 decoded, 3 rows"' in out.stdout, out.stderr[-2000:]

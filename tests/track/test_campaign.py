@@ -47,7 +47,9 @@ def test_a_campaign_writes_its_records_and_resumes_where_it_stopped(tmp_path, hy
     s = read_schedule(schedule_file, hydro_unit)
     out = tmp_path / "records"
     table = campaign(hydro_unit, s, out, seed=4, progress=False)
-    assert table.made.values.all() and sorted(p.name for p in out.iterdir()) == [RECORD_NAME.format(i) for i in range(4)]
+    assert table.made.values.all() and sorted(p.name for p in out.iterdir()) == [
+        RECORD_NAME.format(i) for i in range(4)
+    ]
     first = [xr.load_dataset(out / RECORD_NAME.format(i)) for i in range(4)]
     for i, ds in enumerate(first):
         assert ds.attrs["start_time"] == f"2027-01-01T{6 * i:02d}:00:00Z" and ds.attrs["day"] == i / 4
@@ -88,8 +90,14 @@ def test_the_campaign_command(tmp_path, schedule_file, capsys):
     args = ["campaign", "hydro_unit", "--schedule", str(schedule_file), "-o", str(out), "--scheduler", "sync"]
     assert main(args + ["--json", "-q"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary == {"records": 4, "made": 4, "kept": 0, "folder": str(out), "first": "2027-01-01T00:00:00Z",
-                       "last": "2027-01-01T18:00:00Z"}
+    assert summary == {
+        "records": 4,
+        "made": 4,
+        "kept": 0,
+        "folder": str(out),
+        "first": "2027-01-01T00:00:00Z",
+        "last": "2027-01-01T18:00:00Z",
+    }
     assert main(args + ["-q"]) == 0
     assert "(0 simulated, 4 there already)" in capsys.readouterr().out
     # a model without operating conditions, a schedule with an error: one line, status 2

@@ -8,8 +8,9 @@ from twin.track import explain
 
 
 def _candidate(label: str, column: list[float]) -> explain.Linearised:
-    return explain.Linearised(Candidate(label, MagneticPull()), (f"{label}.x",), np.array([1.0]),
-                              np.array(column)[:, None])  # fmt: skip
+    return explain.Linearised(
+        Candidate(label, MagneticPull()), (f"{label}.x",), np.array([1.0]), np.array(column)[:, None]
+    )
 
 
 def test_a_change_the_records_can_tell_is_named_and_one_they_cannot_is_a_reading():

@@ -39,8 +39,10 @@ def test_the_laws_are_learned_through_the_model(hydro_unit, tracked):
     """Exact poles of a unit whose oil-temperature laws are 30% steeper than declared, over 12 operating points."""
     truth = declared_slopes(hydro_unit) * np.where(np.arange(8) >= 4, 1.3, 1.0)
     rng = np.random.default_rng(2)
-    points = [{"power": rng.uniform(80, 210), "reactive_power": rng.uniform(-40, 80),
-               "oil_temperature": rng.uniform(35, 55)} for _ in range(12)]  # fmt: skip
+    points = [
+        {"power": rng.uniform(80, 210), "reactive_power": rng.uniform(-40, 80), "oil_temperature": rng.uniform(35, 55)}
+        for _ in range(12)
+    ]
     offset = 0.01 * np.abs(parts(tracked.poles))
     y = np.array([parts(predict(with_slopes(hydro_unit, truth), tracked, p, with_jacobian=False)[0]) for p in points])
     sigma = 1e-3 * np.abs(y)
@@ -58,8 +60,11 @@ def test_a_change_is_named_from_the_frequencies_it_moves(hydro_unit, tracked):
     m = len(tracked.poles)
     sigma = 1e-3 * np.abs(tracked.poles.imag)
     cov = np.diag(np.r_[np.ones(m), sigma**2])
-    for label, values in [("bearing_change:LGB", [-3e7, -3e8]), ("magnetic_pull", [-1e8]),
-                          ("shaft_stiffness:18", [-0.5])]:  # fmt: skip
+    for label, values in [
+        ("bearing_change:LGB", [-3e7, -3e8]),
+        ("magnetic_pull", [-1e8]),
+        ("shaft_stiffness:18", [-0.5]),
+    ]:
         r = by_label[label].jacobian @ np.array(values)
         r[:m] = np.nan  # the frequencies only, as the tracker
         verdict = explain.diagnose(r, cov, cands)

@@ -40,8 +40,9 @@ def test_a_schedule_with_defaults_and_a_change(tmp_path, hydro_unit):
 
 
 def test_operation_tables_override_the_defaults(tmp_path, hydro_unit):
-    s = _read(tmp_path, BASE + "[operation.power]\nmean = 120.0\ndispatch_std = 0.0\ndaily_amplitude = 0.0\n",
-              hydro_unit)
+    s = _read(
+        tmp_path, BASE + "[operation.power]\nmean = 120.0\ndispatch_std = 0.0\ndaily_amplitude = 0.0\n", hydro_unit
+    )
     assert s.variations["power"] == Variation(mean=120.0, dispatch_correlation=0.3)
     days = np.arange(s.n_records) / 4
     points = operating_points(s.variations, hydro_unit.operation, days, 0.0, seed=5)
@@ -78,18 +79,42 @@ def test_operating_points_are_seeded_clipped_and_follow_their_daily_cycle(hydro_
         (BASE + "start = 2027-01-01T00:00:00\n", "(top level)", "start", "give the time zone"),
         (BASE + "[operation.load]\nmean = 1.0\n", "[operation]", "load", "no condition 'load'"),
         (BASE + "[operation.power]\nmeen = 1.0\n", "[operation.power]", "meen", "did you mean 'mean'"),
-        (BASE + "[operation.power]\ndispatch_correlation = 1.0\n", "[operation.power]", "dispatch_correlation",
-         "must be in [0, 1)"),
-        (BASE + "[operation.power]\nfollows = { oil_temperature = 1.0 }\n", "[operation]", None,
-         "follow each other in a circle"),
-        (BASE + CHANGE.replace("start_day = 1.5", "start_day = -1.0"), "[[change]] #1", "start_day",
-         "must not be negative"),
-        (BASE + CHANGE.replace("bearing_change:UGB", "bearing_change:XGB"),
-         '[[change]] #1: [change.truth."bearing_change:XGB"]', "bearing", "no bearing named 'XGB'"),
-        (BASE + CHANGE.replace("shaft_stiffness:18", "shaft_stiffness:99"),
-         "[[change]] #1: [change.truth.\"shaft_stiffness:18\"]".replace("18", "99"), None, "no shaft element 99"),
-        (BASE + CHANGE.replace("stiffness_change = -1.0e8", "stiffnes_change = -1.0e8"),
-         '[[change]] #1: [change.truth."bearing_change:UGB"]', "stiffnes_change", "did you mean 'stiffness_change'"),
+        (
+            BASE + "[operation.power]\ndispatch_correlation = 1.0\n",
+            "[operation.power]",
+            "dispatch_correlation",
+            "must be in [0, 1)",
+        ),
+        (
+            BASE + "[operation.power]\nfollows = { oil_temperature = 1.0 }\n",
+            "[operation]",
+            None,
+            "follow each other in a circle",
+        ),
+        (
+            BASE + CHANGE.replace("start_day = 1.5", "start_day = -1.0"),
+            "[[change]] #1",
+            "start_day",
+            "must not be negative",
+        ),
+        (
+            BASE + CHANGE.replace("bearing_change:UGB", "bearing_change:XGB"),
+            '[[change]] #1: [change.truth."bearing_change:XGB"]',
+            "bearing",
+            "no bearing named 'XGB'",
+        ),
+        (
+            BASE + CHANGE.replace("shaft_stiffness:18", "shaft_stiffness:99"),
+            '[[change]] #1: [change.truth."shaft_stiffness:18"]'.replace("18", "99"),
+            None,
+            "no shaft element 99",
+        ),
+        (
+            BASE + CHANGE.replace("stiffness_change = -1.0e8", "stiffnes_change = -1.0e8"),
+            '[[change]] #1: [change.truth."bearing_change:UGB"]',
+            "stiffnes_change",
+            "did you mean 'stiffness_change'",
+        ),
         (BASE + "[[change]]\nstart_day = 1.0\n", "[[change]] #1: [change.truth]", None, "at least one effect table"),
     ],
 )

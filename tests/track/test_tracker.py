@@ -21,12 +21,15 @@ records_per_day = 8
 duration = 240.0
 """
 #: A step of the upper guide bearing at 1.5 times the library's reference change, on day 7.
-STEP = CAMPAIGN + """[[change]]
+STEP = (
+    CAMPAIGN
+    + """[[change]]
 start_day = 7.0
 [change.truth."bearing_change:UGB"]
 stiffness_change = -3.0e8
 damping_change = 3.0e7
 """
+)
 BASELINE_DAYS = 6.0
 
 
@@ -68,8 +71,9 @@ def test_a_step_is_detected_within_two_days_and_named(step):
     last = table.isel(time=-1).sel(tracked_parameter="UGB.damping_change")
     assert float(last.parameter_low) < 3.0e7 < float(last.parameter_high)
     # the outputs: the chart below its limit over the baseline's end and the day after, the report written
-    assert np.all(table.statistic.values[(table.day.values >= BASELINE_DAYS) & (table.day.values < 7.0)]
-                  < float(table.limit))  # fmt: skip
+    assert np.all(
+        table.statistic.values[(table.day.values >= BASELINE_DAYS) & (table.day.values < 7.0)] < float(table.limit)
+    )
     page = (out / "report.html").read_text()
     assert "bearing_change:UGB" in page and page.count("data:image/png;base64,") == 4
     saved = xr.load_dataset(out / "track.nc")
@@ -107,7 +111,9 @@ def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_un
 def test_the_track_command(step, capsys):
     folder, out, table = step
     args = ["track", "hydro_unit", str(folder), "-o", str(out), "--scheduler", "sync"]
-    assert main(args + ["--baseline-days", str(BASELINE_DAYS), "--json", "-q"]) == 0  # the modes are there: nothing is extracted again
+    assert (
+        main(args + ["--baseline-days", str(BASELINE_DAYS), "--json", "-q"]) == 0
+    )  # the modes are there: nothing is extracted again
     summary = json.loads(capsys.readouterr().out)
     assert summary == alarms_json(table)
     assert set(summary["alarms"][0]) >= {"time", "day", "effects", "verdict"}

@@ -46,7 +46,7 @@ def test_a_step_alarms_after_its_onset_is_named_and_followed(hydro_unit):
     assert alarm.verdict.label == "magnetic_pull" and alarm.named is not None
     (follower,) = watch.followers
     assert follower.cand.label == "magnetic_pull" and follower.history.shape == (n, 1, 3)
-    assert np.isnan(follower.history[:alarm.record]).all()
+    assert np.isnan(follower.history[: alarm.record]).all()
     value, low, high = follower.history[-1, 0]
     assert low < truth < high
     # the residual against the model with the change followed is back to the noise

@@ -4,8 +4,15 @@ import numpy as np
 
 from twin.fem.effects import FluidAddedMass
 from twin.fem.truthfile import PAPER_TABLE2
-from twin.update.condense import (LATENT_SHAPE, STAGE_2, complex_vector, condense, dynamic_stiffness, real_augment,
-                                  real_vector)  # fmt: skip
+from twin.update.condense import (
+    LATENT_SHAPE,
+    STAGE_2,
+    complex_vector,
+    condense,
+    dynamic_stiffness,
+    real_augment,
+    real_vector,
+)
 from twin.update.problem import _basis, select_parameters
 
 

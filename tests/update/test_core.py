@@ -27,16 +27,35 @@ def _truth(model):
 def _run(model, data, params, method="hmc", priors="plausible", output=None, **options):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", TwinWarning)
-        tree = update(model, data, params, fsi=True, method=method, options={**options, "progress": False},
-                      priors=priors, output=output)  # fmt: skip
+        tree = update(
+            model,
+            data,
+            params,
+            fsi=True,
+            method=method,
+            options={**options, "progress": False},
+            priors=priors,
+            output=output,
+        )
     return tree, [str(w.message) for w in caught]
 
 
 @pytest.mark.parametrize("pole_model", ["samples", "linear"])
 def test_gibbs_reduces_to_the_exact_answer_as_the_noise_goes_to_zero(hydro_unit, pole_model):
     data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
-    tree, _ = _run(hydro_unit, data, "bearings", "gibbs", draws=30, chains=1, seed=0, eps_std=1e-9,
-                   pole_model=pole_model, noise_model="diagonal", collapsed=False)
+    tree, _ = _run(
+        hydro_unit,
+        data,
+        "bearings",
+        "gibbs",
+        draws=30,
+        chains=1,
+        seed=0,
+        eps_std=1e-9,
+        pole_model=pole_model,
+        noise_model="diagonal",
+        collapsed=False,
+    )
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
     assert table.sizes["parameter"] == 46
     np.testing.assert_allclose(table["mean"], table["truth"], rtol=1e-4)
@@ -46,10 +65,25 @@ def test_case_b_regression_on_paper_data(hydro_unit, paper_modes):
     tree, messages = _run(hydro_unit, paper_modes, "bearings", "paper", draws=200, chains=2, seed=1)
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
     err = {str(p): float(e) for p, e in zip(table["parameter"].values, table["map_error"].values)}
-    well_determined = ["UGB.kxx", "UGB.kyx", "UGB.kyy", "UGB.cxx", "UGB.cyy", "LGB.kxy", "LGB.kyx", "LGB.cxx",
-                       "LGB.cyy", "FSI.added_mass_3", "FSI.added_mass_4", "FSI.added_mass_10",
-                       "FSI.added_damping_2", "FSI.added_damping_4", "FSI.added_damping_10",
-                       "FSI.added_damping_11", "FSI.added_damping_14"]  # fmt: skip
+    well_determined = [
+        "UGB.kxx",
+        "UGB.kyx",
+        "UGB.kyy",
+        "UGB.cxx",
+        "UGB.cyy",
+        "LGB.kxy",
+        "LGB.kyx",
+        "LGB.cxx",
+        "LGB.cyy",
+        "FSI.added_mass_3",
+        "FSI.added_mass_4",
+        "FSI.added_mass_10",
+        "FSI.added_damping_2",
+        "FSI.added_damping_4",
+        "FSI.added_damping_10",
+        "FSI.added_damping_11",
+        "FSI.added_damping_14",
+    ]
     # 4%: the paper's 1-3% plus the Monte Carlo error of 2 x 200 draws (the largest, added_mass_3, moves
     # between 2.7% and 3.7% with the chains' random stream)
     for name in well_determined:
@@ -83,8 +117,19 @@ def test_full_noise_and_linear_pole_models_give_calibrated_case_a_intervals(hydr
     # benchmarks/update_cases.py --noise-model --pole-model measures them over 20 seeds. Flat priors: the
     # default one on the added damping (std 1.7e8 N s/m) pulls mode 15's, which this model puts at a third of
     # its truth of 1.37e8, further down (|z| 3.7 -> 4.6); the default sampler determines it to 0.4%.
-    tree, _ = _run(hydro_unit, paper_modes, None, "gibbs", "flat", draws=300, chains=1, seed=2, noise_model="full",
-                   collapsed=False, pole_model="linear")  # fmt: skip
+    tree, _ = _run(
+        hydro_unit,
+        paper_modes,
+        None,
+        "gibbs",
+        "flat",
+        draws=300,
+        chains=1,
+        seed=2,
+        noise_model="full",
+        collapsed=False,
+        pole_model="linear",
+    )
     settings = json.loads(tree.attrs["settings"])
     assert settings["noise_model"] == "full" and settings["pole_model"] == "linear"
     table = summary(tree["posterior"].to_dataset(), _truth(hydro_unit))
@@ -117,11 +162,13 @@ def test_posterior_file_round_trip_through_arviz_and_datatree(hydro_unit, paper_
 
 def test_apply_posterior_updates_the_twin(hydro_unit):
     post = xr.Dataset(
-        {"theta": (("chain", "draw", "parameter"), np.full((1, 4, 1), 7.0e8)),
-         "added_mass": (("chain", "draw", "mode"), np.full((1, 4, 2), 5.0e4)),
-         "added_damping": (("chain", "draw", "mode"), np.full((1, 4, 2), 1.0e6))},
+        {
+            "theta": (("chain", "draw", "parameter"), np.full((1, 4, 1), 7.0e8)),
+            "added_mass": (("chain", "draw", "mode"), np.full((1, 4, 2), 5.0e4)),
+            "added_damping": (("chain", "draw", "mode"), np.full((1, 4, 2), 1.0e6)),
+        },
         coords={"parameter": ["UGB.kxx"], "mode": [1, 2]},
-    )  # fmt: skip
+    )
     m = apply_posterior(hydro_unit, post, "mean")
     assert m.parameter("UGB.kxx").nominal == 7.0e8
     fsi = [e for e in m.effects if isinstance(e, FluidAddedMassPerMode)]
@@ -137,8 +184,9 @@ def test_apply_posterior_updates_the_twin(hydro_unit):
 
 def test_a_posterior_estimate_on_or_beyond_a_physical_bound_is_applied_with_a_warning_naming_it(hydro_unit):
     def post(value):
-        return xr.Dataset({"theta": (("chain", "draw", "parameter"), np.full((1, 2, 1), value))},
-                          coords={"parameter": ["UGB.kxx"]})  # fmt: skip
+        return xr.Dataset(
+            {"theta": (("chain", "draw", "parameter"), np.full((1, 2, 1), value))}, coords={"parameter": ["UGB.kxx"]}
+        )
 
     with pytest.warns(TwinWarning, match=r"UGB.kxx is on its physical bound, 0 \(bounds \[0, inf\]\)"):
         assert apply_posterior(hydro_unit, post(0.0)).parameter("UGB.kxx").nominal == 0.0
@@ -163,30 +211,30 @@ def test_a_mode_with_samples_below_the_axis_is_updated_and_a_conjugate_mode_refu
     flipped = sub.copy(deep=True)
     flipped["pole"][1] = flipped["pole"][1].conj()
     with pytest.raises(UpdateError, match="mode 4 has its mean pole at Im <= 0"):
-        update(hydro_unit, flipped, None, fsi=True, options={'progress': False})
+        update(hydro_unit, flipped, None, fsi=True, options={"progress": False})
 
 
 def test_bad_requests_are_named(hydro_unit, paper_modes):
     sub = paper_modes.isel(mode=[2, 3])
     with pytest.raises(UpdateError, match="nothing to update"):
-        update(hydro_unit, sub, None, options={'progress': False})
+        update(hydro_unit, sub, None, options={"progress": False})
     with pytest.raises(ModelError, match="no parameter 'UGB.kzz'"):
-        update(hydro_unit, sub, 'UGB.kzz', options={'progress': False})
+        update(hydro_unit, sub, "UGB.kzz", options={"progress": False})
     with pytest.raises(ModelError, match="matches no parameter"):
-        update(hydro_unit, sub, 'XYZ.*', options={'progress': False})
+        update(hydro_unit, sub, "XYZ.*", options={"progress": False})
     with pytest.raises(UpdateError, match="draws must be"):
         update(hydro_unit, sub, None, fsi=True, options={"draws": 0})
     bad = sub.copy(deep=True)
     bad["pole"][1, 7] = np.nan
     with pytest.raises(UpdateError, match="'pole' is not finite at mode=4, sample=7"):
-        update(hydro_unit, bad, None, fsi=True, options={'progress': False})
+        update(hydro_unit, bad, None, fsi=True, options={"progress": False})
     still = sub.copy(deep=True)
     still["pole"][0, :] = still["pole"][0, 0]
     with pytest.raises(UpdateError, match=r"mode\(s\) \[3\] have 100 equal pole samples.*samples that differ"):
-        update(hydro_unit, still, None, fsi=True, options={'progress': False})
+        update(hydro_unit, still, None, fsi=True, options={"progress": False})
     renamed = sub.assign_coords(channel=["SEAL_x", "SEAL_y", "UGB_x", "UGB_y", "LGB_x", "LGB_y", "GEN_x", "EXC_y"])
     with pytest.raises(UpdateError, match=r"channel\(s\) \['EXC_y'\] are not sensors"):
-        update(hydro_unit, renamed, None, fsi=True, options={'progress': False})
+        update(hydro_unit, renamed, None, fsi=True, options={"progress": False})
     with pytest.raises(UpdateError, match="unknown pole model 'mean'; choose one of samples, linear"):
         update(hydro_unit, sub, None, fsi=True, method="gibbs", options={"pole_model": "mean"})
     with pytest.raises(UpdateError, match="pole_error must be one of samples\\+orders, samples, got 'orders'"):
@@ -247,8 +295,24 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
 
     write_modes(read_modes(modes).isel(mode=[2, 3, 9]), sub)
     post = tmp_path / "post.nc"
-    code = main(["update", "models/hydro_unit.toml", str(sub), "-o", str(post), "--fsi", "--draws", "30",
-                 "--chains", "2", "--seed", "1", "--workers", "2"])  # fmt: skip  (chains on a local Dask cluster)
+    code = main(
+        [
+            "update",
+            "models/hydro_unit.toml",
+            str(sub),
+            "-o",
+            str(post),
+            "--fsi",
+            "--draws",
+            "30",
+            "--chains",
+            "2",
+            "--seed",
+            "1",
+            "--workers",
+            "2",
+        ]
+    )  # (chains on a local Dask cluster)
     out = capsys.readouterr().out
     assert code == 0 and post.is_file() and "FSI.added_mass_3" in out and "R-hat" in out
     back = read_posterior(post)
@@ -256,22 +320,73 @@ def test_cli_synthesizes_and_updates(hydro_unit, tmp_path, capsys):
     assert settings["method"] == "hmc" and back.attrs["method"] == "hmc"  # the calibrated sampler is the default
     assert back["sample_stats"]["accepted"].dims == ("chain", "draw") and bool(back["sample_stats"]["accepted"].any())
     paper = tmp_path / "paper.nc"
-    assert main(["update", "hydro_unit", str(sub), "-o", str(paper), "--fsi", "--draws", "10", "--chains", "1",
-                 "--method", "paper", "-q"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "update",
+                "hydro_unit",
+                str(sub),
+                "-o",
+                str(paper),
+                "--fsi",
+                "--draws",
+                "10",
+                "--chains",
+                "1",
+                "--method",
+                "paper",
+                "-q",
+            ]
+        )
+        == 0
+    )
     settings = json.loads(read_posterior(paper).attrs["settings"])
-    assert settings["method"] == "paper" and "Gibbs (diagonal Delta, samples pole model)" in read_posterior(paper).attrs["sampler"]
+    assert (
+        settings["method"] == "paper"
+        and "Gibbs (diagonal Delta, samples pole model)" in read_posterior(paper).attrs["sampler"]
+    )
     assert not read_posterior(paper)["sample_stats"]["accepted"].any()
     gibbs = tmp_path / "gibbs.nc"
-    assert main(["update", "hydro_unit", str(sub), "-o", str(gibbs), "--fsi", "--draws", "10", "--chains", "1",
-                 "--method", "gibbs", "--no-collapsed", "--warmup", "5", "-q"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "update",
+                "hydro_unit",
+                str(sub),
+                "-o",
+                str(gibbs),
+                "--fsi",
+                "--draws",
+                "10",
+                "--chains",
+                "1",
+                "--method",
+                "gibbs",
+                "--no-collapsed",
+                "--warmup",
+                "5",
+                "-q",
+            ]
+        )
+        == 0
+    )
     settings = json.loads(read_posterior(gibbs).attrs["settings"])
-    assert (settings["method"], settings["collapsed"], settings["warmup"], settings["pole_model"]) == ("gibbs", False, 5, "linear")
-    assert main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi",
-                 "--noise-model", "diagonal"]) == 2  # fmt: skip
+    assert (settings["method"], settings["collapsed"], settings["warmup"], settings["pole_model"]) == (
+        "gibbs",
+        False,
+        5,
+        "linear",
+    )
+    assert (
+        main(["update", "hydro_unit", str(sub), "-o", str(tmp_path / "x.nc"), "--fsi", "--noise-model", "diagonal"])
+        == 2
+    )
     assert "the 'hmc' sampler has no option noise_model" in capsys.readouterr().err
     assert main(["update", "models/hydro_unit.toml", str(sub), "-o", str(tmp_path / "x.nc")]) == 2
     assert "nothing to update" in capsys.readouterr().err
-    assert main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"),
-                 "--fsi"]) == 2  # fmt: skip
+    assert (
+        main(["update", "models/hydro_unit.toml", str(tmp_path / "none.nc"), "-o", str(tmp_path / "x.nc"), "--fsi"])
+        == 2
+    )
     assert "no such modes file" in capsys.readouterr().err
     assert not (tmp_path / "x.nc").exists()

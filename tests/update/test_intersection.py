@@ -56,9 +56,13 @@ def test_the_intersected_residual_covariance_bounds_every_correlation_of_pole_an
         loss = A[i] @ np.linalg.solve(V_independent[i], A[i].T) - A[i] @ np.linalg.solve(V_default[i], A[i].T)
         assert np.linalg.eigvalsh(loss).min() > -1e-9 * np.abs(loss).max()
     # taken as independent, a strong correlation breaks the bound on some mode (what the intersection is for)
-    short = [np.linalg.eigvalsh(V_independent[i] - correlated_residual_cov(H[i], B[i], marg.cov_z[i],
-                                                                            marg.pole_cov[i], 0.95, idx)).min()
-             < -1e-4 * np.abs(V_independent[i]).max() for i in range(marg.problem.n_modes)]  # fmt: skip
+    short = [
+        np.linalg.eigvalsh(
+            V_independent[i] - correlated_residual_cov(H[i], B[i], marg.cov_z[i], marg.pole_cov[i], 0.95, idx)
+        ).min()
+        < -1e-4 * np.abs(V_independent[i]).max()
+        for i in range(marg.problem.n_modes)
+    ]
     assert any(short)
 
 
@@ -97,13 +101,24 @@ def test_intersected_refuses_weights_outside_the_open_interval_and_a_singular_mo
 
 def test_update_combines_by_intersection_by_default_and_records_the_weights(hydro_unit):
     data = synthesize_modes(hydro_unit, samples=30, seed=7).isel(mode=[2, 3, 9])
-    tree = update(hydro_unit, data, 'LGB.kxx', options={'draws': 60, 'chains': 1, 'seed': 0, 'progress': False})  # fmt: skip
+    tree = update(hydro_unit, data, "LGB.kxx", options={"draws": 60, "chains": 1, "seed": 0, "progress": False})
     assert json.loads(tree.attrs["settings"])["combine"] == "intersection"
     weights = json.loads(tree.attrs["intersection_weights"])
     assert sorted(weights) == ["10", "3", "4"] and all(0 < v < 1 for v in weights.values())
-    plain = update(hydro_unit, data, 'LGB.kxx', options={'draws': 60, 'chains': 1, 'seed': 0, 'progress': False, 'combine': 'independent'})  # fmt: skip
+    plain = update(
+        hydro_unit,
+        data,
+        "LGB.kxx",
+        options={"draws": 60, "chains": 1, "seed": 0, "progress": False, "combine": "independent"},
+    )
     assert "intersection_weights" not in plain.attrs
     with pytest.raises(UpdateError, match="combine must be one of intersection, independent"):
-        update(hydro_unit, data, 'LGB.kxx', options={'combine': 'joint', 'progress': False})
+        update(hydro_unit, data, "LGB.kxx", options={"combine": "joint", "progress": False})
     with pytest.raises(UpdateError, match="the 'gibbs' sampler has no option combine"):
-        update(hydro_unit, data, 'LGB.kxx', method='gibbs', options={'combine': 'intersection', 'pole_model': 'linear', 'progress': False})
+        update(
+            hydro_unit,
+            data,
+            "LGB.kxx",
+            method="gibbs",
+            options={"combine": "intersection", "pole_model": "linear", "progress": False},
+        )

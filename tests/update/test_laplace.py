@@ -13,15 +13,22 @@ from twin.update.laplace import laplace_update
 
 
 def _pull_data(model, size=-1e8, seed=1):
-    return synthesize_modes(model, Truth((MagneticPull(size),)), n_modes=8, samples=50, seed=seed,
-                            pole_variance=(0.01, 0.01))  # fmt: skip
+    return synthesize_modes(
+        model, Truth((MagneticPull(size),)), n_modes=8, samples=50, seed=seed, pole_variance=(0.01, 0.01)
+    )
 
 
 def test_the_laplace_method_finds_the_pull_and_writes_the_posterior_file(hydro_unit, tmp_path):
     model = hydro_unit.with_effects(MagneticPull())
     data = _pull_data(hydro_unit, -1.5e8, seed=7)
-    tree = update(model, data, "MAG.stiffness", method="laplace", options={"draws": 400, "seed": 3},
-                  output=tmp_path / "posterior.nc")  # fmt: skip
+    tree = update(
+        model,
+        data,
+        "MAG.stiffness",
+        method="laplace",
+        options={"draws": 400, "seed": 3},
+        output=tmp_path / "posterior.nc",
+    )
     _, fitted = laplace_update(model, measured_modes(data), ["MAG.stiffness"])
     theta = tree["posterior"]["theta"].sel(parameter="MAG.stiffness").values
     assert theta.shape == (1, 400)

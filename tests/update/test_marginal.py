@@ -1,6 +1,5 @@
 """twin.update.marginal: the errors-in-variables PerCEM marginal."""
 
-
 import numpy as np
 import pytest
 
@@ -14,7 +13,6 @@ from twin.update.marginal import (
 )
 from twin.update.problem import UpdateError, build_problem, select_parameters
 from twin.update.shrinkage import held_out_intensity
-
 
 
 def test_the_shape_covariances_are_the_samples_own_shrunk_by_each_modes_intensity_and_refuse_too_few(hydro_unit, small):
@@ -45,7 +43,7 @@ def test_the_shape_covariances_are_the_samples_own_shrunk_by_each_modes_intensit
     with pytest.raises(UpdateError, match=r"mode\(s\) 3 \(rank 11 of 15\), 4 \(rank 11 of 15\), 10 \(rank 11 of 15\)"):
         marginal_problem(problem, few["pole"].values, "sample")
     with pytest.raises(UpdateError, match="shape_covariance must be one of shrunk, held-out, sample"):
-        update(hydro_unit, few, 'LGB.k*', options={'shape_covariance': 'full', 'progress': False})
+        update(hydro_unit, few, "LGB.k*", options={"shape_covariance": "full", "progress": False})
     with pytest.raises(UpdateError, match="the 'gibbs' sampler has no option shape_covariance"):
         update(hydro_unit, few, "LGB.k*", method="gibbs", options={"shape_covariance": "sample"})
 
@@ -135,5 +133,5 @@ def test_gradient_matches_finite_differences(small, nu):
         h = 1e-4 * max(1.0, abs(theta[k]))
         e = np.zeros(marg.size)
         e[k] = h
-        fd = (log_density(marg, theta + e, mean, prec, nu).log_p - log_density(marg, theta - e, mean, prec, nu).log_p)
+        fd = log_density(marg, theta + e, mean, prec, nu).log_p - log_density(marg, theta - e, mean, prec, nu).log_p
         assert fd / (2 * h) == pytest.approx(d.gradient[k], rel=1e-4, abs=1e-6 * np.abs(d.gradient).max())

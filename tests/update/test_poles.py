@@ -76,8 +76,11 @@ def test_unknown_pole_model_is_named():
 
 def test_order_covariance_is_the_modes_own_unless_absent_or_already_in_the_samples():
     cov = np.array([[[4.0, 1.0], [1.0, 9.0]], [[1.0, 0.0], [0.0, 2.0]]])
-    modes = xr.Dataset({"pole_order_cov": (("mode", "pole_part", "pole_part_2"), cov)},
-                       coords={"mode": [1, 2]}, attrs={"settings": '{"order_spread": "shapes"}'})
+    modes = xr.Dataset(
+        {"pole_order_cov": (("mode", "pole_part", "pole_part_2"), cov)},
+        coords={"mode": [1, 2]},
+        attrs={"settings": '{"order_spread": "shapes"}'},
+    )
     np.testing.assert_array_equal(order_covariance(modes), cov)
     np.testing.assert_array_equal(order_covariance(modes.isel(mode=[1])), cov[1:])  # follows a mode selection
     # synthetic modes carry none, and samples extracted with order_spread="all" carry it already

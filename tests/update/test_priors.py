@@ -22,14 +22,18 @@ def test_the_effects_parameters_get_their_plausible_scale_and_the_models_own_non
     assert plausible_priors(hydro_unit, ["LGB.kxx", "UGB.cyy"]) == {}
     # the per-mode FSI: twice the runner's mass (the immersed disk), and 1000 1/s times that for the damping
     runner = hydro_unit.parameter("runner.m").nominal
-    assert plausible_priors(hydro_unit, [], fsi=True) == {"FSI.added_mass": (0.0, 2 * runner),
-                                                           "FSI.added_damping": (0.0, 2000 * runner)}
+    assert plausible_priors(hydro_unit, [], fsi=True) == {
+        "FSI.added_mass": (0.0, 2 * runner),
+        "FSI.added_damping": (0.0, 2000 * runner),
+    }
 
 
 def _added_mass_6(model, data, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        tree = update(model, data, None, fsi=True, options={'draws': 200, 'chains': 2, 'seed': 1, 'progress': False}, **kw)
+        tree = update(
+            model, data, None, fsi=True, options={"draws": 200, "chains": 2, "seed": 1, "progress": False}, **kw
+        )
     draws = tree["posterior"]["added_mass"].values[..., 0].ravel()
     return tree, float(np.std(draws)), np.quantile(draws, [0.05, 0.95])
 
@@ -59,7 +63,14 @@ def test_a_given_prior_replaces_the_plausible_one(hydro_unit):
     data = synthesize_modes(hydro_unit, samples=20, seed=0).isel(mode=[2])
     table = {}
     for label, priors in (("data", "plausible"), ("given", {"FSI.added_mass_3": (9e4, 1e3)})):
-        tree = update(hydro_unit, data, None, fsi=True, priors=priors, options={'draws': 100, 'chains': 2, 'seed': 0, 'progress': False})
+        tree = update(
+            hydro_unit,
+            data,
+            None,
+            fsi=True,
+            priors=priors,
+            options={"draws": 100, "chains": 2, "seed": 0, "progress": False},
+        )
         table[label] = summary(tree["posterior"].to_dataset()).sel(parameter="FSI.added_mass_3")
     given = json.loads(tree.attrs["settings"])["priors"]
     assert given["FSI.added_mass_3"] == [9e4, 1e3] and given["FSI.added_damping"][0] == 0.0

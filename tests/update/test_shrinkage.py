@@ -12,7 +12,9 @@ def test_shrunk_covariance_keeps_real_correlations_and_drops_chance_ones():
     common = rng.standard_normal((400, 15, 1))
     x = 2.0 * common + rng.standard_normal((400, 15, 16))
     cov = shrunk_covariance(x, np.var(x, axis=1, ddof=1))
-    corr = cov / np.sqrt(np.diagonal(cov, axis1=1, axis2=2)[:, :, None] * np.diagonal(cov, axis1=1, axis2=2)[:, None, :])
+    corr = cov / np.sqrt(
+        np.diagonal(cov, axis1=1, axis2=2)[:, :, None] * np.diagonal(cov, axis1=1, axis2=2)[:, None, :]
+    )
     off = ~np.eye(16, dtype=bool)
     assert np.mean(corr[:, off]) == pytest.approx(0.8 * (1 - 0.15), abs=0.06)  # kept, shrunk by about 0.15 at J = 15
     assert np.all(np.linalg.eigvalsh(cov) > 0)  # positive definite although J - 1 < 16
@@ -83,4 +85,5 @@ def test_held_out_intensity_is_closer_in_the_likelihoods_loss_where_errors_share
     assert np.median(held_out_intensity(y)) > 0.9
     vy = y.var(axis=1, ddof=1)
     assert stein(shrunk_covariance(y, vy, intensity=held_out_intensity(y)), np.eye(n)) == pytest.approx(
-        stein(shrunk_covariance(y, vy), np.eye(n)), rel=0.1)
+        stein(shrunk_covariance(y, vy), np.eye(n)), rel=0.1
+    )

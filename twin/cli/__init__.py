@@ -41,7 +41,6 @@ log = logging.getLogger("twin")
 __all__ = ["main"]
 
 
-
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings of the loop on one line (``twin: warning: ...``), others as Python prints them."""
     if issubclass(category, TwinWarning):

@@ -24,16 +24,20 @@ from twin.defaults import (
     SAMPLES,
 )
 
-MODEL_HELP = ("model file (TOML), or the name of a shipped model: hydro_unit (every command), or ross_reference "
-              "(ROSS's test rotor, for checking the FEM: unstable by design and without water, so not for simulate, "
-              "synthesize-modes with the paper's truth, or the loop)")
+MODEL_HELP = (
+    "model file (TOML), or the name of a shipped model: hydro_unit (every command), or ross_reference "
+    "(ROSS's test rotor, for checking the FEM: unstable by design and without water, so not for simulate, "
+    "synthesize-modes with the paper's truth, or the loop)"
+)
 MODES_HELP = "modes file (NetCDF: mode x sample x channel, from twin extract or twin synthesize-modes)"
 #: What a truth file is, said where --truth is taken.
-TRUTH_HELP = ("a truth file (TOML: one table per hidden effect, named as twin params names it, its keys the "
-              "parameter names without their owner: [magnetic_pull] stiffness = -2e8 for MAG.stiffness, "
-              "[\"bearing_change:UGB\"] stiffness_change = -1e8 for UGB.stiffness_change; values outside the "
-              "physical bounds twin params lists are refused), 'paper' (the reference paper's Table 2 per-mode FSI) "
-              "or 'none' (the model as it is)")
+TRUTH_HELP = (
+    "a truth file (TOML: one table per hidden effect, named as twin params names it, its keys the "
+    "parameter names without their owner: [magnetic_pull] stiffness = -2e8 for MAG.stiffness, "
+    '["bearing_change:UGB"] stiffness_change = -1e8 for UGB.stiffness_change; values outside the '
+    "physical bounds twin params lists are refused), 'paper' (the reference paper's Table 2 per-mode FSI) "
+    "or 'none' (the model as it is)"
+)
 
 
 class Formatter(argparse.RawDescriptionHelpFormatter):
@@ -49,10 +53,16 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
 def common_options() -> argparse.ArgumentParser:
     """Options every sub-command takes as well (so ``twin demo -v`` works like ``twin -v demo``)."""
     p = argparse.ArgumentParser(add_help=False)
-    p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                   help="log each stage and its details")  # fmt: skip
-    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress display (bars and stage lines); results and errors are still printed")
+    p.add_argument(
+        "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage and its details"
+    )
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="no progress display (bars and stage lines); results and errors are still printed",
+    )
     return p
 
 
@@ -67,7 +77,9 @@ def number(kind: type = float, low: float = 0.0, strict: bool = False):
         try:
             value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
+            raise argparse.ArgumentTypeError(
+                f"expected {'an integer' if kind is int else 'a number'}, got {text!r}"
+            ) from None
         if not (value > low if strict else value >= low) or not math.isfinite(value):
             what = "an integer" if kind is int else "a finite number"
             raise argparse.ArgumentTypeError(f"must be {what} {'>' if strict else '>='} {low:g}, got {text}")
@@ -100,35 +112,55 @@ def rows_or_auto(text: str) -> int | str:
 
 def command(sub, name: str, summary: str, description: str, examples: list[str], func) -> argparse.ArgumentParser:
     """A sub-command with its one-line summary, a description, and examples in its help."""
-    p = sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}.\n\n{description}",
-                       epilog="examples:\n" + "\n".join(f"  {e}" for e in examples), formatter_class=Formatter,
-                       parents=[common_options()])  # fmt: skip
+    p = sub.add_parser(
+        name,
+        help=summary,
+        description=f"{summary[0].upper()}{summary[1:]}.\n\n{description}",
+        epilog="examples:\n" + "\n".join(f"  {e}" for e in examples),
+        formatter_class=Formatter,
+        parents=[common_options()],
+    )
     p.set_defaults(func=func)
     return p
 
 
 def add_scheduler(p: argparse.ArgumentParser, what: str, default: str = "local") -> None:
-    p.add_argument("--scheduler", default=default, metavar="ADDRESS",
-                   help=f"where the {what} run as Dask tasks: 'local' (a local cluster of worker processes), "
-                        f"a scheduler address such as tcp://host:8786, or 'sync' (in this process)")  # fmt: skip
+    p.add_argument(
+        "--scheduler",
+        default=default,
+        metavar="ADDRESS",
+        help=f"where the {what} run as Dask tasks: 'local' (a local cluster of worker processes), "
+        f"a scheduler address such as tcp://host:8786, or 'sync' (in this process)",
+    )
     p.add_argument("--workers", type=COUNT, default=None, help="workers of the local cluster (default: one per core)")
 
 
 def add_tolerance(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--tolerance", type=NONNEGATIVE, default=0.0,
-                   help="relative pole uncertainty accepted as model-form error, added to the measurement's standard "
-                        "error")  # fmt: skip
+    p.add_argument(
+        "--tolerance",
+        type=NONNEGATIVE,
+        default=0.0,
+        help="relative pole uncertainty accepted as model-form error, added to the measurement's standard error",
+    )
 
 
 def add_model_and_posterior(p: argparse.ArgumentParser) -> None:
     """The model, the measured modes, and what to do to the model first (compare, diagnose)."""
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("modes", help=MODES_HELP)
-    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
-                   help="add a library effect to the model first (e.g. magnetic_pull); repeatable")
-    p.add_argument("--posterior", default=None,
-                   help="apply this posterior (posterior.nc of twin update or twin loop) first, with the effects it "
-                        "was made with: the next round of the loop")  # fmt: skip
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=None,
+        metavar="LABEL",
+        help="add a library effect to the model first (e.g. magnetic_pull); repeatable",
+    )
+    p.add_argument(
+        "--posterior",
+        default=None,
+        help="apply this posterior (posterior.nc of twin update or twin loop) first, with the effects it "
+        "was made with: the next round of the loop",
+    )
     p.add_argument("--estimate", choices=("map", "mean"), default="map", help="posterior point estimate")
     add_tolerance(p)
 
@@ -138,30 +170,44 @@ def add_bootstrap(p: argparse.ArgumentParser, default: int | None = None) -> Non
     ``default`` records, the loop's :data:`twin.defaults.DEFAULT_RECORDS` when None)."""
     default = DEFAULT_RECORDS if default is None else default
 
-    p.add_argument("--bootstrap", type=NATURAL, default=None, metavar="R",
-                   help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
-                        "(twin.loop.bootstrap; about 12 s a 20-min record on one core; up to "
-                        f"{MAX_BATCHES} x R when a mode came out of too few; on the Dask workers, within a sweep "
-                        f"in its scenario's worker); default: {default} with --method hmc, none with "
-                        "the other methods; 0: none")  # fmt: skip
+    p.add_argument(
+        "--bootstrap",
+        type=NATURAL,
+        default=None,
+        metavar="R",
+        help="records to simulate through the FMU at the last update's estimate, to calibrate its spread "
+        "(twin.loop.bootstrap; about 12 s a 20-min record on one core; up to "
+        f"{MAX_BATCHES} x R when a mode came out of too few; on the Dask workers, within a sweep "
+        f"in its scenario's worker); default: {default} with --method hmc, none with "
+        "the other methods; 0: none",
+    )
+
 
 def add_method(p: argparse.ArgumentParser, what: str) -> None:
     """``--method``: one of the update's samplers, or the Laplace fit."""
-    p.add_argument("--method", choices=METHODS, default=METHODS[0],
-                   help=f"{what}: hmc, HMC on the marginal posterior (the default, calibrated on FMU records); "
-                        "gibbs, the Gibbs sampler of the full APerCEM; paper, the reference paper's Gibbs sampler; "
-                        "laplace, the Gaussian posterior of the pole fit inside the physical bounds (fast, blind to "
-                        "shapes)")  # fmt: skip
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        default=METHODS[0],
+        help=f"{what}: hmc, HMC on the marginal posterior (the default, calibrated on FMU records); "
+        "gibbs, the Gibbs sampler of the full APerCEM; paper, the reference paper's Gibbs sampler; "
+        "laplace, the Gaussian posterior of the pole fit inside the physical bounds (fast, blind to "
+        "shapes)",
+    )
 
 
 def add_chain_options(p: argparse.ArgumentParser) -> None:
     """The options every sampler takes (their defaults are the sampler's own: twin.update.samplers)."""
     p.add_argument("--draws", type=COUNT, default=None, help=f"draws kept per chain (default: {DRAWS})")
     p.add_argument("--chains", type=COUNT, default=None, help=f"number of chains (default: {CHAINS})")
-    p.add_argument("--warmup", type=NATURAL, default=None,
-                   help=f"iterations per chain before the draws kept (default: the sampler's: {HMC_WARMUP} warm-up "
-                        f"iterations of HMC, at least {HMC_MIN_WARMUP}; {GIBBS_BURN_IN} burn-in sweeps of the Gibbs "
-                        "samplers)")  # fmt: skip
+    p.add_argument(
+        "--warmup",
+        type=NATURAL,
+        default=None,
+        help=f"iterations per chain before the draws kept (default: the sampler's: {HMC_WARMUP} warm-up "
+        f"iterations of HMC, at least {HMC_MIN_WARMUP}; {GIBBS_BURN_IN} burn-in sweeps of the Gibbs "
+        "samplers)",
+    )
     p.add_argument("--seed", type=NATURAL, default=None, help="random seed of the chains (default: fresh entropy)")
 
 
@@ -182,24 +228,46 @@ def add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
     else:
         p.add_argument("--duration", type=POSITIVE, default=1200.0, help="record length [s]")
     p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate [Hz]")
-    p.add_argument("--turbulence", type=NONNEGATIVE, default=DEFAULT_TURBULENCE_ASD,
-                   help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]")
-    p.add_argument("--noise", type=NONNEGATIVE, default=0.05,
-                   help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)")
-    p.add_argument("--noise-std", type=NONNEGATIVE, default=None,
-                   help="sensor noise std [m] per sample, instead of --noise (the same sensors on another layout)")
+    p.add_argument(
+        "--turbulence",
+        type=NONNEGATIVE,
+        default=DEFAULT_TURBULENCE_ASD,
+        help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]",
+    )
+    p.add_argument(
+        "--noise",
+        type=NONNEGATIVE,
+        default=0.05,
+        help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)",
+    )
+    p.add_argument(
+        "--noise-std",
+        type=NONNEGATIVE,
+        default=None,
+        help="sensor noise std [m] per sample, instead of --noise (the same sensors on another layout)",
+    )
 
 
 def add_design_inputs(p: argparse.ArgumentParser) -> None:
     """The model, record, truth and parameters ``observe`` and ``sensors`` judge."""
     p.add_argument("model", help=MODEL_HELP)
     add_record(p, duration_required=False)
-    p.add_argument("--fmax", type=POSITIVE, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)")
-    p.add_argument("--truth", default=None, help=f"judge a truth with hidden effects instead of the model: {TRUTH_HELP} "
-                                                  "(default: none)")
-    p.add_argument("--params", default=None,
-                   help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated")
-    p.add_argument("--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode")
+    p.add_argument(
+        "--fmax", type=POSITIVE, default=None, help="highest target frequency [Hz] (default: 100, at most 0.4 fs)"
+    )
+    p.add_argument(
+        "--truth",
+        default=None,
+        help=f"judge a truth with hidden effects instead of the model: {TRUTH_HELP} (default: none)",
+    )
+    p.add_argument(
+        "--params",
+        default=None,
+        help="parameters to judge: names, glob patterns or groups (bearings, thrust, disks), comma-separated",
+    )
+    p.add_argument(
+        "--fsi", action="store_true", help="also judge per-mode added mass and damping of every observable mode"
+    )
 
 
 @contextlib.contextmanager

@@ -60,17 +60,26 @@ def _update(args: argparse.Namespace) -> int:
     from twin.progress import stage
     from twin.update.problem import select_parameters
 
-    if args.params is not None:
-        select_parameters(model, args.params)  # unknown names fail before a cluster starts
+    params = None if args.params is None else select_parameters(model, args.params)  # before a cluster starts
     options = sampler(args.method).options(sampler_options(args), progress=True)  # bad options fail here too
     with tasks(args) as client, stage(f"APerCEM ({args.method}): {options.chains} chains x {options.draws} draws"):
-        tree = update(model, modes, args.params, fsi=args.fsi, method=args.method, options=options,
-                      priors="flat" if args.flat_priors else "plausible", tasks=client)  # fmt: skip
+        tree = update(
+            model,
+            modes,
+            params,
+            fsi=args.fsi,
+            method=args.method,
+            options=options,
+            priors="flat" if args.flat_priors else "plausible",
+            tasks=client,
+        )
     tree.attrs["command"] = " ".join(sys.argv)
     write_posterior(tree, args.output)
     table = summary(tree["posterior"].to_dataset())
-    print(f"{tree.attrs['condensation']} condensation; {options.chains} chains x {options.draws} draws "
-          f"in {tree.attrs['elapsed_s']:.1f} s")  # fmt: skip
+    print(
+        f"{tree.attrs['condensation']} condensation; {options.chains} chains x {options.draws} draws "
+        f"in {tree.attrs['elapsed_s']:.1f} s"
+    )
     print(f"{'parameter':<22} {'MAP':>11} {'mean':>11} {'std':>10} {'5%':>11} {'95%':>11} {'R-hat':>6} {'ESS':>6}")
     has_diag = "r_hat" in table
     undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))
@@ -79,8 +88,10 @@ def _update(args: argparse.Namespace) -> int:
         r_hat = f"{float(row.r_hat):>6.3f}" if has_diag else f"{'-':>6}"
         diag = f"{r_hat} {float(row.ess_bulk):>6.0f}" if "ess_bulk" in table else f"{r_hat} {'-':>6}"
         mark = "  not determined by the data" if str(p) in undetermined else ""
-        print(f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
-              f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}{mark}")  # fmt: skip
+        print(
+            f"{p:<22} {float(row['map']):>11.4g} {float(row['mean']):>11.4g} {float(row['std']):>10.3g} "
+            f"{float(row.q05):>11.4g} {float(row.q95):>11.4g} {diag}{mark}"
+        )
     print(f"wrote {args.output}")
     return 0
 
@@ -92,7 +103,9 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
 
     given = [f for f in SAMPLER_OPTIONS if getattr(args, f, None) is not None and f != "seed"]
     if given:
-        raise TwinError(f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in given)})")
+        raise TwinError(
+            f"--method laplace takes no sampler settings ({', '.join('--' + f.replace('_', '-') for f in given)})"
+        )
     options = LaplaceOptions(seed=args.seed if args.seed is not None else 0)
     tree = update(model, modes, args.params, fsi=args.fsi, method="laplace", options=options)
     tree.attrs["command"] = " ".join(sys.argv)
@@ -101,7 +114,9 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
     names = [str(n) for n in fit["parameter"].values]
     at_bound = tree.attrs["at_bound"].split(", ")
     units = json.loads(tree.attrs["units"])  # the per-mode FSI's too, which the fit added to the model
-    print(f"Laplace update of {len(names)} parameters: chi2 {tree.attrs['chi2_before']:.1f} -> {tree.attrs['chi2_after']:.1f}")
+    print(
+        f"Laplace update of {len(names)} parameters: chi2 {tree.attrs['chi2_before']:.1f} -> {tree.attrs['chi2_after']:.1f}"
+    )
     print(f"{'parameter':<22} {'MAP':>11} {'std':>10} {'unit':<8}")
     for k, n in enumerate(names):
         bound = " (on its physical bound)" if n in at_bound else ""
@@ -111,7 +126,6 @@ def _update_laplace(args: argparse.Namespace, model, modes) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    import numpy as np
 
     from twin.harness.sweep_report import comparison_text
     from twin.loop.compare import compare
@@ -137,14 +151,9 @@ def _compare(args: argparse.Namespace) -> int:
         for path in comparison_figures(table, args.plot, signals=signals):
             log.info("wrote %s", path)
     if args.json:
-        keep = ["measured_frequency", "model_frequency", "frequency_error", "measured_damping_ratio",
-                "model_damping_ratio", "damping_error", "pole_error", "z_frequency", "z_damping", "mac"]  # fmt: skip
-        rows = [{"mode": int(m), **{k: float(table[k].sel(mode=m)) for k in keep}} for m in table["mode"].values]
-        shape = {str(c): float(v) for c, v in zip(table["channel"].values, table["channel_shape_error"].values)}
-        print(json.dumps({"error": table.attrs["error"], "error_definition": table.attrs["error_definition"],
-                          "error_rms": table.attrs["error_rms"], "chi2": table.attrs["chi2"], "n_data": table.attrs["n_data"], "modes": rows,
-                          "channel_shape_error": shape,
-                          "poorly_paired": [int(m) for m in np.atleast_1d(table.attrs["poorly_paired"])]}, indent=2))  # fmt: skip
+        from twin.loop.compare import comparison_json
+
+        print(json.dumps(comparison_json(table), indent=2))
     else:
         print(comparison_text(table))
     return 0
@@ -159,8 +168,9 @@ def _posterior_model(args: argparse.Namespace, modes):
     from twin.loop.candidates import posterior_model
     from twin.update import read_posterior
 
-    return posterior_model(load_model(args.model), read_posterior(args.posterior), args.estimate, args.effect or (),
-                           modes)  # fmt: skip
+    return posterior_model(
+        load_model(args.model), read_posterior(args.posterior), args.estimate, args.effect or (), modes
+    )
 
 
 def _diagnose(args: argparse.Namespace) -> int:
@@ -187,15 +197,28 @@ def _demo(args: argparse.Namespace) -> int:
     from twin.fem import load_model
     from twin.harness.demo import check_demo, run_demo
 
-    model, _, _ = check_demo(args.out, load_model(args.model) if args.model else None, args.hidden, args.method,
-                             args.bootstrap)  # before a cluster starts
+    model, _, _ = check_demo(
+        args.out, load_model(args.model) if args.model else None, args.hidden, args.method, args.bootstrap
+    )  # before a cluster starts
     with tasks(args) as client:
-        r = run_demo(args.out, model=model, hidden=args.hidden, duration_s=args.duration, seed=args.seed,
-                     samples=args.samples, method=args.method, bootstrap=args.bootstrap, tasks=client)  # fmt: skip
+        r = run_demo(
+            args.out,
+            model=model,
+            hidden=args.hidden,
+            duration_s=args.duration,
+            seed=args.seed,
+            samples=args.samples,
+            method=args.method,
+            bootstrap=args.bootstrap,
+            tasks=client,
+        )
     print(f"hidden in the truth: {r.hidden_text()}")
     for k, d in enumerate(r.twin.diagnoses, start=1):
-        print(f"round {k}: {d.verdict}" + (f" ({', '.join(d.missing)})" if d.missing else "")
-              + (f"; at {d.locations[0].label}" if d.locations and d.verdict == "unexplained" else ""))  # fmt: skip
+        print(
+            f"round {k}: {d.verdict}"
+            + (f" ({', '.join(d.missing)})" if d.missing else "")
+            + (f"; at {d.locations[0].label}" if d.locations and d.verdict == "unexplained" else "")
+        )
     if r.posterior is not None:
         _print_updated(r.identified())
     _print_history(r.twin)
@@ -211,10 +234,12 @@ def _print_updated(table) -> None:
     for k, name in enumerate(table["parameter"].values):
         err = float(table["relative_error"][k]) if "relative_error" in table else np.nan
         rhat = float(table["r_hat"][k]) if "r_hat" in table else np.nan
-        print(f"updated {name} = {float(table['map'][k]):.4g} ± {float(table['std'][k]):.2g} {table['unit'].values[k]}"
-              f", 90% in {float(table['q05'][k]):.4g} to {float(table['q95'][k]):.4g}"
-              + ("" if np.isnan(rhat) else f", R-hat {rhat:.3f}, ESS {float(table['ess_bulk'][k]):.0f}")
-              + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)"))  # fmt: skip
+        print(
+            f"updated {name} = {float(table['map'][k]):.4g} ± {float(table['std'][k]):.2g} {table['unit'].values[k]}"
+            f", 90% in {float(table['q05'][k]):.4g} to {float(table['q95'][k]):.4g}"
+            + ("" if np.isnan(rhat) else f", R-hat {rhat:.3f}, ESS {float(table['ess_bulk'][k]):.0f}")
+            + ("" if np.isnan(err) else f" ({100 * err:+.1f}% from the truth)")
+        )
 
 
 def _print_history(tw) -> None:
@@ -224,8 +249,10 @@ def _print_history(tw) -> None:
     print(f"{'step':>4}  {'action':<{width}} {'error E':>9} {'90% over the posterior':>23} {'chi2':>9}")
     for k, step in enumerate(tw.history):
         interval = "-" if step.interval is None else interval_text(step.interval) + "%"
-        print(f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {interval:>23} "
-              f"{float(step.table.attrs['chi2']):>9.1f}")
+        print(
+            f"{k:>4}  {step.action:<{width}} {100 * step.error:>8.3f}% {interval:>23} "
+            f"{float(step.table.attrs['chi2']):>9.1f}"
+        )
     print(f"{HISTORY_KEY}.")
 
 
@@ -243,7 +270,7 @@ def _loop(args: argparse.Namespace) -> int:
     if labels:
         from twin.loop.candidates import select
 
-        select(model, labels)  # unknown candidates fail before any work
+        labels = [c.label for c in select(model, labels)]  # unknown candidates fail before any work
     tw = Twin(model, modes, tolerance=args.tolerance)
     check_records(args.bootstrap, args.method)
     kwargs = {} if args.method == "laplace" else {**sampler_options(args), "bootstrap": args.bootstrap}
@@ -303,72 +330,129 @@ def _int_list(text: str, flag: str) -> list[int]:
 
 def add_commands(sub) -> None:
     """Add this module's sub-commands to the sub-parsers ``sub``."""
-    p = command(sub, "update", "Bayesian updating from mode samples (APerCEM: HMC on the marginal, the Gibbs sampler, or Laplace)",
-                 "The posterior of the chosen parameters given the measured poles and shapes, written in the\n"
-                 "ArviZ layout (posterior.nc: posterior, sample_stats, observed_data groups).",
-                 ["twin update hydro_unit modes.nc --params bearings --fsi -o posterior.nc",
-                  "twin update hydro_unit modes.nc --effect magnetic_pull --params MAG.stiffness -o posterior.nc",
-                  "twin update hydro_unit modes.nc --method laplace --effect magnetic_pull --params MAG.stiffness "
-                  "-o posterior.nc"], _update)  # fmt: skip
+    p = command(
+        sub,
+        "update",
+        "Bayesian updating from mode samples (APerCEM: HMC on the marginal, the Gibbs sampler, or Laplace)",
+        "The posterior of the chosen parameters given the measured poles and shapes, written in the\n"
+        "ArviZ layout (posterior.nc: posterior, sample_stats, observed_data groups).",
+        [
+            "twin update hydro_unit modes.nc --params bearings --fsi -o posterior.nc",
+            "twin update hydro_unit modes.nc --effect magnetic_pull --params MAG.stiffness -o posterior.nc",
+            "twin update hydro_unit modes.nc --method laplace --effect magnetic_pull --params MAG.stiffness "
+            "-o posterior.nc",
+        ],
+        _update,
+    )
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("modes", help=MODES_HELP)
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (posterior.nc, ArviZ groups)")
-    p.add_argument("--params", default=None,
-                   help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks); twin params "
-                        "lists the names (default: none, then --fsi is needed)")  # fmt: skip
+    p.add_argument(
+        "--params",
+        default=None,
+        help="parameters to update: names, globs (LGB.c*) or groups (bearings, thrust, disks); twin params "
+        "lists the names (default: none, then --fsi is needed)",
+    )
     p.add_argument("--fsi", action="store_true", help="update the per-mode FSI added mass and damping")
     add_method(p, "how to update")
     add_chain_options(p)
-    p.add_argument("--noise-model", choices=("full", "diagonal"), default=None,
-                   help="--method gibbs: covariance of the residual realisations: full (correlated rows, the "
-                        "default) or diagonal (the paper's)")  # fmt: skip
-    p.add_argument("--collapsed", action=argparse.BooleanOptionalAction, default=None,
-                   help="--method gibbs: a Metropolis step of the parameters with the shapes integrated out in "
-                        "every sweep (the default; chains mix along the parameter-shape ridge); --no-collapsed: "
-                        "plain Gibbs")
-    p.add_argument("--pole-model", choices=("linear", "samples"), default=None,
-                   help="--method gibbs: the condensed model linearised about each mode's mean pole (the default) "
-                        "or rebuilt at every pole sample (the paper's)")
-    p.add_argument("--flat-priors", action="store_true",
-                   help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
-                        "model's value, as wide as its effect's plausible scale: a bound where the data say little)")
-    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
-                   help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable")
+    p.add_argument(
+        "--noise-model",
+        choices=("full", "diagonal"),
+        default=None,
+        help="--method gibbs: covariance of the residual realisations: full (correlated rows, the "
+        "default) or diagonal (the paper's)",
+    )
+    p.add_argument(
+        "--collapsed",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="--method gibbs: a Metropolis step of the parameters with the shapes integrated out in "
+        "every sweep (the default; chains mix along the parameter-shape ridge); --no-collapsed: "
+        "plain Gibbs",
+    )
+    p.add_argument(
+        "--pole-model",
+        choices=("linear", "samples"),
+        default=None,
+        help="--method gibbs: the condensed model linearised about each mode's mean pole (the default) "
+        "or rebuilt at every pole sample (the paper's)",
+    )
+    p.add_argument(
+        "--flat-priors",
+        action="store_true",
+        help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
+        "model's value, as wide as its effect's plausible scale: a bound where the data say little)",
+    )
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=None,
+        metavar="LABEL",
+        help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable",
+    )
     add_scheduler(p, "chains")
-    p = command(sub, "compare", "compare a model with measured modes: per-mode errors and the overall error",
-                 "Each measured mode against its model partner (one-to-one, by pole distance and MAC): frequency\n"
-                 "and damping errors with their z-scores, the MAC, the shape error per sensor, and the error E\n"
-                 "(the uncertainty-weighted RMS relative pole distance).",
-                 ["twin compare hydro_unit modes.nc --plot figures",
-                  "twin compare hydro_unit modes.nc --posterior posterior.nc --history history.csv"], _compare)  # fmt: skip
+    p = command(
+        sub,
+        "compare",
+        "compare a model with measured modes: per-mode errors and the overall error",
+        "Each measured mode against its model partner (one-to-one, by pole distance and MAC): frequency\n"
+        "and damping errors with their z-scores, the MAC, the shape error per sensor, and the error E\n"
+        "(the uncertainty-weighted RMS relative pole distance).",
+        [
+            "twin compare hydro_unit modes.nc --plot figures",
+            "twin compare hydro_unit modes.nc --posterior posterior.nc --history history.csv",
+        ],
+        _compare,
+    )
     add_model_and_posterior(p)
-    p.add_argument("--plot", default=None, metavar="DIR",
-                   help="write the figures (errors, MAC, spectra) into the folder DIR (created if missing)")
-    p.add_argument("--signals", default=None, metavar="FILE",
-                   help="with --plot: the record the modes came from (signals.nc), for spectra.png as its power "
-                        "spectral density per channel with the identified and the model modes marked (default: the "
-                        "modal spectra rebuilt from the modes)")  # fmt: skip
-    p.add_argument("--history", default=None, metavar="FILE",
-                   help="append this comparison's error as one row of the CSV file FILE (created if missing), and "
-                        "redraw the error chart beside it, FILE with the suffix .png (history.csv: history.png)")  # fmt: skip
+    p.add_argument(
+        "--plot",
+        default=None,
+        metavar="DIR",
+        help="write the figures (errors, MAC, spectra) into the folder DIR (created if missing)",
+    )
+    p.add_argument(
+        "--signals",
+        default=None,
+        metavar="FILE",
+        help="with --plot: the record the modes came from (signals.nc), for spectra.png as its power "
+        "spectral density per channel with the identified and the model modes marked (default: the "
+        "modal spectra rebuilt from the modes)",
+    )
+    p.add_argument(
+        "--history",
+        default=None,
+        metavar="FILE",
+        help="append this comparison's error as one row of the CSV file FILE (created if missing), and "
+        "redraw the error chart beside it, FILE with the suffix .png (history.csv: history.png)",
+    )
     p.add_argument("--step", default=None, help="name of the step in the history (default: from --effect/--posterior)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p = command(sub, "diagnose", "where the model fails and which library effect is missing",
-                 "Fits the library's effects to the measured poles and compares them by evidence (Laplace\n"
-                 "approximation inside the physical bounds), stepwise; outside the library it locates shaft\n"
-                 "stiffness and disk mass or inertia changes. Verdicts: missing effect, partly explained,\n"
-                 "unexplained (with the place), nothing missing, not enough data.",
-                 ["twin diagnose hydro_unit modes.nc",
-                  "twin diagnose hydro_unit modes.nc --posterior posterior.nc --json"], _diagnose)  # fmt: skip
+    p = command(
+        sub,
+        "diagnose",
+        "where the model fails and which library effect is missing",
+        "Fits the library's effects to the measured poles and compares them by evidence (Laplace\n"
+        "approximation inside the physical bounds), stepwise; outside the library it locates shaft\n"
+        "stiffness and disk mass or inertia changes. Verdicts: missing effect, partly explained,\n"
+        "unexplained (with the place), nothing missing, not enough data.",
+        ["twin diagnose hydro_unit modes.nc", "twin diagnose hydro_unit modes.nc --posterior posterior.nc --json"],
+        _diagnose,
+    )
     add_model_and_posterior(p)
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     add_scheduler(p, "candidate fits")
-    p = command(sub, "loop", "the twin loop to the end: diagnose, add the missing effects, update them jointly, "
-                              "diagnose again",
-                 "Rounds of diagnose, add every effect found, update all added effects jointly, until nothing\n"
-                 "new is missing; writes diagnosis.json, history.csv/.png and posterior.nc into --out.",
-                 ["twin loop hydro_unit modes.nc --out twin-loop"], _loop)  # fmt: skip
+    p = command(
+        sub,
+        "loop",
+        "the twin loop to the end: diagnose, add the missing effects, update them jointly, diagnose again",
+        "Rounds of diagnose, add every effect found, update all added effects jointly, until nothing\n"
+        "new is missing; writes diagnosis.json, history.csv/.png and posterior.nc into --out.",
+        ["twin loop hydro_unit modes.nc --out twin-loop"],
+        _loop,
+    )
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("modes", help=MODES_HELP)
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
@@ -376,38 +460,65 @@ def add_commands(sub) -> None:
     add_bootstrap(p)
     p.add_argument("--rounds", type=COUNT, default=4, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
-    p.add_argument("--effect", action="append", default=None, metavar="LABEL",
-                   help="add a library effect to the model first; repeatable")
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=None,
+        metavar="LABEL",
+        help="add a library effect to the model first; repeatable",
+    )
     add_tolerance(p)
     add_chain_options(p)
     add_scheduler(p, "candidate fits and calibration records")
-    p = command(sub, "demo", "the whole loop on a truth with hidden changes, with a report folder",
-                 "Exports the FMU, simulates a truth with a hidden change, extracts the modes, and runs the\n"
-                 "loop; report.md and report.html in --out say what was found and how the error fell.",
-                 ["twin demo", "twin demo --hidden 'magnetic_pull@1.5+seal_cross_coupling' --seed 4",
-                  "twin demo --hidden disk_mass:generator@1.1 --out heavier-generator"], _demo)  # fmt: skip
+    p = command(
+        sub,
+        "demo",
+        "the whole loop on a truth with hidden changes, with a report folder",
+        "Exports the FMU, simulates a truth with a hidden change, extracts the modes, and runs the\n"
+        "loop; report.md and report.html in --out say what was found and how the error fell.",
+        [
+            "twin demo",
+            "twin demo --hidden 'magnetic_pull@1.5+seal_cross_coupling' --seed 4",
+            "twin demo --hidden disk_mass:generator@1.1 --out heavier-generator",
+        ],
+        _demo,
+    )
     p.add_argument("--out", default="twin-demo", help="report folder")
-    p.add_argument("--hidden", default="magnetic_pull",
-                   help="what the truth hides: a library effect (magnetic_pull, fsi, fsi_per_mode, seal_cross_coupling, "
-                        "thrust_tilt:thrust, bearing_change:UGB, bearing_change:LGB) at its reference size or scaled "
-                        "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
-                        "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
-                        "or none")  # fmt: skip
+    p.add_argument(
+        "--hidden",
+        default="magnetic_pull",
+        help="what the truth hides: a library effect (magnetic_pull, fsi, fsi_per_mode, seal_cross_coupling, "
+        "thrust_tilt:thrust, bearing_change:UGB, bearing_change:LGB) at its reference size or scaled "
+        "(magnetic_pull@2.5), several joined by + (magnetic_pull+seal_cross_coupling), a local change "
+        "outside the library (shaft_stiffness:18@0.5, disk_mass:generator@1.1, disk_inertia:runner@1.2), "
+        "or none",
+    )
     p.add_argument("--seed", type=NATURAL, default=1, help="seed of turbulence and noise")
     add_loop_settings(p, DEMO_RECORDS)
     # the calibration's records (twin.loop.bootstrap) take most of the demo's time: on a local cluster by default
     add_scheduler(p, "candidate fits and calibration records")
-    p = command(sub, "sweep", "the demo's loop over hidden changes and seeds, one Dask task per scenario",
-                 "Runs the demo for every scenario and tabulates the verdict, the error's fall and the parameter\n"
-                 "errors (sweep.nc); exit status 1 when a scenario fails.",
-                 ["twin sweep --hidden all,none --seeds 1,2", "twin sweep --scenarios benchmarks/loop_suite.txt --workers 2"],
-                 _sweep)  # fmt: skip
-    p.add_argument("--hidden", default="all",
-                   help="what the truths hide, comma-separated specs as for twin demo; 'all' for every library effect "
-                        "at its reference size ('all,none' adds the false-alarm check)")  # fmt: skip
-    p.add_argument("--scenarios", default=None, metavar="FILE",
-                   help="scenarios from a file, one 'SPEC SEED[,SEED...]' per line (instead of --hidden and --seeds), "
-                        "e.g. benchmarks/loop_suite.txt")
+    p = command(
+        sub,
+        "sweep",
+        "the demo's loop over hidden changes and seeds, one Dask task per scenario",
+        "Runs the demo for every scenario and tabulates the verdict, the error's fall and the parameter\n"
+        "errors (sweep.nc); exit status 1 when a scenario fails.",
+        ["twin sweep --hidden all,none --seeds 1,2", "twin sweep --scenarios benchmarks/loop_suite.txt --workers 2"],
+        _sweep,
+    )
+    p.add_argument(
+        "--hidden",
+        default="all",
+        help="what the truths hide, comma-separated specs as for twin demo; 'all' for every library effect "
+        "at its reference size ('all,none' adds the false-alarm check)",
+    )
+    p.add_argument(
+        "--scenarios",
+        default=None,
+        metavar="FILE",
+        help="scenarios from a file, one 'SPEC SEED[,SEED...]' per line (instead of --hidden and --seeds), "
+        "e.g. benchmarks/loop_suite.txt",
+    )
     p.add_argument("--seeds", default="1", help="seeds of turbulence and noise, comma-separated")
     p.add_argument("--out", default="twin-sweep", help="folder of sweep.nc and the report folders")
     add_loop_settings(p)

@@ -23,12 +23,14 @@ def build_parser() -> argparse.ArgumentParser:
     ('modal', True, False)
     """
     parser = argparse.ArgumentParser(
-        prog="twin", formatter_class=Formatter,
+        prog="twin",
+        formatter_class=Formatter,
         description="Digital twin of a rotating machine in water: rotor FEM, FMU, modal extraction, Bayesian\n"
-                    "updating, and the loop that finds what the model is missing.",
+        "updating, and the loop that finds what the model is missing.",
         epilog="start with:\n  twin demo                       the whole loop on a truth with a hidden magnetic pull\n"
-               "  twin params hydro_unit          the shipped model's parameters and effects\n"
-               "  twin COMMAND --help             each command's options and examples")  # fmt: skip
+        "  twin params hydro_unit          the shipped model's parameters and effects\n"
+        "  twin COMMAND --help             each command's options and examples",
+    )
     parser.add_argument("--version", action="version", version=f"twin {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log each stage and its details")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress display")

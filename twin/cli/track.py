@@ -13,15 +13,21 @@ from twin.defaults import BASELINE_DAYS, FALSE_ALARMS_PER_YEAR
 
 def add_commands(sub) -> None:
     """Add ``twin campaign`` and ``twin track`` to the sub-parsers ``sub``."""
-    p = command(sub, "campaign", "simulate a campaign of records through the FMU under changing operation",
-                "Simulates a record every few hours for days or years (the schedule: days, records_per_day,\n"
-                "duration; how the operating conditions vary; hidden changes with their start day and ramp),\n"
-                "each at its operating point with the model's laws applied. One record_<index>.nc per record in\n"
-                "the folder, with its start time and operating data; records already there are kept, so an\n"
-                "interrupted campaign goes on where it stopped.",
-                ["twin campaign hydro_unit --schedule schedule.toml -o records --seed 1 --workers 2",
-                 "twin campaign hydro_unit --schedule schedule.toml -o records --json"],
-                _campaign)  # fmt: skip
+    p = command(
+        sub,
+        "campaign",
+        "simulate a campaign of records through the FMU under changing operation",
+        "Simulates a record every few hours for days or years (the schedule: days, records_per_day,\n"
+        "duration; how the operating conditions vary; hidden changes with their start day and ramp),\n"
+        "each at its operating point with the model's laws applied. One record_<index>.nc per record in\n"
+        "the folder, with its start time and operating data; records already there are kept, so an\n"
+        "interrupted campaign goes on where it stopped.",
+        [
+            "twin campaign hydro_unit --schedule schedule.toml -o records --seed 1 --workers 2",
+            "twin campaign hydro_unit --schedule schedule.toml -o records --json",
+        ],
+        _campaign,
+    )
     p.add_argument("model", help="model file with [[condition]] and [[law]] tables, or a shipped model's name")
     p.add_argument("--schedule", required=True, metavar="SCHEDULE.toml", help="the campaign's schedule")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder of the records")
@@ -29,26 +35,43 @@ def add_commands(sub) -> None:
     p.add_argument("--json", action="store_true", help="print a summary as JSON")
     add_scheduler(p, "records")
 
-    p = command(sub, "track", "track a unit over a folder of records: trends, alarms, what changed",
-                "Extracts each record's modes once (records added later are processed on the next call), finds\n"
-                "the model's modes in each, learns over the baseline days how the operating conditions move them\n"
-                "through the model's laws, watches what the conditions do not explain on a control chart, and at\n"
-                "an alarm names the change (a library effect, or where outside it) and follows it. Writes\n"
-                "OUT/track.nc, OUT/report.html and OUT/modes/.",
-                ["twin track hydro_unit records -o tracking --baseline-days 14",
-                 "twin track hydro_unit records -o tracking --json"],
-                _track)  # fmt: skip
+    p = command(
+        sub,
+        "track",
+        "track a unit over a folder of records: trends, alarms, what changed",
+        "Extracts each record's modes once (records added later are processed on the next call), finds\n"
+        "the model's modes in each, learns over the baseline days how the operating conditions move them\n"
+        "through the model's laws, watches what the conditions do not explain on a control chart, and at\n"
+        "an alarm names the change (a library effect, or where outside it) and follows it. Writes\n"
+        "OUT/track.nc, OUT/report.html and OUT/modes/.",
+        [
+            "twin track hydro_unit records -o tracking --baseline-days 14",
+            "twin track hydro_unit records -o tracking --json",
+        ],
+        _track,
+    )
     p.add_argument("model", help="model file with [[condition]] and [[law]] tables, or a shipped model's name")
     p.add_argument("folder", help="folder of the records (*.nc with start_time and operating_point)")
     p.add_argument("-o", "--out", required=True, metavar="OUT", help="the tracker's folder")
-    p.add_argument("--baseline-days", type=float, default=BASELINE_DAYS,
-                   help=f"days from the first record over which the laws are learned; no alarm in them "
-                        f"(default {BASELINE_DAYS:g})")
-    p.add_argument("--false-alarms", type=float, default=FALSE_ALARMS_PER_YEAR, metavar="PER_YEAR",
-                   help=f"false-alarm rate the control limit is set for, per unit-year (default "
-                        f"{FALSE_ALARMS_PER_YEAR:g})")
-    p.add_argument("--json", action="store_true",
-                   help='print {"records": N, "alarms": [{"time", "day", "onset_day", "named_day", "effects", "verdict"}]}')
+    p.add_argument(
+        "--baseline-days",
+        type=float,
+        default=BASELINE_DAYS,
+        help=f"days from the first record over which the laws are learned; no alarm in them "
+        f"(default {BASELINE_DAYS:g})",
+    )
+    p.add_argument(
+        "--false-alarms",
+        type=float,
+        default=FALSE_ALARMS_PER_YEAR,
+        metavar="PER_YEAR",
+        help=f"false-alarm rate the control limit is set for, per unit-year (default {FALSE_ALARMS_PER_YEAR:g})",
+    )
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help='print {"records": N, "alarms": [{"time", "day", "onset_day", "named_day", "effects", "verdict"}]}',
+    )
     add_scheduler(p, "extractions")
 
 
@@ -58,8 +81,14 @@ def _track(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     with tasks(args) as client:
-        table = track(model, args.folder, args.out, baseline_days=args.baseline_days,
-                      false_alarms_per_year=args.false_alarms, tasks=client)  # fmt: skip
+        table = track(
+            model,
+            args.folder,
+            args.out,
+            baseline_days=args.baseline_days,
+            false_alarms_per_year=args.false_alarms,
+            tasks=client,
+        )
     summary = alarms_json(table)
     if args.json:
         print(json.dumps(summary))
@@ -74,18 +103,18 @@ def _track(args: argparse.Namespace) -> int:
 def _campaign(args: argparse.Namespace) -> int:
     from twin.fem import load_model
     from twin.track import campaign, read_schedule
+    from twin.track.campaign import campaign_json
 
     model = load_model(args.model)
     schedule = read_schedule(args.schedule, model)
     with tasks(args) as client:
         table = campaign(model, schedule, args.out, seed=args.seed, tasks=client, command=" ".join(sys.argv))
-    made = int(table.made.sum())
-    summary = {"records": int(table.sizes["record"]), "made": made, "kept": int(table.sizes["record"]) - made,
-               "folder": str(Path(args.out)), "first": str(table.start_time.values[0]),
-               "last": str(table.start_time.values[-1])}  # fmt: skip
+    summary = campaign_json(table, args.out)
     if args.json:
         print(json.dumps(summary))
     else:
-        print(f"{summary['records']} records from {summary['first']} to {summary['last']} in {summary['folder']} "
-              f"({made} simulated, {summary['kept']} there already)")  # fmt: skip
+        print(
+            f"{summary['records']} records from {summary['first']} to {summary['last']} in {summary['folder']} "
+            f"({summary['made']} simulated, {summary['kept']} there already)"
+        )
     return 0

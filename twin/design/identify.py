@@ -62,7 +62,9 @@ def parameter_scales(model: RotorModel, names: Sequence[str]) -> np.ndarray:
         nominal = model.parameter(n).nominal
         s = abs(nominal) if nominal != 0 else owned.get(n, 0.0)
         if not s > 0:
-            raise ModelError(f"parameter '{n}' is zero in the model and has no plausible size: add it through its effect")
+            raise ModelError(
+                f"parameter '{n}' is zero in the model and has no plausible size: add it through its effect"
+            )
         out.append(float(s))
     return np.array(out)
 
@@ -245,8 +247,14 @@ def record_covariance(sp, k: int, duration_s: float, ratio: float | None = None)
     return cov * ratio, shape
 
 
-def record_data(poles: np.ndarray, sp, frequency_hz: np.ndarray, observable: np.ndarray,
-                duration_s: float, ratios: Mapping[int, float] | None = None) -> tuple[list[int], list[np.ndarray]]:
+def record_data(
+    poles: np.ndarray,
+    sp,
+    frequency_hz: np.ndarray,
+    observable: np.ndarray,
+    duration_s: float,
+    ratios: Mapping[int, float] | None = None,
+) -> tuple[list[int], list[np.ndarray]]:
     """The modes (indices into ``poles``) an observability table marks observable, and their record covariances.
 
     Each pole is matched to the table's row of nearest ``frequency_hz`` and to the spectrum's nearest pole;
@@ -271,8 +279,12 @@ def judged_columns(n_names: int, n_modes: int, used: Sequence[int], fsi: bool) -
     return keep
 
 
-def sample_covariance(shape: np.ndarray, samples: int, pole_variance: tuple[float, float] = PAPER_POLE_VARIANCE,
-                      shape_cov: float = PAPER_SHAPE_COV) -> np.ndarray:
+def sample_covariance(
+    shape: np.ndarray,
+    samples: int,
+    pole_variance: tuple[float, float] = PAPER_POLE_VARIANCE,
+    shape_cov: float = PAPER_SHAPE_COV,
+) -> np.ndarray:
     """Error covariance of a mode's mean pole and normalised shape over ``samples`` synthetic samples.
 
     :func:`twin.update.synthesize_modes` perturbs each real entry of the
@@ -327,8 +339,9 @@ def data_precision(cov: np.ndarray, shape: np.ndarray) -> np.ndarray:
     return P @ inner @ P.T
 
 
-def fisher_covariance(J: np.ndarray, precisions: Sequence[np.ndarray], scales: np.ndarray,
-                      prior_std: np.ndarray | None = None) -> np.ndarray:
+def fisher_covariance(
+    J: np.ndarray, precisions: Sequence[np.ndarray], scales: np.ndarray, prior_std: np.ndarray | None = None
+) -> np.ndarray:
     """``(Σ_k J_kᵀ P_k J_k + P₀)⁻¹`` [SI], ``P_k`` each mode's data precision (:func:`data_precision`);
     directions the data do not reach get a std of 10⁶ scales."""
     Js = J * scales[None, None, :]
@@ -342,8 +355,9 @@ def fisher_covariance(J: np.ndarray, precisions: Sequence[np.ndarray], scales: n
     return cov_u * np.outer(scales, scales)
 
 
-def linearisation(model: RotorModel, truth: Truth | None, fsi: bool,
-                  fmax_hz: float) -> tuple[RotorModel, np.ndarray, np.ndarray | None]:
+def linearisation(
+    model: RotorModel, truth: Truth | None, fsi: bool, fmax_hz: float
+) -> tuple[RotorModel, np.ndarray, np.ndarray | None]:
     """Where the Jacobian is taken: the model (with the shared FSI effect when ``fsi``) or the truth's.
 
     Returns
@@ -410,8 +424,7 @@ def identifiability(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> ident = identifiability(load_model(shipped_model("hydro_unit")), ["UGB.kxx", "LGB.kxx"], samples=100)
+    >>> ident = identifiability(hydro_unit, ["UGB.kxx", "LGB.kxx"], samples=100)
     >>> bool(ident.determined.sel(parameter="UGB.kxx"))
     True
     """
@@ -432,17 +445,23 @@ def identifiability(
             raise ModelError(f"samples must be at least 1, got {samples}")
         used = list(range(len(targets)))
         precisions = [data_precision(sample_covariance(shapes[i], samples), shapes[i]) for i in used]
-        method = (f"{samples} synthetic samples per mode (pole variances {PAPER_POLE_VARIANCE[0]:g}, {PAPER_POLE_VARIANCE[1]:g} "
-                  f"rad^2/s^2; shape CoV {PAPER_SHAPE_COV:.0%})")  # fmt: skip
+        method = (
+            f"{samples} synthetic samples per mode (pole variances {PAPER_POLE_VARIANCE[0]:g}, {PAPER_POLE_VARIANCE[1]:g} "
+            f"rad^2/s^2; shape CoV {PAPER_SHAPE_COV:.0%})"
+        )
     else:
         obs = observability if observability is not None else observe(model, excitation, truth=truth, fmax_hz=top)
         sp = spectrum(system_for(model, truth, "full", None), model, excitation)
         used, precisions = record_data(poles, sp, obs.frequency.values, obs.observable.values, excitation.duration_s)
-        method = (f"poles and shapes of the observable modes from a {excitation.duration_s:g} s record "
-                  "(Cramer-Rao covariance raised to the single-mode bound of each pole)")  # fmt: skip
+        method = (
+            f"poles and shapes of the observable modes from a {excitation.duration_s:g} s record "
+            "(Cramer-Rao covariance raised to the single-mode bound of each pole)"
+        )
     if not used:
-        raise ModelError(f"no target mode of '{model.name}' is observable with this layout and record: "
-                         "nothing determines the parameters")  # fmt: skip
+        raise ModelError(
+            f"no target mode of '{model.name}' is observable with this layout and record: "
+            "nothing determines the parameters"
+        )
     keep = judged_columns(len(names), len(targets), used, fsi)
     J = J[used][:, :, keep]
     columns = [c for c, k in zip(columns, keep) if k]
@@ -454,10 +473,13 @@ def identifiability(
             "scale": ("parameter", scales, {"long_name": "size the std is judged against [SI]"}),
             "std": ("parameter", std, {"long_name": "expected posterior std (Fisher) [SI]"}),
             "relative_std": ("parameter", std / scales, {"units": "1"}),
-            "determined": ("parameter", std / scales < DETERMINED_LIMIT,
-                           {"long_name": f"expected std below {DETERMINED_LIMIT:.0%} of the scale"}),
+            "determined": (
+                "parameter",
+                std / scales < DETERMINED_LIMIT,
+                {"long_name": f"expected std below {DETERMINED_LIMIT:.0%} of the scale"},
+            ),
             "correlation": (("parameter", "parameter_2"), cov / np.outer(std, std), {"units": "1"}),
-        },  # fmt: skip
+        },
         coords={"parameter": columns, "parameter_2": columns},
         attrs={
             "title": f"identifiability of {model.name}'s parameters",

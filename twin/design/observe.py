@@ -56,8 +56,15 @@ from twin.errors import ModelError, TwinError
 from twin.fem import load_model
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth, truth_from_json
-from twin.design.spectrum import (Excitation, Spectrum, partner_mode, pole_covariance, single_mode_covariance,
-                                  spectrum, zeta_frequency_std)  # fmt: skip
+from twin.design.spectrum import (
+    Excitation,
+    Spectrum,
+    partner_mode,
+    pole_covariance,
+    single_mode_covariance,
+    spectrum,
+    zeta_frequency_std,
+)
 from twin.fmu.simulate import system_for
 from twin.fmu.truth import MAX_TARGET_DAMPING
 from twin.modes.analysis import damping_ratio
@@ -90,8 +97,9 @@ def band_top(fmax_hz: float | None, excitation: Excitation) -> float:
 
 def target_modes(poles: np.ndarray, fmax_hz: float) -> np.ndarray:
     """Indices of the oscillating poles damped less than 10% up to ``fmax_hz``, by frequency."""
-    idx = np.nonzero((poles.imag > 0) & (poles.imag <= 2 * np.pi * fmax_hz)
-                     & (damping_ratio(poles) < MAX_TARGET_DAMPING))[0]  # fmt: skip
+    idx = np.nonzero(
+        (poles.imag > 0) & (poles.imag <= 2 * np.pi * fmax_hz) & (damping_ratio(poles) < MAX_TARGET_DAMPING)
+    )[0]
     return idx[np.argsort(poles.imag[idx], kind="stable")]
 
 
@@ -129,8 +137,7 @@ def observability(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> obs = observability(load_model(shipped_model("hydro_unit")))
+    >>> obs = observability(hydro_unit)
     >>> int(obs.sizes["mode"]), int(obs.observable.sum()) < 15
     (15, True)
     """
@@ -150,31 +157,71 @@ def observability(
     best_prominence = prominence.max(axis=1)
     observable, reasons = verdicts(best, f_std / freq, z_std / zeta, best_prominence)
     cluster = mode_clusters(freq, zeta, f_std)
-    settings = {"turbulence_asd": excitation.turbulence_asd, "noise_ratio": excitation.noise_ratio,
-                "noise_std_m": sp.noise_std_m, "duration_s": excitation.duration_s, "fs_hz": excitation.fs_hz,
-                "fmax_hz": top}  # fmt: skip
+    settings = {
+        "turbulence_asd": excitation.turbulence_asd,
+        "noise_ratio": excitation.noise_ratio,
+        "noise_std_m": sp.noise_std_m,
+        "duration_s": excitation.duration_s,
+        "fs_hz": excitation.fs_hz,
+        "fmax_hz": top,
+    }
     sensors = {s.name: s for s in model.sensors}
     return xr.Dataset(
         {
-            "snr_db": (("mode", "channel"), snr, {"units": "dB", "long_name": "peak response of the mode alone against the noise PSD"}),
+            "snr_db": (
+                ("mode", "channel"),
+                snr,
+                {"units": "dB", "long_name": "peak response of the mode alone against the noise PSD"},
+            ),
             "best_snr_db": ("mode", best, {"units": "dB", "long_name": "peak-to-noise ratio on the best channel"}),
-            "prominence_db": (("mode", "channel"), prominence,
-                              {"units": "dB", "long_name": "peak response of the mode alone against the PSD of "
-                                                           "the other modes and the noise at its frequency"}),
-            "best_prominence_db": ("mode", best_prominence,
-                                   {"units": "dB", "long_name": "prominence on the channel where it is largest"}),
+            "prominence_db": (
+                ("mode", "channel"),
+                prominence,
+                {
+                    "units": "dB",
+                    "long_name": "peak response of the mode alone against the PSD of "
+                    "the other modes and the noise at its frequency",
+                },
+            ),
+            "best_prominence_db": (
+                "mode",
+                best_prominence,
+                {"units": "dB", "long_name": "prominence on the channel where it is largest"},
+            ),
             "frequency": ("mode", freq, {"units": "Hz", "long_name": "damped natural frequency"}),
             "damping_ratio": ("mode", zeta, {"units": "1", "long_name": "damping ratio"}),
-            "frequency_std": ("mode", f_std, {"units": "Hz", "long_name": "expected std of the frequency (single-mode bound)"}),
-            "damping_ratio_std": ("mode", z_std, {"units": "1", "long_name": "expected std of the damping ratio (single-mode bound)"}),
-            "frequency_crb": ("mode", f_crb, {"units": "Hz", "long_name": "Cramér-Rao bound of the frequency std (whole record)"}),
-            "damping_ratio_crb": ("mode", z_crb, {"units": "1", "long_name": "Cramér-Rao bound of the damping-ratio std (whole record)"}),
+            "frequency_std": (
+                "mode",
+                f_std,
+                {"units": "Hz", "long_name": "expected std of the frequency (single-mode bound)"},
+            ),
+            "damping_ratio_std": (
+                "mode",
+                z_std,
+                {"units": "1", "long_name": "expected std of the damping ratio (single-mode bound)"},
+            ),
+            "frequency_crb": (
+                "mode",
+                f_crb,
+                {"units": "Hz", "long_name": "Cramér-Rao bound of the frequency std (whole record)"},
+            ),
+            "damping_ratio_crb": (
+                "mode",
+                z_crb,
+                {"units": "1", "long_name": "Cramér-Rao bound of the damping-ratio std (whole record)"},
+            ),
             "observable": ("mode", observable, {"long_name": "the record can determine the mode"}),
             "reason": ("mode", reasons, {"long_name": "why not observable (empty when observable)"}),
-            "cluster": ("mode", cluster, {"long_name": "cluster of modes the frequencies cannot tell apart "
-                                                      "(overlapping half-power bands, closer than "
-                                                      f"{CLUSTER_SIGMAS:g} rss frequency stds; 0: none)"}),
-        },  # fmt: skip
+            "cluster": (
+                "mode",
+                cluster,
+                {
+                    "long_name": "cluster of modes the frequencies cannot tell apart "
+                    "(overlapping half-power bands, closer than "
+                    f"{CLUSTER_SIGMAS:g} rss frequency stds; 0: none)"
+                },
+            ),
+        },
         coords={
             "mode": ("mode", np.arange(1, len(targets) + 1), {"long_name": "target mode (by frequency)"}),
             "channel": ("channel", list(ss.outputs)),
@@ -190,16 +237,19 @@ def observability(
             "method": "Whittle likelihood of the output spectrum (theory, no simulation): single-mode bound and Cramér-Rao bound",
             "excitation": json.dumps(settings),
             "cluster_sigmas": CLUSTER_SIGMAS,
-            "rule": (f"observable: best peak-to-noise >= {SNR_LIMIT_DB:g} dB, best peak against the other modes' "
-                     f"response >= {PROMINENCE_LIMIT_DB:g} dB, frequency std <= "
-                     f"{100 * FREQUENCY_STD_LIMIT:g}% and damping std <= {100 * DAMPING_STD_LIMIT:g}% of the damping ratio"),
+            "rule": (
+                f"observable: best peak-to-noise >= {SNR_LIMIT_DB:g} dB, best peak against the other modes' "
+                f"response >= {PROMINENCE_LIMIT_DB:g} dB, frequency std <= "
+                f"{100 * FREQUENCY_STD_LIMIT:g}% and damping std <= {100 * DAMPING_STD_LIMIT:g}% of the damping ratio"
+            ),
             **({"truth": truth.to_json()} if truth is not None else {}),
-        },  # fmt: skip
+        },
     )
 
 
-def mode_clusters(frequency_hz: np.ndarray, damping_ratio: np.ndarray, frequency_std_hz: np.ndarray,
-                  sigmas: float = CLUSTER_SIGMAS) -> np.ndarray:
+def mode_clusters(
+    frequency_hz: np.ndarray, damping_ratio: np.ndarray, frequency_std_hz: np.ndarray, sigmas: float = CLUSTER_SIGMAS
+) -> np.ndarray:
     """Cluster number of each mode (1, 2, ...; 0 for a mode on its own) by frequency.
 
     Neighbours in frequency join when their half-power bands overlap,
@@ -236,8 +286,11 @@ def mode_clusters(frequency_hz: np.ndarray, damping_ratio: np.ndarray, frequency
 def mode_peak(sp: Spectrum, targets: np.ndarray) -> np.ndarray:
     """PSD [m²/Hz] of each target mode alone at its peak, per channel, ``(n_modes, n_channels)``."""
     lam = sp.poles[targets]
-    peak = (np.abs(sp.c[:, targets].T) ** 2 * np.sum(np.abs(sp.b[targets]) ** 2, axis=1)[:, None]
-            * sp.force_weight(lam.imag / (2 * np.pi))[:, None])  # fmt: skip
+    peak = (
+        np.abs(sp.c[:, targets].T) ** 2
+        * np.sum(np.abs(sp.b[targets]) ** 2, axis=1)[:, None]
+        * sp.force_weight(lam.imag / (2 * np.pi))[:, None]
+    )
     return np.maximum(peak / lam.real[:, None] ** 2, 1e-300)
 
 
@@ -257,9 +310,8 @@ def mode_prominence(sp: Spectrum, targets: np.ndarray) -> np.ndarray:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fmu.truth import model_state_space
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> sp = spectrum(model_state_space(m, "modal", 60.0), m, Excitation())
     >>> k = target_modes(sp.poles, 60.0)
     >>> bool((mode_prominence(sp, k) <= mode_snr(sp, k) + 1e-9).all())
@@ -296,8 +348,9 @@ def mode_bounds(sp: Spectrum, targets: np.ndarray, duration_s: float, *, crb: bo
     return snr, f_std, z_std, f_crb, z_crb
 
 
-def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.ndarray,
-             best_prominence_db: np.ndarray) -> tuple[np.ndarray, list[str]]:  # fmt: skip
+def verdicts(
+    best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.ndarray, best_prominence_db: np.ndarray
+) -> tuple[np.ndarray, list[str]]:
     """Observable or not per mode, with the reasons it is not (see the module docstring).
 
     ``best_prominence_db`` is :func:`mode_prominence` on the channel where it is largest.
@@ -318,8 +371,9 @@ def verdicts(best_snr_db: np.ndarray, f_rel_std: np.ndarray, zeta_rel_std: np.nd
     return np.array(ok), reasons
 
 
-def record_observability(attrs: dict, channels: list[str], duration_s: float,
-                         fmax_hz: float | None = None) -> xr.Dataset | None:
+def record_observability(
+    attrs: dict, channels: list[str], duration_s: float, fmax_hz: float | None = None
+) -> xr.Dataset | None:
     """The observability of the target modes in a simulated record, from its attrs (``signals.nc``).
 
     The model file (``model_source``), the excitation (``settings``: turbulence ASD, noise std [m],
@@ -339,16 +393,29 @@ def record_observability(attrs: dict, channels: list[str], duration_s: float,
     except (KeyError, ValueError, TypeError) as exc:
         log.warning("observability of the target modes not judged: the record's settings do not say %s", exc)
         return None
-    key = (str(path), path.stat().st_mtime_ns, excitation,
-           None if "truth" not in attrs else str(attrs["truth"]), tuple(channels), float(duration_s),
-           None if fmax_hz is None else float(fmax_hz))  # fmt: skip
+    key = (
+        str(path),
+        path.stat().st_mtime_ns,
+        excitation,
+        None if "truth" not in attrs else str(attrs["truth"]),
+        tuple(channels),
+        float(duration_s),
+        None if fmax_hz is None else float(fmax_hz),
+    )
     obs = _judged(*key)
     return None if obs is None else obs.copy(deep=True)  # the cached one stays as judged
 
 
 @functools.lru_cache(maxsize=8)
-def _judged(source: str, _mtime_ns: int, excitation: tuple[float, float, float], truth_json: str | None,
-            channels: tuple[str, ...], duration_s: float, fmax_hz: float | None) -> xr.Dataset | None:  # fmt: skip
+def _judged(
+    source: str,
+    _mtime_ns: int,
+    excitation: tuple[float, float, float],
+    truth_json: str | None,
+    channels: tuple[str, ...],
+    duration_s: float,
+    fmax_hz: float | None,
+) -> xr.Dataset | None:
     """:func:`record_observability` of one set of its inputs (the model file's modification time in the key;
     ``excitation``: turbulence ASD [N/√Hz], noise std [m], sampling rate [Hz])."""
     turbulence_asd, noise_std_m, fs_hz = excitation
@@ -356,14 +423,23 @@ def _judged(source: str, _mtime_ns: int, excitation: tuple[float, float, float],
         model = load_model(source)
         sensors = {s.name: s for s in model.sensors}
         if any(c not in sensors for c in channels):
-            log.info("observability not judged: channels %s are not sensors of %s",
-                     [c for c in channels if c not in sensors], source)
+            log.info(
+                "observability not judged: channels %s are not sensors of %s",
+                [c for c in channels if c not in sensors],
+                source,
+            )
             return None
         model = replace(model, sensors=[sensors[c] for c in channels])
         truth = None if truth_json is None else truth_from_json(truth_json)
-        return observability(model, Excitation(turbulence_asd=turbulence_asd, noise_std_m=noise_std_m or None,
-                                               duration_s=duration_s, fs_hz=fs_hz),
-                             truth=truth, fmax_hz=fmax_hz, crb=False)  # fmt: skip
+        return observability(
+            model,
+            Excitation(
+                turbulence_asd=turbulence_asd, noise_std_m=noise_std_m or None, duration_s=duration_s, fs_hz=fs_hz
+            ),
+            truth=truth,
+            fmax_hz=fmax_hz,
+            crb=False,
+        )
     except (TwinError, KeyError, ValueError, TypeError) as exc:
         log.warning("observability of the target modes not judged: %s", exc)
         return None
@@ -383,8 +459,7 @@ def target_summary(obs: xr.Dataset, found_hz: np.ndarray, fmin_hz: float = 0.0) 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> rows = target_summary(observability(load_model(shipped_model("hydro_unit")), crb=False), [2.92, 10.15, 97.5])
+    >>> rows = target_summary(observability(hydro_unit, crb=False), [2.92, 10.15, 97.5])
     >>> rows[1]["found"], rows[1]["observable"], rows[0]["found"]
     (True, True, False)
     >>> [(round(r["frequency_hz"], 2), r["found"], r["in_cluster"]) for r in rows if r["cluster"]]
@@ -399,9 +474,15 @@ def target_summary(obs: xr.Dataset, found_hz: np.ndarray, fmin_hz: float = 0.0) 
         if f < fmin_hz:
             continue
         found = bool(np.any(np.abs(found_hz - f) <= FOUND_TOLERANCE * f))
-        row = {"mode": int(obs.mode[k]), "frequency_hz": f, "damping_ratio": float(obs.damping_ratio[k]),
-               "best_snr_db": float(obs.best_snr_db[k]), "observable": bool(obs.observable[k]),
-               "reason": str(obs.reason.values[k]), "cluster": int(cluster[k])}  # fmt: skip
+        row = {
+            "mode": int(obs.mode[k]),
+            "frequency_hz": f,
+            "damping_ratio": float(obs.damping_ratio[k]),
+            "best_snr_db": float(obs.best_snr_db[k]),
+            "observable": bool(obs.observable[k]),
+            "reason": str(obs.reason.values[k]),
+            "cluster": int(cluster[k]),
+        }
         if cluster[k]:
             members = freq[cluster == cluster[k]]
             lo, hi = members.min() * (1 - FOUND_TOLERANCE), members.max() * (1 + FOUND_TOLERANCE)
@@ -427,8 +508,9 @@ def judge_targets(modes: xr.Dataset, signals: xr.Dataset | str | Path) -> xr.Dat
         channels, duration_s = list(settings["channels"]), float(settings["duration_s"])
         fmin_hz, fmax_hz = float(settings["fmin_hz"]), float(settings["fmax_hz"])
     except (KeyError, TypeError, ValueError) as exc:
-        raise TwinError(f"the modes do not say how they were extracted (attr 'settings', as twin.extract writes "
-                        f"it): {exc!r}") from None  # fmt: skip
+        raise TwinError(
+            f"the modes do not say how they were extracted (attr 'settings', as twin.extract writes it): {exc!r}"
+        ) from None
     obs = record_observability(attrs, channels, duration_s, fmax_hz)
     if obs is None:
         return modes
@@ -458,21 +540,29 @@ def unobservable_text(targets: list[dict]) -> list[str]:
     lines = []
     hidden = [t for t in targets if not t["observable"] and not t["found"]]
     if hidden:
-        lines.append("target modes not observable with this layout and record (not measured; not model failures): "
-                     + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in hidden))  # fmt: skip
+        lines.append(
+            "target modes not observable with this layout and record (not measured; not model failures): "
+            + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in hidden)
+        )
     for label in sorted({t.get("cluster", 0) for t in targets} - {0}):
         members = [t for t in targets if t.get("cluster", 0) == label]
-        lines.append(f"modes the record cannot tell apart by frequency, reported as one cluster: "
-                     f"{cluster_text([t['frequency_hz'] for t in members])}; "
-                     f"{members[0].get('in_cluster', 0)} extracted mode(s) there")
+        lines.append(
+            f"modes the record cannot tell apart by frequency, reported as one cluster: "
+            f"{cluster_text([t['frequency_hz'] for t in members])}; "
+            f"{members[0].get('in_cluster', 0)} extracted mode(s) there"
+        )
     weak = [t for t in targets if not t["observable"] and t["found"]]
     if weak:
-        lines.append("found although below the observability rule (their estimates may scatter beyond their "
-                     "standard errors): " + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in weak))
+        lines.append(
+            "found although below the observability rule (their estimates may scatter beyond their "
+            "standard errors): " + "; ".join(f"{t['frequency_hz']:.2f} Hz ({t['reason']})" for t in weak)
+        )
     missed = [t for t in targets if t["observable"] and not t["found"]]
     if missed:
-        lines.append("observable target modes the extraction did not find: "
-                     + ", ".join(f"{t['frequency_hz']:.2f} Hz" for t in missed))  # fmt: skip
+        lines.append(
+            "observable target modes the extraction did not find: "
+            + ", ".join(f"{t['frequency_hz']:.2f} Hz" for t in missed)
+        )
     return lines
 
 

@@ -77,8 +77,7 @@ def candidate_nodes(model: RotorModel, candidates: Sequence[int] | None = None) 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> 2 in candidate_nodes(m), len(candidate_nodes(m)) == m.n_nodes - 4
     (False, True)
     """
@@ -90,8 +89,10 @@ def candidate_nodes(model: RotorModel, candidates: Sequence[int] | None = None) 
         if not (isinstance(n, (int, np.integer)) and 0 <= n < model.n_nodes):
             raise ModelError(f"candidate node {n!r}: the model '{model.name}' has nodes 0..{model.n_nodes - 1}")
         if n in taken:
-            raise ModelError(f"candidate node {n}: it already has a sensor "
-                             f"({', '.join(s.name for s in model.sensors if s.node == n)})")  # fmt: skip
+            raise ModelError(
+                f"candidate node {n}: it already has a sensor "
+                f"({', '.join(s.name for s in model.sensors if s.node == n)})"
+            )
         if n not in out:
             out.append(int(n))
     if not out:
@@ -161,8 +162,7 @@ def design_sensors(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> d = design_sensors(load_model(shipped_model("hydro_unit")), 1, candidates=[12, 20], progress=False)
+    >>> d = design_sensors(hydro_unit, 1, candidates=[12, 20], progress=False)
     >>> int(d.sizes["step"]), int(d.node[1]) in (12, 20)
     (2, True)
     """
@@ -213,8 +213,14 @@ def design_sensors(
         best = snr.max(axis=1)
         prominence = prominence_all[:, rows].max(axis=1)
         observable, _ = verdicts(best, f_std / freq, z_std / zeta, prominence)
-        out = {"observable": observable, "f_rel": f_std / freq, "z_rel": z_std / zeta, "snr": best,
-               "prominence": prominence, "n_observable": int(observable.sum())}  # fmt: skip
+        out = {
+            "observable": observable,
+            "f_rel": f_std / freq,
+            "z_rel": z_std / zeta,
+            "snr": best,
+            "prominence": prominence,
+            "n_observable": int(observable.sum()),
+        }
         if pert is None:
             rel = np.clip([f_std / (FREQUENCY_STD_LIMIT * freq), z_std / (DAMPING_STD_LIMIT * zeta)], 1e-6, 1e6)
             margin = -0.5 * np.log(rel).sum(axis=0)  # a mode the layout is blind to counts as std = 10^6 limits
@@ -250,8 +256,14 @@ def design_sensors(
         left.remove(best)
         layout += rows_of[best]
         steps.append(results[best])
-        log.info("pair %d at node %d: %d modes observable, %d parameters determined, criterion %.3f",
-                 len(chosen), best, steps[-1]["n_observable"], steps[-1]["n_determined"], steps[-1]["criterion"])
+        log.info(
+            "pair %d at node %d: %d modes observable, %d parameters determined, criterion %.3f",
+            len(chosen),
+            best,
+            steps[-1]["n_observable"],
+            steps[-1]["n_determined"],
+            steps[-1]["criterion"],
+        )
 
     # where each mode is seen best over every candidate, and the noise that would make its peak enough
     def best_channel(per_channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -275,26 +287,54 @@ def design_sensors(
         "n_determined": ("step", stack("n_determined"), {"long_name": "parameters determined"}),
         "criterion": ("step", stack("criterion"), {"long_name": "D-optimal criterion (see twin.design.sensors)"}),
         "observable": (("step", "mode"), stack("observable")),
-        "frequency_rel_std": (("step", "mode"), stack("f_rel"), {"units": "1", "long_name": "expected frequency std / frequency"}),
-        "damping_rel_std": (("step", "mode"), stack("z_rel"), {"units": "1", "long_name": "expected damping std / damping ratio"}),
+        "frequency_rel_std": (
+            ("step", "mode"),
+            stack("f_rel"),
+            {"units": "1", "long_name": "expected frequency std / frequency"},
+        ),
+        "damping_rel_std": (
+            ("step", "mode"),
+            stack("z_rel"),
+            {"units": "1", "long_name": "expected damping std / damping ratio"},
+        ),
         "best_snr_db": (("step", "mode"), stack("snr"), {"units": "dB"}),
-        "best_prominence_db": (("step", "mode"), stack("prominence"), {"units": "dB", "long_name":
-                               "peak against the other modes' response and the noise, best channel"}),
-        "most_prominent_node": ("mode", best_prominence_node,
-                                {"long_name": "node (current or candidate) where the mode stands out most from the "
-                                              "other modes' response"}),
-        "most_prominent_db": ("mode", best_prominence, {"units": "dB", "long_name": "its prominence there "
-                                                                              "without sensor noise"}),
+        "best_prominence_db": (
+            ("step", "mode"),
+            stack("prominence"),
+            {"units": "dB", "long_name": "peak against the other modes' response and the noise, best channel"},
+        ),
+        "most_prominent_node": (
+            "mode",
+            best_prominence_node,
+            {"long_name": "node (current or candidate) where the mode stands out most from the other modes' response"},
+        ),
+        "most_prominent_db": (
+            "mode",
+            best_prominence,
+            {"units": "dB", "long_name": "its prominence there without sensor noise"},
+        ),
         "best_node": ("mode", best_node, {"long_name": "node (current or candidate) where the mode's peak is highest"}),
         "best_node_snr_db": ("mode", best_snr, {"units": "dB", "long_name": "peak-to-noise ratio there"}),
-        "noise_std_needed_m": ("mode", noise_needed, {"units": "m", "long_name":
-                               f"sensor noise std at which the peak there is {SNR_LIMIT_DB:g} dB above the noise"}),
-    }  # fmt: skip
-    coords = {"step": np.arange(add + 1), "mode": np.arange(1, len(targets) + 1),
-              "frequency": ("mode", freq, {"units": "Hz"})}  # fmt: skip
+        "noise_std_needed_m": (
+            "mode",
+            noise_needed,
+            {
+                "units": "m",
+                "long_name": f"sensor noise std at which the peak there is {SNR_LIMIT_DB:g} dB above the noise",
+            },
+        ),
+    }
+    coords = {
+        "step": np.arange(add + 1),
+        "mode": np.arange(1, len(targets) + 1),
+        "frequency": ("mode", freq, {"units": "Hz"}),
+    }
     if pert is not None:
-        data["relative_std"] = (("step", "parameter"), stack("relative_std"),
-                                {"units": "1", "long_name": "expected posterior std / scale (inf: not judged)"})  # fmt: skip
+        data["relative_std"] = (
+            ("step", "parameter"),
+            stack("relative_std"),
+            {"units": "1", "long_name": "expected posterior std / scale (inf: not judged)"},
+        )
         coords["parameter"] = pert.columns
     settings = {**fixed.__dict__, "fmax_hz": top}
     return xr.Dataset(
@@ -322,8 +362,10 @@ def sensor_entries(design: xr.Dataset) -> str:
     blocks = []
     for step in range(1, design.sizes["step"]):
         r = design.isel(step=step)
-        blocks.append(f'[[sensor]]\nname = "{str(r.sensor.values)}"\nnode = {int(r.node)}\n'
-                      f'location = "{str(r.location.values)}"\n')  # fmt: skip
+        blocks.append(
+            f'[[sensor]]\nname = "{str(r.sensor.values)}"\nnode = {int(r.node)}\n'
+            f'location = "{str(r.location.values)}"\n'
+        )
     return "\n".join(blocks)
 
 
@@ -333,8 +375,8 @@ def write_layout(model: RotorModel, design: xr.Dataset, path: str | Path) -> Pat
     Examples
     --------
     >>> import tempfile
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> from twin import load_model
+    >>> m = hydro_unit
     >>> d = design_sensors(m, 1, candidates=[12], progress=False)
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     new = load_model(write_layout(m, d, f"{tmp}/unit.toml"))
@@ -349,8 +391,10 @@ def write_layout(model: RotorModel, design: xr.Dataset, path: str | Path) -> Pat
         raise ModelError(f"the design is for model '{design.attrs.get('model')}', not '{model.name}'")
     text = Path(model.source).read_text()
     added = sensor_entries(design)
-    header = (f"\n# Sensors added by twin sensors ({design.attrs['method']}); simulate this layout with "
-              f"--noise-std {design.attrs['noise_std_m']:.4g} to keep the sensors' noise.\n")  # fmt: skip
+    header = (
+        f"\n# Sensors added by twin sensors ({design.attrs['method']}); simulate this layout with "
+        f"--noise-std {design.attrs['noise_std_m']:.4g} to keep the sensors' noise.\n"
+    )
     with atomic_output(path, suffix=".toml") as part:
         part.write_text(text.rstrip("\n") + "\n" + header + added)
         new = load_model(part)

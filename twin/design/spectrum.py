@@ -142,9 +142,8 @@ def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spect
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fmu.statespace import full_state_space
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> sp = spectrum(full_state_space(m), m, Excitation())
     >>> sp.psd([10.0]).shape
     (1, 8, 8)
@@ -155,8 +154,9 @@ def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spect
         raise ModelError(f"model '{model.name}' has no [regions] immersed node for the turbulence to act on")
     ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
     h = 1.0 / excitation.fs_hz
-    noise_std = sensor_noise_std(ss, h, excitation.turbulence_asd, ports, excitation.noise_ratio,
-                                 excitation.noise_std_m)  # fmt: skip
+    noise_std = sensor_noise_std(
+        ss, h, excitation.turbulence_asd, ports, excitation.noise_ratio, excitation.noise_std_m
+    )
     lam, V = sla.eig(ss.A)
     c = ss.C @ V
     b = np.linalg.solve(V, ss.B[:, ports])
@@ -207,8 +207,10 @@ def mode_fisher(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, li
     # two terms per mode (λ and its conjugate; for a real-data system the partner's vectors are the conjugates)
     cb = np.outer(ck, bk)
     cb_bar = np.outer(sp.c[:, partner], sp.b[partner])
-    dH = [cb * g1[:, None, None] ** 2 + cb_bar * g2[:, None, None] ** 2,
-          1j * cb * g1[:, None, None] ** 2 - 1j * cb_bar * g2[:, None, None] ** 2]  # fmt: skip
+    dH = [
+        cb * g1[:, None, None] ** 2 + cb_bar * g2[:, None, None] ** 2,
+        1j * cb * g1[:, None, None] ** 2 - 1j * cb_bar * g2[:, None, None] ** 2,
+    ]
     names = ["pole.real", "pole.imag"]
     scale = np.abs(ck).max()
     for j in range(m):
@@ -217,7 +219,10 @@ def mode_fisher(sp: Spectrum, k: int, duration_s: float) -> tuple[np.ndarray, li
                 continue
             e = np.zeros((m, 1), dtype=complex)
             e[j, 0] = scale
-            term = unit * e * bk[None, :] * g1[:, None, None] + np.conj(unit) * e * np.conj(bk)[None, :] * g2[:, None, None]
+            term = (
+                unit * e * bk[None, :] * g1[:, None, None]
+                + np.conj(unit) * e * np.conj(bk)[None, :] * g2[:, None, None]
+            )
             dH.append(term)
             names.append(f"shape.{j}.{part}")
     q = np.array(sp.force_weight(f))
@@ -312,8 +317,17 @@ def single_mode_covariance(sp: Spectrum, k: int, duration_s: float) -> np.ndarra
     total = np.einsum("a,fab,b->f", u.conj(), sp.psd(f), u).real
     own = alone(lam)
     h = 1e-6 * abs(lam)
-    d = np.array([(alone(lam + h) - alone(lam - h)) / (2 * h), (alone(lam + 1j * h) - alone(lam - 1j * h)) / (2 * h),
-                  own, total - own]) / total  # fmt: skip
+    d = (
+        np.array(
+            [
+                (alone(lam + h) - alone(lam - h)) / (2 * h),
+                (alone(lam + 1j * h) - alone(lam - 1j * h)) / (2 * h),
+                own,
+                total - own,
+            ]
+        )
+        / total
+    )
     F = duration_s * np.einsum("f,pf,qf->pq", w, d, d)
     return _pole_block(F)
 

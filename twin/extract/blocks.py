@@ -63,8 +63,16 @@ def most_blocks(n_samples: int, lags: int) -> int:
     return int(n_samples // int(MIN_BLOCK_LAGS * lags))
 
 
-def check_block_length(source: str, duration_s: float, n_samples: int, n_blocks: int, lags: int, fs_hz: float,
-                       block_rows: int, first_lag: int) -> None:  # fmt: skip
+def check_block_length(
+    source: str,
+    duration_s: float,
+    n_samples: int,
+    n_blocks: int,
+    lags: int,
+    fs_hz: float,
+    block_rows: int,
+    first_lag: int,
+) -> None:
     """Refuse ``n_blocks`` blocks too short for the Hankel matrix's lags, saying how many the record holds.
 
     >>> check_block_length("r.nc", 120.0, 2400, 40, 40, 20.0, 20, 1)
@@ -75,11 +83,16 @@ def check_block_length(source: str, duration_s: float, n_samples: int, n_blocks:
     if n_samples // n_blocks >= MIN_BLOCK_LAGS * lags:
         return
     most = most_blocks(n_samples, lags)
-    fix = (f"ask for fewer samples or blocks (at most {most}), or none: the extraction then chooses" if most >= 2 else
-           "the record is too short for a jackknife of two blocks: give a longer record, a higher fmin or fewer "
-           "block rows")  # fmt: skip
-    raise SignalError(f"{source}: {duration_s:g} s is too short for {n_blocks} blocks with {block_rows} block rows "
-                      f"from lag {first_lag}: each block needs {MIN_BLOCK_LAGS * lags / fs_hz:g} s; {fix}")  # fmt: skip
+    fix = (
+        f"ask for fewer samples or blocks (at most {most}), or none: the extraction then chooses"
+        if most >= 2
+        else "the record is too short for a jackknife of two blocks: give a longer record, a higher fmin or fewer "
+        "block rows"
+    )
+    raise SignalError(
+        f"{source}: {duration_s:g} s is too short for {n_blocks} blocks with {block_rows} block rows "
+        f"from lag {first_lag}: each block needs {MIN_BLOCK_LAGS * lags / fs_hz:g} s; {fix}"
+    )
 
 
 def block_count(most: int) -> int:
@@ -105,24 +118,39 @@ def adapted_blocks(duration_s: float, most: int, poles: np.ndarray) -> BlockPlan
     """
     n = block_count(most)
     block_s = duration_s / n
-    why = "(the default number)" if n == SAMPLES else f", the most the record holds for the Hankel matrix (the default is {SAMPLES})"
+    why = (
+        "(the default number)"
+        if n == SAMPLES
+        else f", the most the record holds for the Hankel matrix (the default is {SAMPLES})"
+    )
     poles = np.asarray(poles)
     if poles.size:
         k = int(np.argmin(np.abs(poles.real)))
         tau = 1.0 / max(abs(poles[k].real), 1e-12)
-        slowest = f"the slowest mode ({abs(poles[k].imag) / (2 * np.pi):.4g} Hz, {MIN_BLOCK_TIME_CONSTANTS:g} x {tau:.3g} s)"
-        why += (f"; each longer than {MIN_BLOCK_TIME_CONSTANTS:g} time constants of {slowest}"
-                if block_s >= MIN_BLOCK_TIME_CONSTANTS * tau else
-                f"; shorter than {MIN_BLOCK_TIME_CONSTANTS:g} time constants of {slowest}: such a mode's pole is "
-                "judged on its frequency")  # fmt: skip
+        slowest = (
+            f"the slowest mode ({abs(poles[k].imag) / (2 * np.pi):.4g} Hz, {MIN_BLOCK_TIME_CONSTANTS:g} x {tau:.3g} s)"
+        )
+        why += (
+            f"; each longer than {MIN_BLOCK_TIME_CONSTANTS:g} time constants of {slowest}"
+            if block_s >= MIN_BLOCK_TIME_CONSTANTS * tau
+            else f"; shorter than {MIN_BLOCK_TIME_CONSTANTS:g} time constants of {slowest}: such a mode's pole is "
+            "judged on its frequency"
+        )
     return BlockPlan(n, block_s, f"{n} blocks of {block_s:.3g} s" + ("" if why.startswith(",") else " ") + why)
 
 
 def warn_about_few_blocks(source: str, n_blocks: int, chosen: bool) -> None:
     """Warn when the standard errors rest on fewer than :data:`FEW_BLOCKS` blocks."""
     if n_blocks < FEW_BLOCKS:
-        warnings.warn(f"{source}: the samples come from {n_blocks} blocks"
-                      + (", the most the record holds for the Hankel matrix" if chosen else "")
-                      + f": each standard error rests on {n_blocks - 1} degrees of freedom; read them as rough"
-                      + (" (a longer record, fewer block rows or a higher fmin allow more blocks)" if chosen else
-                         f" (at least {FEW_BLOCKS} samples give steadier ones)"), TwinWarning, stacklevel=3)  # fmt: skip
+        warnings.warn(
+            f"{source}: the samples come from {n_blocks} blocks"
+            + (", the most the record holds for the Hankel matrix" if chosen else "")
+            + f": each standard error rests on {n_blocks - 1} degrees of freedom; read them as rough"
+            + (
+                " (a longer record, fewer block rows or a higher fmin allow more blocks)"
+                if chosen
+                else f" (at least {FEW_BLOCKS} samples give steadier ones)"
+            ),
+            TwinWarning,
+            stacklevel=3,
+        )

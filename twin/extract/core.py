@@ -246,43 +246,86 @@ def _modes_dataset(p: Prepared, m: Modes, opts: ExtractOptions, ref_channel: np.
     """The modes Dataset (:func:`twin.extract.result.extracted_modes`) with the passes' variables, the settings as
     they were resolved, the lines and poles left out, and how the samples were made."""
     i, n_blocks, samples, order_spread = p.block_rows, p.n_blocks, p.samples, opts.order_spread
-    out = extracted_modes(p.rec, p.ds, m.poles, m.shapes, m.sample_p, m.sample_s, m.jackknife_p, m.members,
-                          m.n_orders, [len(c.members) for c in m.clusters], ref_channel, m.diag)  # fmt: skip
+    out = extracted_modes(
+        p.rec,
+        p.ds,
+        m.poles,
+        m.shapes,
+        m.sample_p,
+        m.sample_s,
+        m.jackknife_p,
+        m.members,
+        m.n_orders,
+        [len(c.members) for c in m.clusters],
+        ref_channel,
+        m.diag,
+    )
     out["shape_block_rows"] = ("mode", m.shape_rows, {"long_name": "block rows of the SSI pass the shapes are read at"})
-    out["differences"] = ("mode", m.differences, {"long_name": "times the record was differenced for the SSI pass "
-                                                               "the mode is read from"})  # fmt: skip
+    out["differences"] = (
+        "mode",
+        m.differences,
+        {"long_name": "times the record was differenced for the SSI pass the mode is read from"},
+    )
     settings = {
-        "samples": samples, "shape_samples": m.n_samples, "blocks": n_blocks, "fmin_hz": opts.fmin_hz,
-        "fmax_hz": p.fmax, "block_rows": i, "blocks_chosen": m.plan_reason,
-        "shape_block_rows": m.shape_block_rows, "first_lag": p.first_lag, "max_order": m.max_order,
-        "decimation": p.decimation, "fs_hz": p.fs, "duration_s": p.rec.duration_s, "channels": list(p.rec.channels),
+        "samples": samples,
+        "shape_samples": m.n_samples,
+        "blocks": n_blocks,
+        "fmin_hz": opts.fmin_hz,
+        "fmax_hz": p.fmax,
+        "block_rows": i,
+        "blocks_chosen": m.plan_reason,
+        "shape_block_rows": m.shape_block_rows,
+        "first_lag": p.first_lag,
+        "max_order": m.max_order,
+        "decimation": p.decimation,
+        "fs_hz": p.fs,
+        "duration_s": p.rec.duration_s,
+        "channels": list(p.rec.channels),
         "quantities": list(p.rec.quantities),
-        "criteria": dataclasses.asdict(opts.criteria), "block_length_s": p.block_length / p.fs,
-        "delete_blocks": m.n_deleted, "order_spread": order_spread, "orders_per_mode": opts.orders_per_mode,
-        "outlier_mads": OUTLIER_MADS, "remove_harmonics": bool(opts.remove_harmonics),
+        "criteria": dataclasses.asdict(opts.criteria),
+        "block_length_s": p.block_length / p.fs,
+        "delete_blocks": m.n_deleted,
+        "order_spread": order_spread,
+        "orders_per_mode": opts.orders_per_mode,
+        "outlier_mads": OUTLIER_MADS,
+        "remove_harmonics": bool(opts.remove_harmonics),
         "differenced_above_hz": None if opts.differenced_above_hz is None else float(opts.differenced_above_hz),
-    }  # fmt: skip
-    out.attrs.update({
-        "title": f"modes identified from {Path(p.source).name}",
-        "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
-        "command": command,
-        "settings": json.dumps(settings),
-        "harmonics": json.dumps(m.harmonics),
-        "undetermined_poles": json.dumps(m.undetermined),
-        "samples_method": (f"delete-d block jackknife (d = {m.n_deleted} of {n_blocks} blocks, {samples} samples) "
-                           "centred on the full-record estimate"
-                           + {"none": "", "shapes": ", the shapes plus the standard error of their mean over the "
-                                                    "mode's model orders",
-                              "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
-                                     "standard error of their mean over them"}[order_spread]
-                           + (f"; the shapes from {m.n_samples} random halves of the blocks, each pole sample "
-                              f"used {m.repeats} times (scaled to keep its standard error)" if m.repeats > 1 else "")
-                           + (f"; shapes read at {m.shape_block_rows} block rows" if m.shape_block_rows > i else "")
-                           + (f"; modes above {opts.differenced_above_hz:g} Hz read from the record differenced "
-                              f"{DIFFERENCES} times" if m.differences.any() else "")
-                           + ": sample std / sqrt(J) is the standard error"),
-        "signals": p.source,
-    })  # fmt: skip
+    }
+    out.attrs.update(
+        {
+            "title": f"modes identified from {Path(p.source).name}",
+            "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
+            "command": command,
+            "settings": json.dumps(settings),
+            "harmonics": json.dumps(m.harmonics),
+            "undetermined_poles": json.dumps(m.undetermined),
+            "samples_method": (
+                f"delete-d block jackknife (d = {m.n_deleted} of {n_blocks} blocks, {samples} samples) "
+                "centred on the full-record estimate"
+                + {
+                    "none": "",
+                    "shapes": ", the shapes plus the standard error of their mean over the mode's model orders",
+                    "all": ", the poles plus the mode's spread over its model orders, the shapes plus the "
+                    "standard error of their mean over them",
+                }[order_spread]
+                + (
+                    f"; the shapes from {m.n_samples} random halves of the blocks, each pole sample "
+                    f"used {m.repeats} times (scaled to keep its standard error)"
+                    if m.repeats > 1
+                    else ""
+                )
+                + (f"; shapes read at {m.shape_block_rows} block rows" if m.shape_block_rows > i else "")
+                + (
+                    f"; modes above {opts.differenced_above_hz:g} Hz read from the record differenced "
+                    f"{DIFFERENCES} times"
+                    if m.differences.any()
+                    else ""
+                )
+                + ": sample std / sqrt(J) is the standard error"
+            ),
+            "signals": p.source,
+        }
+    )
     for key in ("truth", "truth_modes", "seed", "model", "speed_rpm"):
         if key in p.rec.attrs:
             out.attrs[f"signals_{key}" if key == "seed" else key] = p.rec.attrs[key]
@@ -292,6 +335,9 @@ def _modes_dataset(p: Prepared, m: Modes, opts: ExtractOptions, ref_channel: np.
 def _warn_about_samples(source: str, poles: np.ndarray, missing: np.ndarray) -> None:
     f = poles.imag / (2 * np.pi)
     for k in np.flatnonzero(missing.mean(axis=1) > MAX_MISSING):
-        warnings.warn(f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
-                      "identifications without a sample's blocks: its sample spread is too narrow; treat it with care",
-                      TwinWarning, stacklevel=3)  # fmt: skip
+        warnings.warn(
+            f"{source}: the {f[k]:.4g} Hz mode has no clear counterpart in {missing[k].mean():.0%} of the "
+            "identifications without a sample's blocks: its sample spread is too narrow; treat it with care",
+            TwinWarning,
+            stacklevel=3,
+        )

@@ -73,8 +73,9 @@ class Structure:
         """``A = [[0, I], [-M^-1 K, -M^-1 (C + speed G)]]``."""
         n = len(self.M)
         damping = self.C + (0.0 if self.G is None else self.speed_rad_s * self.G)
-        return np.block([[np.zeros((n, n)), np.eye(n)],
-                         [-np.linalg.solve(self.M, self.K), -np.linalg.solve(self.M, damping)]])  # fmt: skip
+        return np.block(
+            [[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(self.M, self.K), -np.linalg.solve(self.M, damping)]]
+        )
 
 
 def modal_damping(M: np.ndarray, K: np.ndarray, damping_ratio: float | Sequence[float]) -> np.ndarray:
@@ -85,8 +86,9 @@ def modal_damping(M: np.ndarray, K: np.ndarray, damping_ratio: float | Sequence[
     return mp @ np.diag(2 * zeta * np.sqrt(w2)) @ mp.T
 
 
-def shear_frame(storeys: int = 5, *, mass_kg: float = 1e4, stiffness_n_m: float = 4e6,
-                damping_ratio: float | Sequence[float] = 0.01) -> Structure:  # fmt: skip
+def shear_frame(
+    storeys: int = 5, *, mass_kg: float = 1e4, stiffness_n_m: float = 4e6, damping_ratio: float | Sequence[float] = 0.01
+) -> Structure:
     """A shear frame: ``storeys`` equal floors on equal columns, a sensor (and a force) on every floor."""
     n = storeys
     M = mass_kg * np.eye(n)
@@ -96,15 +98,43 @@ def shear_frame(storeys: int = 5, *, mass_kg: float = 1e4, stiffness_n_m: float 
     return Structure(f"shear frame, {n} storeys", M, modal_damping(M, K, damping_ratio), K, sensors, range(n))
 
 
-def cantilever(elements: int = 10, *, length_m: float = 2.0, ei_n_m2: float = 2e4, mass_per_m: float = 5.0,
-               damping_ratio: float | Sequence[float] = 0.02, sensors: int = 5) -> Structure:  # fmt: skip
+def cantilever(
+    elements: int = 10,
+    *,
+    length_m: float = 2.0,
+    ei_n_m2: float = 2e4,
+    mass_per_m: float = 5.0,
+    damping_ratio: float | Sequence[float] = 0.02,
+    sensors: int = 5,
+) -> Structure:
     """A clamped-free Euler-Bernoulli beam (consistent mass), lateral sensors at ``sensors`` nodes evenly
     spread to the tip, white lateral forces at every node."""
     le = length_m / elements
-    k_e = ei_n_m2 / le**3 * np.array([[12, 6 * le, -12, 6 * le], [6 * le, 4 * le**2, -6 * le, 2 * le**2],
-                                      [-12, -6 * le, 12, -6 * le], [6 * le, 2 * le**2, -6 * le, 4 * le**2]])
-    m_e = mass_per_m * le / 420 * np.array([[156, 22 * le, 54, -13 * le], [22 * le, 4 * le**2, 13 * le, -3 * le**2],
-                                            [54, 13 * le, 156, -22 * le], [-13 * le, -3 * le**2, -22 * le, 4 * le**2]])
+    k_e = (
+        ei_n_m2
+        / le**3
+        * np.array(
+            [
+                [12, 6 * le, -12, 6 * le],
+                [6 * le, 4 * le**2, -6 * le, 2 * le**2],
+                [-12, -6 * le, 12, -6 * le],
+                [6 * le, 2 * le**2, -6 * le, 4 * le**2],
+            ]
+        )
+    )
+    m_e = (
+        mass_per_m
+        * le
+        / 420
+        * np.array(
+            [
+                [156, 22 * le, 54, -13 * le],
+                [22 * le, 4 * le**2, 13 * le, -3 * le**2],
+                [54, 13 * le, 156, -22 * le],
+                [-13 * le, -3 * le**2, -22 * le, 4 * le**2],
+            ]
+        )
+    )
     n = 2 * (elements + 1)
     M, K = np.zeros((n, n)), np.zeros((n, n))
     for e in range(elements):
@@ -114,12 +144,14 @@ def cantilever(elements: int = 10, *, length_m: float = 2.0, ei_n_m2: float = 2e
     M, K = M[2:, 2:], K[2:, 2:]  # the clamped end's deflection and slope
     nodes = np.unique(np.round(np.linspace(0, elements, sensors + 1)[1:]).astype(int))
     names = {f"x{int(round(100 * k / elements))}": 2 * (k - 1) for k in nodes}
-    return Structure(f"cantilever, {elements} elements", M, modal_damping(M, K, damping_ratio), K, names,
-                     range(0, n - 2, 2))  # fmt: skip
+    return Structure(
+        f"cantilever, {elements} elements", M, modal_damping(M, K, damping_ratio), K, names, range(0, n - 2, 2)
+    )
 
 
-def close_pair(frequency_hz: float = 5.0, separation: float = 0.01, damping_ratio: float = 0.005,
-               sensors: int = 3) -> Structure:  # fmt: skip
+def close_pair(
+    frequency_hz: float = 5.0, separation: float = 0.01, damping_ratio: float = 0.005, sensors: int = 3
+) -> Structure:
     """Two modes ``separation`` apart in frequency (two unit masses whose in-phase and out-of-phase modes
     are set apart), seen by ``sensors`` channels: the two masses and, beyond two, light masses on stiff
     springs to one of them (their own modes 40 times higher), which follow it."""
@@ -140,11 +172,25 @@ def close_pair(frequency_hz: float = 5.0, separation: float = 0.01, damping_rati
     return Structure(f"two modes {separation:.1%} apart", big_m, C, big_k, names, [0, 1])
 
 
-def from_matrices(name: str, M: np.ndarray, C: np.ndarray, K: np.ndarray, sensors: dict[str, int],
-                  forced: Sequence[int], G: np.ndarray | None = None, speed_rad_s: float = 0.0) -> Structure:  # fmt: skip
+def from_matrices(
+    name: str,
+    M: np.ndarray,
+    C: np.ndarray,
+    K: np.ndarray,
+    sensors: dict[str, int],
+    forced: Sequence[int],
+    G: np.ndarray | None = None,
+    speed_rad_s: float = 0.0,
+) -> Structure:
     """Any model given by its matrices (e.g. a rotor from another code)."""
-    return Structure(name, *(np.asarray(a, dtype=float) for a in (M, C, K)), dict(sensors), list(forced),
-                     None if G is None else np.asarray(G, dtype=float), float(speed_rad_s))  # fmt: skip
+    return Structure(
+        name,
+        *(np.asarray(a, dtype=float) for a in (M, C, K)),
+        dict(sensors),
+        list(forced),
+        None if G is None else np.asarray(G, dtype=float),
+        float(speed_rad_s),
+    )
 
 
 def _eig(structure: Structure):
@@ -154,9 +200,16 @@ def _eig(structure: Structure):
     return lam, vec
 
 
-def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, snr_db: float = 40.0,
-                    quantities: str | Sequence[str] = "displacement", seed: int = 0,
-                    rms_m: float = 1e-5) -> xr.Dataset:  # fmt: skip
+def simulate_record(
+    structure: Structure,
+    *,
+    duration_s: float,
+    fs_hz: float,
+    snr_db: float = 40.0,
+    quantities: str | Sequence[str] = "displacement",
+    seed: int = 0,
+    rms_m: float = 1e-5,
+) -> xr.Dataset:
     """A record of ``structure`` driven by white forces held over each sample, plus white sensor noise.
 
     The record is what an acquisition with an anti-aliasing filter at :data:`ANTI_ALIAS` of the rate takes:
@@ -194,7 +247,7 @@ def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, sn
         z = sg.lfilter([0.0, 1.0], [1.0, -np.exp(li * h)], drive)
         shape = vec[dofs, i]
         x_disp += np.real(z[:, None] * shape)
-        y += np.real(z[:, None] * (shape * li ** orders))
+        y += np.real(z[:, None] * (shape * li**orders))
     accel = orders == 2  # an accelerometer feels the force directly too
     if accel.any():
         direct = _accelerations_per_force(structure) @ u
@@ -205,14 +258,26 @@ def simulate_record(structure: Structure, *, duration_s: float, fs_hz: float, sn
     y += noise_std * rng.standard_normal(y.shape)
     units = [UNITS[q][0] for q in qs]
     factors = np.array([UNITS[q][1] for q in qs])
-    attrs = {"sampling_rate": float(fs_hz), "title": f"{structure.name}: simulated record",
-             "producer": f"twin {__version__} twin.extract.corpus", "structure": structure.name,
-             "snr_db": float(snr_db), "seed": int(seed), "force_scale": float(scale),
-             "noise_std_si": noise_std.tolist()}  # fmt: skip
-    return xr.Dataset({"signal": (("time", "channel"), y * factors)},
-                      coords={"time": ("time", np.arange(n_t) * h, {"units": "s"}),
-                              "channel": list(structure.sensors), "quantity": ("channel", qs),
-                              "units": ("channel", units)}, attrs=attrs)  # fmt: skip
+    attrs = {
+        "sampling_rate": float(fs_hz),
+        "title": f"{structure.name}: simulated record",
+        "producer": f"twin {__version__} twin.extract.corpus",
+        "structure": structure.name,
+        "snr_db": float(snr_db),
+        "seed": int(seed),
+        "force_scale": float(scale),
+        "noise_std_si": noise_std.tolist(),
+    }
+    return xr.Dataset(
+        {"signal": (("time", "channel"), y * factors)},
+        coords={
+            "time": ("time", np.arange(n_t) * h, {"units": "s"}),
+            "channel": list(structure.sensors),
+            "quantity": ("channel", qs),
+            "units": ("channel", units),
+        },
+        attrs=attrs,
+    )
 
 
 def _modal_inputs(structure: Structure, vec: np.ndarray) -> np.ndarray:
@@ -255,11 +320,15 @@ def truth_modes(structure: Structure, record: xr.Dataset | None = None) -> xr.Da
     dofs = np.array(list(structure.sensors.values()))
     shapes = vec[np.ix_(dofs, keep)].T
     freq = lam[keep].imag / (2 * np.pi)
-    ds = xr.Dataset({"frequency": ("mode", freq, {"units": "Hz", "long_name": "damped natural frequency"}),
-                     "damping_ratio": ("mode", -lam[keep].real / np.abs(lam[keep])),
-                     "sensor_shape": (("mode", "channel"), shapes)},
-                    coords={"mode": np.arange(len(keep)), "channel": list(structure.sensors)},
-                    attrs={"structure": structure.name})  # fmt: skip
+    ds = xr.Dataset(
+        {
+            "frequency": ("mode", freq, {"units": "Hz", "long_name": "damped natural frequency"}),
+            "damping_ratio": ("mode", -lam[keep].real / np.abs(lam[keep])),
+            "sensor_shape": (("mode", "channel"), shapes),
+        },
+        coords={"mode": np.arange(len(keep)), "channel": list(structure.sensors)},
+        attrs={"structure": structure.name},
+    )
     if record is not None:
         ds["visible"] = ("mode", _visible(structure, record, lam, vec, keep))
         duration = record.sizes["time"] / float(record.attrs["sampling_rate"])
@@ -294,15 +363,23 @@ def score(frequency_hz: np.ndarray, shapes: np.ndarray | None, truth: xr.Dataset
     estimate of one mode)."""
     f_est = np.atleast_1d(np.asarray(frequency_hz, dtype=float))
     phi_est = None if shapes is None else np.atleast_2d(np.asarray(shapes))
-    tol = truth["frequency_tolerance"].values if "frequency_tolerance" in truth else np.full(truth.sizes["mode"],
-                                                                                               FREQUENCY_TOLERANCE)
+    tol = (
+        truth["frequency_tolerance"].values
+        if "frequency_tolerance" in truth
+        else np.full(truth.sizes["mode"], FREQUENCY_TOLERANCE)
+    )
     f_true, phi_true = truth["frequency"].values, truth["sensor_shape"].values
     visible = truth["visible"].values if "visible" in truth else np.ones(len(f_true), bool)
     used, found, missed, errors = set(), [], [], []
     for j in np.flatnonzero(visible):
         rel = np.abs(f_est / f_true[j] - 1)
-        candidates = [k for k in np.argsort(rel) if rel[k] <= tol[j] and k not in used
-                      and (phi_est is None or mac(phi_est[k], phi_true[j]).item() >= MAC_MIN)]  # fmt: skip
+        candidates = [
+            k
+            for k in np.argsort(rel)
+            if rel[k] <= tol[j]
+            and k not in used
+            and (phi_est is None or mac(phi_est[k], phi_true[j]).item() >= MAC_MIN)
+        ]
         if candidates:
             used.add(candidates[0])
             found.append(float(f_true[j]))

@@ -155,8 +155,9 @@ def grid_power(y: np.ndarray, fs_hz: float, grid_hz: np.ndarray) -> np.ndarray:
     return np.sum(np.abs(spectrum) ** 2, axis=1)
 
 
-def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
-                             fmax_hz: float) -> tuple[np.ndarray, list[dict]]:  # fmt: skip
+def remove_running_harmonics(
+    y: np.ndarray, fs_hz: float, running_hz: float, fmax_hz: float
+) -> tuple[np.ndarray, list[dict]]:
     """Subtract the sinusoids at whole multiples of the running speed from a record.
 
     A forced response at 1X (unbalance) or 2X next to a damped mode leaks
@@ -197,7 +198,9 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
     n = y.shape[0]
     t = np.arange(n) / fs_hz
     T = n / fs_hz
-    grid = running_hz * (1.0 + np.linspace(-SPEED_SEARCH, SPEED_SEARCH, 2 * int(np.ceil(SPEED_SEARCH * running_hz * T * 4)) + 1))
+    grid = running_hz * (
+        1.0 + np.linspace(-SPEED_SEARCH, SPEED_SEARCH, 2 * int(np.ceil(SPEED_SEARCH * running_hz * T * 4)) + 1)
+    )
     f1 = float(grid[np.argmax(grid_power(y, fs_hz, grid))])
     if f1 > 0:  # the peak between grid points: a parabola through the three around it
         p = [_line_power(y, t, f1 + d) for d in (-0.25 / T, 0.0, 0.25 / T)]
@@ -214,7 +217,7 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
         f = k * f1
         wave *= step
         centre = int(round(f * T))
-        near = np.r_[centre - 30:centre - 1, centre + 2:centre + 31]
+        near = np.r_[centre - 30 : centre - 1, centre + 2 : centre + 31]
         near = near[(near > 0) & (near < len(bins))]
         if near.size == 0:
             continue
@@ -224,9 +227,15 @@ def remove_running_harmonics(y: np.ndarray, fs_hz: float, running_hz: float,
         basis = np.column_stack([wave.real, -wave.imag])  # cos and sin of 2 pi f t
         coef, *_ = np.linalg.lstsq(basis, out, rcond=None)
         out -= basis @ coef
-        removed.append({"frequency_hz": float(f), "running_speed_multiple": k, "removed": True,
-                        "amplitude": float(np.max(np.hypot(coef[0], coef[1]))),
-                        "line_to_floor_db": float(10 * np.log10(ratio))})  # fmt: skip
+        removed.append(
+            {
+                "frequency_hz": float(f),
+                "running_speed_multiple": k,
+                "removed": True,
+                "amplitude": float(np.max(np.hypot(coef[0], coef[1]))),
+                "line_to_floor_db": float(10 * np.log10(ratio)),
+            }
+        )
     return out, removed
 
 
@@ -239,5 +248,7 @@ def line_frequencies(harmonics_attr: str) -> tuple[list[float], list[float]]:
     ([2.233], [4.47])
     """
     lines = json.loads(harmonics_attr)
-    return ([h["frequency_hz"] for h in lines if h.get("removed")],
-            [h["frequency_hz"] for h in lines if not h.get("removed")])  # fmt: skip
+    return (
+        [h["frequency_hz"] for h in lines if h.get("removed")],
+        [h["frequency_hz"] for h in lines if not h.get("removed")],
+    )

@@ -28,6 +28,7 @@ from twin.extract.quantities import QUANTITIES, si_factor
 from twin.extract.readers import READERS
 from twin.extract.signals import check_record
 
+
 def quantity_of(units: str, where: str) -> str:
     """The quantity ``units`` measure: displacement, velocity or acceleration.
 
@@ -98,8 +99,10 @@ def import_record(
     for k, c in enumerate(table.channels):
         u = given_units.get(c) or table.units[k]
         if u is None:
-            raise SignalError(f"{path}: channel '{c}' has no units: write them in the header ('{c} [um]') or give "
-                              "them (--units um, or --units UGB_x=um,...)")  # fmt: skip
+            raise SignalError(
+                f"{path}: channel '{c}' has no units: write them in the header ('{c} [um]') or give "
+                "them (--units um, or --units UGB_x=um,...)"
+            )
         q = given_quantities.get(c) or (table.quantities or [None] * n)[k] or quantity_of(u, f"{path}: channel '{c}'")
         si_factor(u, q, f"{path}: channel '{c}'")  # units of that quantity
         unit_list.append(u)
@@ -112,8 +115,12 @@ def import_record(
     coords = {"channel": names, "quantity": ("channel", quantity_list), "units": ("channel", unit_list)}
     if table.time_s is not None:
         coords["time"] = ("time", table.time_s - table.time_s[0], {"units": "s"})
-    attrs = {"title": f"record imported from {path.name}", "producer": f"twin {__version__} twin.extract.importing",
-             "source": str(path), **table.attrs}  # fmt: skip
+    attrs = {
+        "title": f"record imported from {path.name}",
+        "producer": f"twin {__version__} twin.extract.importing",
+        "source": str(path),
+        **table.attrs,
+    }
     if fs is not None:
         attrs["sampling_rate"] = fs
     ds = xr.Dataset({"signal": (("time", "channel"), table.values)}, coords=coords, attrs=attrs)
@@ -122,14 +129,17 @@ def import_record(
     return ds
 
 
-def _per_channel(value: str | Mapping[str, str] | None, channels: Sequence[str], what: str,
-                 path: Path) -> dict[str, str]:  # fmt: skip
+def _per_channel(
+    value: str | Mapping[str, str] | None, channels: Sequence[str], what: str, path: Path
+) -> dict[str, str]:
     if value is None:
         return {}
     if isinstance(value, str):
         return {c: value for c in channels}
     unknown = [c for c in value if c not in channels]
     if unknown:
-        raise SignalError(f"{path}: {what} for {', '.join(map(repr, unknown))}, which the file has not "
-                          f"(its channels: {', '.join(channels)})")  # fmt: skip
+        raise SignalError(
+            f"{path}: {what} for {', '.join(map(repr, unknown))}, which the file has not "
+            f"(its channels: {', '.join(channels)})"
+        )
     return dict(value)

@@ -81,15 +81,22 @@ class ExtractOptions:
         if self.block_rows is not None and not whole_at_least_one(self.block_rows):
             raise SignalError(f"block_rows must be a whole number of at least 1, got {self.block_rows!r}")
         if self.first_lag is not None and not whole_at_least_one(self.first_lag):
-            raise SignalError(f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
-                              f"noise), got {self.first_lag!r}")  # fmt: skip
+            raise SignalError(
+                f"first_lag must be a whole number of samples, at least 1 (lag 0 holds the sensor "
+                f"noise), got {self.first_lag!r}"
+            )
         if self.orders_per_mode is not None and self.orders_per_mode < 1:
-            raise SignalError(f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
-                              f"got {self.orders_per_mode}")  # fmt: skip
+            raise SignalError(
+                f"orders_per_mode must be at least 1 (None, or 0 from the command line: all), "
+                f"got {self.orders_per_mode}"
+            )
         rows = self.shape_block_rows
-        if rows != "auto" and (isinstance(rows, (str, bool)) or not as_float(rows) >= 0 or not float(rows).is_integer()):
-            raise SignalError(f"shape_block_rows must be 'auto' or at least 0 (0: the shapes from the poles' pass), "
-                              f"got {rows!r}")  # fmt: skip
+        if rows != "auto" and (
+            isinstance(rows, (str, bool)) or not as_float(rows) >= 0 or not float(rows).is_integer()
+        ):
+            raise SignalError(
+                f"shape_block_rows must be 'auto' or at least 0 (0: the shapes from the poles' pass), got {rows!r}"
+            )
         if not self.chosen:  # the jackknife's plan needs no record when the blocks are given
             jackknife_plan(self.n_blocks, self.n_samples, self)
 
@@ -138,8 +145,9 @@ class ExtractOptions:
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(given) - known)
         if unknown:
-            raise SignalError(f"the extraction has no option {', '.join(unknown)} (its options: "
-                              f"{', '.join(sorted(known))})")  # fmt: skip
+            raise SignalError(
+                f"the extraction has no option {', '.join(unknown)} (its options: {', '.join(sorted(known))})"
+            )
         if isinstance(given.get("criteria"), Mapping):
             given["criteria"] = Criteria(**given["criteria"])
         return cls(**given)
@@ -160,14 +168,19 @@ def jackknife_plan(n_blocks: int, samples: int, options: ExtractOptions) -> tupl
     if options.chosen and whole_at_least_one(shape_samples):
         shape_samples = samples * max(2, round(int(shape_samples) / samples))
     if not whole_at_least_one(shape_samples) or int(shape_samples) % samples or int(shape_samples) <= samples:
-        raise SignalError(f"shape_samples must be a whole multiple of samples = {samples} (e.g. {4 * samples}; "
-                          f"{samples} or none: the shapes come with the poles), got {shape_samples!r}")  # fmt: skip
+        raise SignalError(
+            f"shape_samples must be a whole multiple of samples = {samples} (e.g. {4 * samples}; "
+            f"{samples} or none: the shapes come with the poles), got {shape_samples!r}"
+        )
     if n_blocks < 4:
-        raise SignalError(f"shape_samples draws random halves of the blocks: it needs at least 4 blocks, "
-                          f"got {n_blocks}")  # fmt: skip
+        raise SignalError(
+            f"shape_samples draws random halves of the blocks: it needs at least 4 blocks, got {n_blocks}"
+        )
     if options.differenced_above_hz is not None or options.shape_block_rows != 0:
-        raise SignalError("shape_samples is not available with differenced_above_hz or shape_block_rows: those "
-                          "passes redraw the samples of the modes they read")  # fmt: skip
+        raise SignalError(
+            "shape_samples is not available with differenced_above_hz or shape_block_rows: those "
+            "passes redraw the samples of the modes they read"
+        )
     return n_deleted, int(shape_samples) // samples
 
 

@@ -61,8 +61,13 @@ def shape_lag_rows(slowest_hz: float, fs_hz: float, minimum: int = 1, maximum: i
     """
     i = int(np.ceil(SHAPE_LAG_PERIODS * fs_hz / slowest_hz))
     if maximum is not None and i > maximum:
-        log.info("shape block rows held to %d by the block length (%.3f Hz over %g periods asks for %d)",
-                 maximum, slowest_hz, SHAPE_LAG_PERIODS, i)  # fmt: skip
+        log.info(
+            "shape block rows held to %d by the block length (%.3f Hz over %g periods asks for %d)",
+            maximum,
+            slowest_hz,
+            SHAPE_LAG_PERIODS,
+            i,
+        )
         i = maximum
     return max(i, int(minimum))
 
@@ -103,9 +108,21 @@ class SSIPass:
     harmonics: list[dict]
 
 
-def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fmin_hz: float, fmax: float,
-             crit: Criteria, running_hz: float | None, channels: Sequence[str], spectrum: dict,
-             quiet: bool = False, first_lag: int = 1) -> SSIPass:  # fmt: skip
+def ssi_pass(
+    y: np.ndarray,
+    fs: float,
+    i: int,
+    n_blocks: int,
+    max_order: int,
+    fmin_hz: float,
+    fmax: float,
+    crit: Criteria,
+    running_hz: float | None,
+    channels: Sequence[str],
+    spectrum: dict,
+    quiet: bool = False,
+    first_lag: int = 1,
+) -> SSIPass:
     """SSI-cov with ``i`` block rows from lag ``first_lag`` on, the stabilisation diagram clustered and its
     clusters sorted into modes and harmonics.
 
@@ -144,8 +161,10 @@ def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fm
             labels[c.members] = len(modes)
             modes.append(c)
         elif h is None:  # not damped and not a sinusoid: not physical
-            say("%.4f Hz: stable pole without damping that is no harmonic; dropped",
-                diag.pole[c.representative].imag / (2 * np.pi))  # fmt: skip
+            say(
+                "%.4f Hz: stable pole without damping that is no harmonic; dropped",
+                diag.pole[c.representative].imag / (2 * np.pi),
+            )
         else:
             h["channel"] = channels[h.pop("channel_index")]
             harmonics.append(h)
@@ -154,8 +173,9 @@ def ssi_pass(y: np.ndarray, fs: float, i: int, n_blocks: int, max_order: int, fm
     return SSIPass(i, covariances, real, first_lag, dataclasses.replace(diag, cluster=labels), modes, harmonics)
 
 
-def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarray,
-                   other_shapes: np.ndarray) -> np.ndarray:  # fmt: skip
+def matching_modes(
+    poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarray, other_shapes: np.ndarray
+) -> np.ndarray:
     """For each mode, the index of the same mode among ``other_*`` (-1 for none), one to one.
 
     Two modes are the same when their clustering distance (relative pole distance plus ``1 - MAC``) is
@@ -177,9 +197,18 @@ def matching_modes(poles: np.ndarray, shapes: np.ndarray, other_poles: np.ndarra
     return assign(dist, dist < MATCH_DISTANCE)
 
 
-def shapes_at_longer_lags(again: SSIPass, fs: float, members: list, poles: np.ndarray, shapes: np.ndarray,
-                          sample_shapes: np.ndarray, shape_deviations: np.ndarray, progress: bool = True,
-                          delete: int | None = 1, n_samples: int | None = None) -> tuple[np.ndarray, ...]:  # fmt: skip
+def shapes_at_longer_lags(
+    again: SSIPass,
+    fs: float,
+    members: list,
+    poles: np.ndarray,
+    shapes: np.ndarray,
+    sample_shapes: np.ndarray,
+    shape_deviations: np.ndarray,
+    progress: bool = True,
+    delete: int | None = 1,
+    n_samples: int | None = None,
+) -> tuple[np.ndarray, ...]:
     """The shapes, their jackknife samples and model-order deviations of each mode read from a second pass.
 
     Parameters
@@ -209,9 +238,16 @@ def shapes_at_longer_lags(again: SSIPass, fs: float, members: list, poles: np.nd
     matched = np.zeros(len(poles), dtype=bool)
     if not members:
         return shapes, sample_shapes, shape_deviations, matched
-    l_poles, l_shapes, _, l_samples, _ = jackknife(again.covariances, again.block_rows, fs, members, progress,
-                                                   delete=delete, n_samples=n_samples,
-                                                   first_lag=again.first_lag)  # fmt: skip
+    l_poles, l_shapes, _, l_samples, _ = jackknife(
+        again.covariances,
+        again.block_rows,
+        fs,
+        members,
+        progress,
+        delete=delete,
+        n_samples=n_samples,
+        first_lag=again.first_lag,
+    )
     _, l_dev = order_deviations(members, l_shapes, l_samples.shape[1])
     match = matching_modes(poles, shapes, l_poles, l_shapes)
     matched = match >= 0
@@ -241,9 +277,16 @@ def differenced(y: np.ndarray, times: int = DIFFERENCES) -> np.ndarray:
     return np.diff(np.asarray(y, dtype=float), n=int(times), axis=0)
 
 
-def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above_hz: float, first: tuple,
-                           progress: bool = True,
-                           delete: int | None = 1, n_samples: int | None = None) -> tuple:  # fmt: skip
+def modes_from_differenced(
+    again: SSIPass,
+    again_members: list,
+    fs: float,
+    above_hz: float,
+    first: tuple,
+    progress: bool = True,
+    delete: int | None = 1,
+    n_samples: int | None = None,
+) -> tuple:
     """Replace each first-pass mode above ``above_hz`` by its counterpart in a pass over the differenced record.
 
     Why: on a record of displacements the slowest modes are the strongest
@@ -297,9 +340,16 @@ def modes_from_differenced(again: SSIPass, again_members: list, fs: float, above
     if not len(upper) or not d_members:
         _log_unmatched(poles[upper])
         return (members, *arrays), counterpart
-    d_poles, d_shapes, d_sp, d_ss, d_missing = jackknife(again.covariances, again.block_rows, fs, d_members, progress,
-                                                         delete=delete, n_samples=n_samples,
-                                                         first_lag=again.first_lag)  # fmt: skip
+    d_poles, d_shapes, d_sp, d_ss, d_missing = jackknife(
+        again.covariances,
+        again.block_rows,
+        fs,
+        d_members,
+        progress,
+        delete=delete,
+        n_samples=n_samples,
+        first_lag=again.first_lag,
+    )
     d_dp, d_ds = order_deviations(d_members, d_shapes, d_sp.shape[1])
     match = matching_modes(poles[upper], shapes[upper], d_poles, d_shapes)
     for k, j in zip(upper[match >= 0], match[match >= 0]):

@@ -46,12 +46,27 @@ def plot_stabilisation(modes: xr.Dataset, ax=None):
     free = mode == -1
     ax.scatter(f[free & (status == 0)], n[free & (status == 0)], s=4, c="0.75", label="new pole")
     part = free & (status > 0) & (status < 3)
-    ax.scatter(f[part], n[part], s=12, facecolors="none", edgecolors="0.5", linewidths=0.6,
-               label="stable frequency (and damping)")  # fmt: skip
+    ax.scatter(
+        f[part],
+        n[part],
+        s=12,
+        facecolors="none",
+        edgecolors="0.5",
+        linewidths=0.6,
+        label="stable frequency (and damping)",
+    )
     ax.scatter(f[free & (status == 3)], n[free & (status == 3)], s=8, c="0.35", label="stable, not clustered")
     assigned = mode > 0
-    ax.scatter(f[assigned], n[assigned], s=10, c=mode[assigned], cmap="tab20", vmin=1, vmax=20,
-               label="pole of an identified mode")  # fmt: skip
+    ax.scatter(
+        f[assigned],
+        n[assigned],
+        s=10,
+        c=mode[assigned],
+        cmap="tab20",
+        vmin=1,
+        vmax=20,
+        label="pole of an identified mode",
+    )
     harm = mode == -2
     if harm.any():
         ax.scatter(f[harm], n[harm], s=25, marker="x", c="crimson", label="running-speed harmonic")

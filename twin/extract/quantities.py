@@ -33,12 +33,25 @@ from twin.units import registry
 #: The quantities a channel may measure: their SI unit and their order of time derivative of the displacement.
 QUANTITIES = {"displacement": ("m", 0), "velocity": ("m/s", 1), "acceleration": ("m/s**2", 2)}
 #: Units as vibration instruments write them, in pint's words (pint's ``mil`` is an angle, its ``g`` a gram).
-ALIASES = {"mil": "thou", "mils": "thou", "g": "standard_gravity", "G": "standard_gravity", "gn": "standard_gravity",
-           "ips": "inch / second", "micron": "micrometer", "microns": "micrometer", "m/s2": "m/s**2",
-           "m/s^2": "m/s**2", "mm/s2": "mm/s**2"}  # fmt: skip
+ALIASES = {
+    "mil": "thou",
+    "mils": "thou",
+    "g": "standard_gravity",
+    "G": "standard_gravity",
+    "gn": "standard_gravity",
+    "ips": "inch / second",
+    "micron": "micrometer",
+    "microns": "micrometer",
+    "m/s2": "m/s**2",
+    "m/s^2": "m/s**2",
+    "mm/s2": "mm/s**2",
+}
 #: The SI units of each quantity written without pint (so a record in SI needs no units library).
-_SI = {"displacement": {"m", "meter", "metre", "meters", "metres"}, "velocity": {"m/s", "m s-1", "meter/second"},
-       "acceleration": {"m/s**2", "m/s^2", "m/s2", "m s-2", "meter/second**2"}}  # fmt: skip
+_SI = {
+    "displacement": {"m", "meter", "metre", "meters", "metres"},
+    "velocity": {"m/s", "m s-1", "meter/second"},
+    "acceleration": {"m/s**2", "m/s^2", "m/s2", "m s-2", "meter/second**2"},
+}
 
 
 def si_factor(units: str, quantity: str, where: str) -> float:
@@ -64,11 +77,14 @@ def si_factor(units: str, quantity: str, where: str) -> float:
         value = ureg.Quantity(1.0, ALIASES.get(text, text))
         factor = float(value.to(QUANTITIES[quantity][0]).magnitude)
     except pint.errors.DimensionalityError:
-        raise SignalError(f"{where}: units {text!r} are not units of {quantity} (its SI unit: "
-                          f"{QUANTITIES[quantity][0].replace('**', '^')})") from None  # fmt: skip
+        raise SignalError(
+            f"{where}: units {text!r} are not units of {quantity} (its SI unit: "
+            f"{QUANTITIES[quantity][0].replace('**', '^')})"
+        ) from None
     except (pint.errors.UndefinedUnitError, ValueError, TypeError, AttributeError, AssertionError):
-        raise SignalError(f"{where}: units {text!r} are not units twin can read (e.g. m, um, mil; m/s, mm/s, "
-                          "in/s; m/s^2, g)") from None  # fmt: skip
+        raise SignalError(
+            f"{where}: units {text!r} are not units twin can read (e.g. m, um, mil; m/s, mm/s, in/s; m/s^2, g)"
+        ) from None
     return factor
 
 
@@ -82,20 +98,25 @@ def channel_quantities(ds: xr.Dataset, source: str) -> tuple[str, tuple[str, ...
         raise SignalError(f"{source}: both 'signal' and 'displacement': give one (docs: your own measurements)")
     if "signal" not in ds.data_vars:
         if "displacement" not in ds.data_vars:
-            raise SignalError(f"{source}: no variable 'displacement' or 'signal' (it has: "
-                              f"{', '.join(map(str, ds.data_vars)) or 'none'})")  # fmt: skip
+            raise SignalError(
+                f"{source}: no variable 'displacement' or 'signal' (it has: "
+                f"{', '.join(map(str, ds.data_vars)) or 'none'})"
+            )
         n = ds["displacement"].sizes.get("channel", 0)
         factor = si_factor(ds["displacement"].attrs.get("units", "m"), "displacement", f"{source}: 'displacement'")
         return "displacement", ("displacement",) * n, np.full(n, factor)
     da = ds["signal"]
     for coord in ("quantity", "units"):
         if coord not in da.coords or da[coord].dims != ("channel",):
-            raise SignalError(f"{source}: 'signal' needs a '{coord}' coordinate over 'channel' (what each channel "
-                              "measures: displacement, velocity or acceleration, and in which units)")  # fmt: skip
+            raise SignalError(
+                f"{source}: 'signal' needs a '{coord}' coordinate over 'channel' (what each channel "
+                "measures: displacement, velocity or acceleration, and in which units)"
+            )
     names = [str(c) for c in (da["channel"].values if "channel" in da.coords else range(da.sizes["channel"]))]
     quantities = tuple(str(q).strip().lower() for q in da["quantity"].values)
-    factors = np.array([si_factor(u, q, f"{source}: channel '{c}'")
-                        for c, q, u in zip(names, quantities, da["units"].values)])  # fmt: skip
+    factors = np.array(
+        [si_factor(u, q, f"{source}: channel '{c}'") for c, q, u in zip(names, quantities, da["units"].values)]
+    )
     return "signal", quantities, factors
 
 

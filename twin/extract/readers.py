@@ -90,8 +90,9 @@ def read_table(path: Path) -> Table:
     split = (lambda s: next(csv.reader([s], delimiter=delimiter))) if delimiter else str.split
     names = [c.strip() for c in split(header)]
     if not names or all(_is_number(n) for n in names):
-        raise SignalError(f"{path}: the first line must name the columns (e.g. time [s], UGB_x [um], ...), "
-                          f"got {header[:60]!r}")  # fmt: skip
+        raise SignalError(
+            f"{path}: the first line must name the columns (e.g. time [s], UGB_x [um], ...), got {header[:60]!r}"
+        )
     data = np.empty((len(rows) - 1, len(names)))
     for r, row in enumerate(rows[1:], start=2):
         cells = [c.strip() for c in split(row)]
@@ -115,8 +116,14 @@ def read_table(path: Path) -> Table:
     keep = [k for k in range(len(names)) if k != time_col]
     fs = next((meta[k] for k in RATE_NAMES if k in meta), None)
     attrs = {"start_time": meta["start_time"]} if "start_time" in meta else {}
-    return Table(data[:, keep], [columns[k] for k in keep], [units[k] for k in keep], time_s,
-                 _rate(fs.split()[0] if fs else None, f"{path}: the comment's sampling rate"), attrs)  # fmt: skip
+    return Table(
+        data[:, keep],
+        [columns[k] for k in keep],
+        [units[k] for k in keep],
+        time_s,
+        _rate(fs.split()[0] if fs else None, f"{path}: the comment's sampling rate"),
+        attrs,
+    )
 
 
 def _is_number(text: str) -> bool:
@@ -148,8 +155,9 @@ def _module(name: str, path: Path, what: str):
         return importlib.import_module(name)
     except ImportError:
         package = {"nptdms": "npTDMS"}.get(name, name)
-        raise SignalError(f"{path}: reading {what} files needs {package}: pip install {package} "
-                          "(or pip install 'twin[formats]')") from None  # fmt: skip
+        raise SignalError(
+            f"{path}: reading {what} files needs {package}: pip install {package} (or pip install 'twin[formats]')"
+        ) from None
 
 
 def _no_label(text) -> str | None:
@@ -173,8 +181,9 @@ def read_uff(path: Path) -> Table:
     responses = [s for s in sets if s.get("type") == 58 and s.get("func_type") == 1]
     if not responses:
         types = sorted({f"{s.get('type')}" + (f"/{s['func_type']}" if "func_type" in s else "") for s in sets})
-        raise SignalError(f"{path}: no time response (dataset 58, function type 1) among its datasets "
-                          f"({', '.join(types) or 'none'})")  # fmt: skip
+        raise SignalError(
+            f"{path}: no time response (dataset 58, function type 1) among its datasets ({', '.join(types) or 'none'})"
+        )
     names, units, quantities, columns = [], [], [], []
     _dir = {1: "+X", 2: "+Y", 3: "+Z", -1: "-X", -2: "-Y", -3: "-Z"}
     for k, s in enumerate(responses):
@@ -188,12 +197,21 @@ def read_uff(path: Path) -> Table:
     incs = {float(s["abscissa_inc"]) for s in responses}
     lengths = {len(c) for c in columns}
     if len(lengths) > 1 or len(incs) > 1:
-        raise SignalError(f"{path}: its time responses differ in length ({sorted(lengths)} samples) or in "
-                          f"step ({sorted(incs)} s): one record has one time axis")  # fmt: skip
+        raise SignalError(
+            f"{path}: its time responses differ in length ({sorted(lengths)} samples) or in "
+            f"step ({sorted(incs)} s): one record has one time axis"
+        )
     step = incs.pop()
     attrs = {"start_time": _no_label(responses[0].get("id4"))} if _no_label(responses[0].get("id4")) else {}
-    return Table(np.column_stack(columns), names, units, None, _rate(1 / step if step > 0 else 0,
-                 f"{path}: the abscissa step's rate"), attrs, quantities)  # fmt: skip
+    return Table(
+        np.column_stack(columns),
+        names,
+        units,
+        None,
+        _rate(1 / step if step > 0 else 0, f"{path}: the abscissa step's rate"),
+        attrs,
+        quantities,
+    )
 
 
 def read_tdms(path: Path) -> Table:
@@ -214,8 +232,9 @@ def read_tdms(path: Path) -> Table:
     names = [c.name if short.count(c.name) == 1 else f"{g}/{c.name}" for g, c in chans]
     lengths = {len(c) for _, c in chans}
     if len(lengths) > 1:
-        raise SignalError(f"{path}: its channels differ in length ({sorted(lengths)} samples): "
-                          "one record has one time axis")  # fmt: skip
+        raise SignalError(
+            f"{path}: its channels differ in length ({sorted(lengths)} samples): one record has one time axis"
+        )
     props = [c.properties for _, c in chans]
     units = [_no_label(p.get("unit_string", p.get("NI_UnitDescription"))) for p in props]
     incs = {float(p["wf_increment"]) for p in props if "wf_increment" in p}
@@ -280,8 +299,9 @@ def _text(value):
     return value
 
 
-def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], path: Path,
-                    units_of: Mapping[str, str] | None = None) -> Table:  # fmt: skip
+def table_of_arrays(
+    arrays: Mapping[str, object], attrs: Mapping[str, object], path: Path, units_of: Mapping[str, str] | None = None
+) -> Table:
     """A record from named arrays and attributes (a MATLAB or HDF5 file).
 
     The samples are the 2-D array named as in :data:`DATA_NAMES` (or the only 2-D numeric array), with time
@@ -312,8 +332,10 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
     if data_key is None and len(two_d) == 1:
         data_key = next(iter(two_d))
     if data_key is None and len(two_d) > 1:
-        raise SignalError(f"{path}: several 2-D arrays ({', '.join(sorted(two_d))}) and none named "
-                          f"{' or '.join(DATA_NAMES[:3])}: which holds the samples?")  # fmt: skip
+        raise SignalError(
+            f"{path}: several 2-D arrays ({', '.join(sorted(two_d))}) and none named "
+            f"{' or '.join(DATA_NAMES[:3])}: which holds the samples?"
+        )
     if data_key is not None:
         values = np.asarray(two_d[data_key], dtype=float)
         n_t = len(time_s) if time_s is not None else max(values.shape)
@@ -322,18 +344,29 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
         names = lookup(CHANNEL_NAMES)
         names = [f"{data_key}_{k + 1}" for k in range(values.shape[1])] if names is None else _strings(names)
         given = lookup(UNIT_NAMES)
-        units = ([(units_of or {}).get(data_key)] * values.shape[1] if given is None
-                 else _every_channel(_strings(given), values.shape[1]))  # fmt: skip
+        units = (
+            [(units_of or {}).get(data_key)] * values.shape[1]
+            if given is None
+            else _every_channel(_strings(given), values.shape[1])
+        )
     else:
-        one_d = {k: np.asarray(v, dtype=float).ravel() for k, v in arrays.items()
-                 if numeric(v) and np.squeeze(v).ndim == 1 and k not in skip}  # fmt: skip
+        one_d = {
+            k: np.asarray(v, dtype=float).ravel()
+            for k, v in arrays.items()
+            if numeric(v) and np.squeeze(v).ndim == 1 and k not in skip
+        }
         if not one_d:
-            raise SignalError(f"{path}: no array of samples (a 2-D array such as 'data', or one 1-D array per "
-                              f"channel) among its variables ({', '.join(sorted(arrays)) or 'none'})")  # fmt: skip
+            raise SignalError(
+                f"{path}: no array of samples (a 2-D array such as 'data', or one 1-D array per "
+                f"channel) among its variables ({', '.join(sorted(arrays)) or 'none'})"
+            )
         lengths = {len(v) for v in one_d.values()}
         if len(lengths) > 1:
-            raise SignalError(f"{path}: its 1-D arrays differ in length ("
-                              + ", ".join(f"{k}: {len(v)}" for k, v in one_d.items()) + "): one record has one time axis")  # fmt: skip
+            raise SignalError(
+                f"{path}: its 1-D arrays differ in length ("
+                + ", ".join(f"{k}: {len(v)}" for k, v in one_d.items())
+                + "): one record has one time axis"
+            )
         names = list(one_d)
         values = np.column_stack(list(one_d.values()))
         units = [(units_of or {}).get(k) for k in names]
@@ -341,12 +374,16 @@ def table_of_arrays(arrays: Mapping[str, object], attrs: Mapping[str, object], p
         if common is not None and not any(units):
             units = _every_channel(_strings(common), len(names))
     if len(names) != values.shape[1] or len(units) != values.shape[1]:
-        raise SignalError(f"{path}: {values.shape[1]} channels but {len(names)} channel names and "
-                          f"{len(units)} units")  # fmt: skip
+        raise SignalError(f"{path}: {values.shape[1]} channels but {len(names)} channel names and {len(units)} units")
     start = lookup(("start_time",))
-    return Table(values, [str(n) for n in names], [_no_label(u) for u in units], time_s,
-                 _rate(lookup(RATE_NAMES), f"{path}: its sampling rate"),
-                 {"start_time": str(_strings(start)[0])} if start is not None else {})  # fmt: skip
+    return Table(
+        values,
+        [str(n) for n in names],
+        [_no_label(u) for u in units],
+        time_s,
+        _rate(lookup(RATE_NAMES), f"{path}: its sampling rate"),
+        {"start_time": str(_strings(start)[0])} if start is not None else {},
+    )
 
 
 def _every_channel(strings: list[str], n: int) -> list[str]:
@@ -363,7 +400,15 @@ def _strings(value) -> list[str]:
 
 #: The readers by file suffix: each takes the path and returns a :class:`Table`.
 READERS: dict[str, Callable[[Path], Table]] = {
-    ".csv": read_table, ".txt": read_table, ".tsv": read_table, ".dat": read_table,
-    ".uff": read_uff, ".unv": read_uff, ".tdms": read_tdms, ".mat": read_mat,
-    ".h5": read_hdf5, ".hdf5": read_hdf5, ".hdf": read_hdf5,
-}  # fmt: skip
+    ".csv": read_table,
+    ".txt": read_table,
+    ".tsv": read_table,
+    ".dat": read_table,
+    ".uff": read_uff,
+    ".unv": read_uff,
+    ".tdms": read_tdms,
+    ".mat": read_mat,
+    ".h5": read_hdf5,
+    ".hdf5": read_hdf5,
+    ".hdf": read_hdf5,
+}

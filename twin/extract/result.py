@@ -27,8 +27,13 @@ MAX_POLE_SE = 1.0
 ATTAINABLE_SE_FACTOR = 2.0
 
 
-def pole_determined(poles: np.ndarray, sample_poles: np.ndarray, missing: np.ndarray | None = None,
-                    damping_judged: np.ndarray | None = None, duration_s: float | None = None) -> np.ndarray:  # fmt: skip
+def pole_determined(
+    poles: np.ndarray,
+    sample_poles: np.ndarray,
+    missing: np.ndarray | None = None,
+    damping_judged: np.ndarray | None = None,
+    duration_s: float | None = None,
+) -> np.ndarray:
     """Whether each mode's samples pin its pole within its half-power bandwidth.
 
     The test: the standard error of the pole (complex, ``std / sqrt(J)`` of
@@ -93,8 +98,13 @@ def pole_determined(poles: np.ndarray, sample_poles: np.ndarray, missing: np.nda
     return pole_scatter(poles, sample_poles, missing, damping_judged, duration_s) < MAX_POLE_SE
 
 
-def pole_scatter(poles: np.ndarray, sample_poles: np.ndarray, missing: np.ndarray | None = None,
-                 damping_judged: np.ndarray | None = None, duration_s: float | None = None) -> np.ndarray:  # fmt: skip
+def pole_scatter(
+    poles: np.ndarray,
+    sample_poles: np.ndarray,
+    missing: np.ndarray | None = None,
+    damping_judged: np.ndarray | None = None,
+    duration_s: float | None = None,
+) -> np.ndarray:
     """The pole's standard error over its samples in half-power half-bandwidths ``|Re λ|`` (or in
     :data:`ATTAINABLE_SE_FACTOR` times the frequency's attainable standard error in ``duration_s``, where
     that is larger), as :func:`pole_determined` judges it (its frequency's alone where the damping is not
@@ -139,8 +149,14 @@ def frequency_damping_std(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.std(poles.imag / (2 * np.pi), axis=-1, ddof=1), np.std(damping_ratio(poles), axis=-1, ddof=1)
 
 
-def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: np.ndarray,
-             damping_judged: np.ndarray, duration_s: float | None = None) -> list[dict]:  # fmt: skip
+def left_out(
+    source: str,
+    poles: np.ndarray,
+    sample_poles: np.ndarray,
+    scatter: np.ndarray,
+    damping_judged: np.ndarray,
+    duration_s: float | None = None,
+) -> list[dict]:
     """The stable poles :func:`pole_determined` leaves out, for the modes file's ``undetermined_poles``, each
     said in a warning naming it, the part of it (frequency or damping) that scattered by ``scatter`` times
     what it was judged against (:func:`pole_scatter`: its bandwidth, or in a record of ``duration_s`` too
@@ -148,25 +164,50 @@ def left_out(source: str, poles: np.ndarray, sample_poles: np.ndarray, scatter: 
     f_se, z_se = (x / np.sqrt(sample_poles.shape[-1]) for x in frequency_damping_std(sample_poles))
     out = []
     for p, s, f, z, ratio, whole in zip(poles, sample_poles, f_se, z_se, scatter, damping_judged):
-        u = {"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p)),
-             "frequency_se_hz": float(f), "damping_ratio_se": float(z)}
+        u = {
+            "frequency_hz": float(p.imag / (2 * np.pi)),
+            "damping_ratio": float(damping_ratio(p)),
+            "frequency_se_hz": float(f),
+            "damping_ratio_se": float(z),
+        }
         # which part of the pole scatters most: its imaginary part is the frequency, its real part the damping
         damping_most = whole and np.std(s.real, ddof=1) > np.std(s.imag, ddof=1)
-        part = (f"its damping (standard error {z:.3g} of a damping ratio {u['damping_ratio']:.3g})" if damping_most
-                else f"its frequency (standard error {f:.3g} Hz)")  # fmt: skip
-        bound = ("the pole's half-power bandwidth" if scatter_scale(p.real, duration_s) <= scatter_scale(p.real) else
-                 f"{ATTAINABLE_SE_FACTOR:g} x the least standard error a {duration_s:g} s record allows")  # fmt: skip
-        warnings.warn(f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but {part} "
-                      f"scatters over the samples by {ratio:.2g} times {bound}, as a noise "
-                      "pole fitted by surplus states does; if a mode of the structure is there, a longer record (or "
-                      "fewer samples: --samples) would show it", TwinWarning, stacklevel=3)  # fmt: skip
+        part = (
+            f"its damping (standard error {z:.3g} of a damping ratio {u['damping_ratio']:.3g})"
+            if damping_most
+            else f"its frequency (standard error {f:.3g} Hz)"
+        )
+        bound = (
+            "the pole's half-power bandwidth"
+            if scatter_scale(p.real, duration_s) <= scatter_scale(p.real)
+            else f"{ATTAINABLE_SE_FACTOR:g} x the least standard error a {duration_s:g} s record allows"
+        )
+        warnings.warn(
+            f"{source}: {u['frequency_hz']:.4g} Hz left out: stable over the model orders, but {part} "
+            f"scatters over the samples by {ratio:.2g} times {bound}, as a noise "
+            "pole fitted by surplus states does; if a mode of the structure is there, a longer record (or "
+            "fewer samples: --samples) would show it",
+            TwinWarning,
+            stacklevel=3,
+        )
         out.append(u)
     return out
 
 
-def extracted_modes(rec: Record, ds: xr.Dataset, poles: np.ndarray, shapes: np.ndarray, sample_p: np.ndarray,
-                    sample_s: np.ndarray, jackknife_p: np.ndarray, members: list, n_orders: np.ndarray,
-                    sizes: list[int], ref_channel: np.ndarray, diag: Diagram) -> xr.Dataset:  # fmt: skip
+def extracted_modes(
+    rec: Record,
+    ds: xr.Dataset,
+    poles: np.ndarray,
+    shapes: np.ndarray,
+    sample_p: np.ndarray,
+    sample_s: np.ndarray,
+    jackknife_p: np.ndarray,
+    members: list,
+    n_orders: np.ndarray,
+    sizes: list[int],
+    ref_channel: np.ndarray,
+    diag: Diagram,
+) -> xr.Dataset:
     """The modes Dataset of an extraction (without its settings and attrs, which :func:`twin.extract.extract` adds).
 
     ``poles`` (I,) and ``shapes`` (I, channels) are the full-record estimates; ``sample_p`` (I, J) and
@@ -180,8 +221,9 @@ def extracted_modes(rec: Record, ds: xr.Dataset, poles: np.ndarray, shapes: np.n
     f_std, z_std = frequency_damping_std(sample_p)
     f_jk, z_jk = (x / np.sqrt(J) for x in frequency_damping_std(jackknife_p))
     f_order, z_order = np.array([frequency_damping_std(p) if len(p) > 1 else (0.0, 0.0) for _, p, _ in members]).T
-    order_cov = np.array([np.cov(np.stack([p.real, p.imag])) if len(p) > 1 else np.zeros((2, 2))
-                          for _, p, _ in members])  # fmt: skip
+    order_cov = np.array(
+        [np.cov(np.stack([p.real, p.imag])) if len(p) > 1 else np.zeros((2, 2)) for _, p, _ in members]
+    )
     ch_coords = {"channel": ("channel", list(rec.channels))}
     if "displacement" in ds:
         src = ds["displacement"]
@@ -191,48 +233,95 @@ def extracted_modes(rec: Record, ds: xr.Dataset, poles: np.ndarray, shapes: np.n
                 ch_coords[name] = ("channel", sel.values)
     mode_vars = {
         "pole": (("mode", "sample"), sample_p, {"units": "1/s", "long_name": "pole samples"}),
-        "shape": (("mode", "sample", "channel"), sample_s,
-                  {"units": "1", "long_name": "mode shape samples in displacement (unit norm, reference channel real "
-                                              "positive)"}),
+        "shape": (
+            ("mode", "sample", "channel"),
+            sample_s,
+            {
+                "units": "1",
+                "long_name": "mode shape samples in displacement (unit norm, reference channel real positive)",
+            },
+        ),
         "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
-        "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency"}),
+        "natural_frequency": (
+            "mode",
+            np.abs(poles) / (2 * np.pi),
+            {"units": "Hz", "long_name": "undamped natural frequency"},
+        ),
         "damping_ratio": ("mode", damping_ratio(poles), {"units": "1", "long_name": "damping ratio"}),
         "frequency_std": ("mode", f_std, {"units": "Hz", "long_name": "sample std of frequency"}),
         "damping_ratio_std": ("mode", z_std, {"units": "1", "long_name": "sample std of damping ratio"}),
-        "frequency_se": ("mode", f_std / np.sqrt(J),
-                         {"units": "Hz", "long_name": "standard error of frequency (sample std / sqrt(J))"}),
-        "damping_ratio_se": ("mode", z_std / np.sqrt(J),
-                             {"units": "1", "long_name": "standard error of damping ratio (sample std / sqrt(J))"}),
-        "frequency_se_jackknife": ("mode", f_jk, {"units": "Hz",
-                                   "long_name": "statistical part of the frequency's standard error (jackknife)"}),
-        "damping_ratio_se_jackknife": ("mode", z_jk, {"units": "1",
-                                       "long_name": "statistical part of the damping ratio's standard error (jackknife)"}),
-        "frequency_order_std": ("mode", f_order, {"units": "Hz",
-                                "long_name": "std of the frequency over the model orders the mode is averaged over"}),
-        "damping_ratio_order_std": ("mode", z_order, {"units": "1",
-                                    "long_name": "std of the damping ratio over the model orders the mode is averaged over"}),
-        "pole_order_cov": (("mode", "pole_part", "pole_part_2"), order_cov,
-                           {"units": "1/s^2", "long_name": "covariance of the pole's real and imaginary parts over "
-                            "the model orders the mode is averaged over"}),
+        "frequency_se": (
+            "mode",
+            f_std / np.sqrt(J),
+            {"units": "Hz", "long_name": "standard error of frequency (sample std / sqrt(J))"},
+        ),
+        "damping_ratio_se": (
+            "mode",
+            z_std / np.sqrt(J),
+            {"units": "1", "long_name": "standard error of damping ratio (sample std / sqrt(J))"},
+        ),
+        "frequency_se_jackknife": (
+            "mode",
+            f_jk,
+            {"units": "Hz", "long_name": "statistical part of the frequency's standard error (jackknife)"},
+        ),
+        "damping_ratio_se_jackknife": (
+            "mode",
+            z_jk,
+            {"units": "1", "long_name": "statistical part of the damping ratio's standard error (jackknife)"},
+        ),
+        "frequency_order_std": (
+            "mode",
+            f_order,
+            {"units": "Hz", "long_name": "std of the frequency over the model orders the mode is averaged over"},
+        ),
+        "damping_ratio_order_std": (
+            "mode",
+            z_order,
+            {"units": "1", "long_name": "std of the damping ratio over the model orders the mode is averaged over"},
+        ),
+        "pole_order_cov": (
+            ("mode", "pole_part", "pole_part_2"),
+            order_cov,
+            {
+                "units": "1/s^2",
+                "long_name": "covariance of the pole's real and imaginary parts over "
+                "the model orders the mode is averaged over",
+            },
+        ),
         "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "full-record mode shape"}),
         "MPC": ("mode", mpc(shapes), {"units": "1", "long_name": "modal phase collinearity (1 real, 0 circular)"}),
         "MPD": ("mode", mpd(shapes), {"units": "deg", "long_name": "mean phase deviation (0 real, 45 circular)"}),
         "n_orders": ("mode", n_orders, {"long_name": "number of model orders the mode is averaged over"}),
         "cluster_size": ("mode", np.asarray(sizes), {"long_name": "orders at which the mode is stable"}),
-        "reference_channel": ("mode", np.array(rec.channels)[ref_channel],
-                              {"long_name": "channel made real and positive in every shape"}),
-    }  # fmt: skip
+        "reference_channel": (
+            "mode",
+            np.array(rec.channels)[ref_channel],
+            {"long_name": "channel made real and positive in every shape"},
+        ),
+    }
     diagram_vars = {
         "diagram_order": ("diagram_pole", diag.order, {"long_name": "model order"}),
         "diagram_frequency": ("diagram_pole", diag.frequency_hz, {"units": "Hz"}),
         "diagram_damping_ratio": ("diagram_pole", diag.damping_ratio, {"units": "1"}),
-        "diagram_status": ("diagram_pole", diag.status,
-                           {"long_name": "0 new, 1 stable frequency, 2 + damping, 3 + shape"}),
-        "diagram_mode": ("diagram_pole", np.where(diag.cluster >= 0, diag.cluster + 1, diag.cluster),
-                         {"long_name": "mode number of the pole, -1 none, -2 a harmonic"}),
-    }  # fmt: skip
+        "diagram_status": (
+            "diagram_pole",
+            diag.status,
+            {"long_name": "0 new, 1 stable frequency, 2 + damping, 3 + shape"},
+        ),
+        "diagram_mode": (
+            "diagram_pole",
+            np.where(diag.cluster >= 0, diag.cluster + 1, diag.cluster),
+            {"long_name": "mode number of the pole, -1 none, -2 a harmonic"},
+        ),
+    }
     return xr.Dataset(
         {**mode_vars, **diagram_vars},
-        coords={"mode": ("mode", np.arange(1, n_modes + 1)), "sample": ("sample", np.arange(J)), **ch_coords,
-                "pole_part": ("pole_part", ["real", "imag"]), "pole_part_2": ("pole_part_2", ["real", "imag"])},
+        coords={
+            "mode": ("mode", np.arange(1, n_modes + 1)),
+            "sample": ("sample", np.arange(J)),
+            **ch_coords,
+            "pole_part": ("pole_part", ["real", "imag"]),
+            "pole_part_2": ("pole_part_2", ["real", "imag"]),
+        },
     )

@@ -130,8 +130,9 @@ def blocks_deleted(n_blocks: int, delete: int | None) -> int:
     """
     d = n_blocks // 2 if delete is None else int(delete)
     if not 1 <= d < n_blocks:
-        raise ValueError(f"a jackknife sample must leave out between 1 and {n_blocks - 1} of the {n_blocks} "
-                         f"blocks, got {d}")  # fmt: skip
+        raise ValueError(
+            f"a jackknife sample must leave out between 1 and {n_blocks - 1} of the {n_blocks} blocks, got {d}"
+        )
     return d
 
 
@@ -152,8 +153,10 @@ def deleted_blocks(n_blocks: int, delete: int | None, seed: int = 0, n_samples: 
     n_samples = n_blocks if n_samples is None else int(n_samples)
     if d == 1:
         if n_samples != n_blocks:
-            raise ValueError(f"the delete-one jackknife gives one sample per block: {n_samples} samples need "
-                             f"{n_samples} blocks, not {n_blocks} (or delete more than one block)")  # fmt: skip
+            raise ValueError(
+                f"the delete-one jackknife gives one sample per block: {n_samples} samples need "
+                f"{n_samples} blocks, not {n_blocks} (or delete more than one block)"
+            )
         return [np.array([m]) for m in range(n_blocks)]
     if n_samples < 2:
         raise ValueError(f"the spread needs at least 2 samples, got {n_samples}")

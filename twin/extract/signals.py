@@ -59,9 +59,22 @@ class Record:
 
 
 #: Units a numeric ``time`` coordinate may state (its ``units`` attr), in seconds; none stated is seconds.
-TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "millisecond": 1e-3,
-              "milliseconds": 1e-3, "us": 1e-6, "µs": 1e-6, "microseconds": 1e-6, "min": 60.0, "minutes": 60.0,
-              "h": 3600.0, "hours": 3600.0}  # fmt: skip
+TIME_UNITS = {
+    "s": 1.0,
+    "sec": 1.0,
+    "second": 1.0,
+    "seconds": 1.0,
+    "ms": 1e-3,
+    "millisecond": 1e-3,
+    "milliseconds": 1e-3,
+    "us": 1e-6,
+    "µs": 1e-6,
+    "microseconds": 1e-6,
+    "min": 60.0,
+    "minutes": 60.0,
+    "h": 3600.0,
+    "hours": 3600.0,
+}
 
 
 def seconds_per(units: str, whose: str) -> float:
@@ -88,8 +101,9 @@ def _seconds(time: xr.DataArray, source: str) -> np.ndarray:
     try:
         return t.astype(float) * scale
     except (TypeError, ValueError):
-        raise SignalError(f"{source}: the 'time' coordinate is not numbers of seconds nor datetimes "
-                          f"(dtype {t.dtype})") from None  # fmt: skip
+        raise SignalError(
+            f"{source}: the 'time' coordinate is not numbers of seconds nor datetimes (dtype {t.dtype})"
+        ) from None
 
 
 def time_step(ds: xr.Dataset, source: str) -> float | None:
@@ -106,26 +120,34 @@ def time_step(ds: xr.Dataset, source: str) -> float | None:
     t = _seconds(ds["time"], source)
     if not np.all(np.isfinite(t)):
         first = int(np.argmax(~np.isfinite(t)))
-        raise SignalError(f"{source}: the 'time' coordinate has {int((~np.isfinite(t)).sum())} NaN or inf "
-                          f"values (first at sample {first})")  # fmt: skip
+        raise SignalError(
+            f"{source}: the 'time' coordinate has {int((~np.isfinite(t)).sum())} NaN or inf "
+            f"values (first at sample {first})"
+        )
     dt = np.diff(t)
     if np.all(dt < 0):
-        raise SignalError(f"{source}: the time runs backwards (from {t[0]:g} s down to {t[-1]:g} s): reverse the "
-                          "record (ds.isel(time=slice(None, None, -1))) or fix its time axis")  # fmt: skip
+        raise SignalError(
+            f"{source}: the time runs backwards (from {t[0]:g} s down to {t[-1]:g} s): reverse the "
+            "record (ds.isel(time=slice(None, None, -1))) or fix its time axis"
+        )
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
-        raise SignalError(f"{source}: the time does not increase at sample {k + 1} ({t[k]:g} s, then "
-                          f"{t[k + 1]:g} s): sort the record by time or fix its time axis")  # fmt: skip
+        raise SignalError(
+            f"{source}: the time does not increase at sample {k + 1} ({t[k]:g} s, then "
+            f"{t[k + 1]:g} s): sort the record by time or fix its time axis"
+        )
     step = float(np.median(dt))
     off = np.abs(dt - step) > TIME_STEP_TOLERANCE * step
     if np.any(off):
         k = int(np.argmax(np.abs(dt - step)))
         missing = int(round(dt[k] / step)) - 1
         what = f"a step of {dt[k]:g} s" + (f" (a hole: {missing} samples missing)" if missing >= 1 else "")
-        raise SignalError(f"{source}: the time axis is not evenly spaced: {what} after t = {t[k]:g} s, where the "
-                          f"record steps by {step:g} s ({int(off.sum())} uneven steps in all, tolerance "
-                          f"{TIME_STEP_TOLERANCE:.0%} of a step): cut the record there or resample it onto an even "
-                          "axis")  # fmt: skip
+        raise SignalError(
+            f"{source}: the time axis is not evenly spaced: {what} after t = {t[k]:g} s, where the "
+            f"record steps by {step:g} s ({int(off.sum())} uneven steps in all, tolerance "
+            f"{TIME_STEP_TOLERANCE:.0%} of a step): cut the record there or resample it onto an even "
+            "axis"
+        )
     return float((t[-1] - t[0]) / (len(t) - 1))
 
 
@@ -142,13 +164,17 @@ def sampling_rate(ds: xr.Dataset, source: str) -> float:
     try:
         fs = float(fs)
     except (TypeError, ValueError):
-        raise SignalError(f"{source}: no sampling rate: set the 'sampling_rate' attribute [Hz] or an evenly "
-                          "spaced 'time' coordinate [s]") from None  # fmt: skip
+        raise SignalError(
+            f"{source}: no sampling rate: set the 'sampling_rate' attribute [Hz] or an evenly "
+            "spaced 'time' coordinate [s]"
+        ) from None
     if not (np.isfinite(fs) and fs > 0):
         raise SignalError(f"{source}: sampling_rate must be a positive number of Hz, got {fs}")
     if step is not None and abs(fs * step - 1.0) > RATE_TOLERANCE:
-        raise SignalError(f"{source}: the sampling_rate attribute says {fs:g} Hz but the time coordinate steps by "
-                          f"{step:g} s ({1 / step:g} Hz): fix the one that is wrong")  # fmt: skip
+        raise SignalError(
+            f"{source}: the sampling_rate attribute says {fs:g} Hz but the time coordinate steps by "
+            f"{step:g} s ({1 / step:g} Hz): fix the one that is wrong"
+        )
     return fs
 
 
@@ -181,8 +207,10 @@ def check_record(ds: xr.Dataset, source: str = "signals", channels: Sequence[str
     names = [str(c) for c in (da["channel"].values if "channel" in da.coords else range(da.sizes["channel"]))]
     repeated = sorted({c for c in names if names.count(c) > 1})
     if repeated:
-        raise SignalError(f"{source}: channel name(s) {', '.join(map(repr, repeated))} appear more than once: "
-                          "each channel needs its own name (the model's sensor it is)")  # fmt: skip
+        raise SignalError(
+            f"{source}: channel name(s) {', '.join(map(repr, repeated))} appear more than once: "
+            "each channel needs its own name (the model's sensor it is)"
+        )
     if channels is not None:
         unknown = [c for c in channels if c not in names]
         if unknown:
@@ -197,23 +225,39 @@ def check_record(ds: xr.Dataset, source: str = "signals", channels: Sequence[str
     bad = ~np.isfinite(y)
     for c in np.flatnonzero(bad.any(axis=0)):
         first = int(np.argmax(bad[:, c]))
-        raise SignalError(f"{source}: channel '{names[c]}' has {int(bad[:, c].sum())} NaN or inf samples "
-                          f"(first at t = {first / fs:g} s): fill the gap, cut the record or drop the channel")  # fmt: skip
+        raise SignalError(
+            f"{source}: channel '{names[c]}' has {int(bad[:, c].sum())} NaN or inf samples "
+            f"(first at t = {first / fs:g} s): fill the gap, cut the record or drop the channel"
+        )
     std = y.std(axis=0)
     for quantity in sorted(set(quantities)):  # a displacement in m is tiny beside an acceleration in m/s²
         same = np.array([q == quantity for q in quantities])
         ref = float(np.median(std[same])) or float(std[same].max())  # most channels flat: the live one(s)
         for c in np.flatnonzero(same & (std <= DEAD_CHANNEL_RATIO * ref)):
-            raise SignalError(f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against {ref:.3g} for the "
-                              "others): a dead sensor? Leave it out (channels=... / --channels)")  # fmt: skip
+            raise SignalError(
+                f"{source}: channel '{names[c]}' is flat (std {std[c]:.3g} against {ref:.3g} for the "
+                "others): a dead sensor? Leave it out (channels=... / --channels)"
+            )
     for c, name in enumerate(names):
         hi, lo = y[:, c].max(), y[:, c].min()
         tol = 1e-9 * (hi - lo)
         at_hi, at_lo = np.mean(y[:, c] >= hi - tol), np.mean(y[:, c] <= lo + tol)
         if max(at_hi, at_lo) > max(CLIPPED_FRACTION, CLIPPED_SAMPLES / len(y)):
-            where = f"{at_hi:.2%} of its samples at its maximum {hi:.4g}" if at_hi >= at_lo else \
-                f"{at_lo:.2%} of its samples at its minimum {lo:.4g}"  # fmt: skip
-            warnings.warn(f"{source}: channel '{name}' looks clipped (saturated): {where}; the modes it sees "
-                          "are distorted", TwinWarning, stacklevel=3)  # fmt: skip
-    return Record(y=y - y.mean(axis=0), fs_hz=fs, channels=tuple(names), source=source, attrs=dict(ds.attrs),
-                  quantities=tuple(quantities))
+            where = (
+                f"{at_hi:.2%} of its samples at its maximum {hi:.4g}"
+                if at_hi >= at_lo
+                else f"{at_lo:.2%} of its samples at its minimum {lo:.4g}"
+            )
+            warnings.warn(
+                f"{source}: channel '{name}' looks clipped (saturated): {where}; the modes it sees are distorted",
+                TwinWarning,
+                stacklevel=3,
+            )
+    return Record(
+        y=y - y.mean(axis=0),
+        fs_hz=fs,
+        channels=tuple(names),
+        source=source,
+        attrs=dict(ds.attrs),
+        quantities=tuple(quantities),
+    )

@@ -129,8 +129,10 @@ def hankel(R: np.ndarray, block_rows: int, block_columns: int | None = None, fir
     if first_lag < 1:
         raise ValueError(f"the Hankel matrix starts at lag 1 or later (lag 0 holds the sensor noise), got {first_lag}")
     if i + q - 1 + first_lag >= R.shape[0]:
-        raise ValueError(f"{i} block rows and {q} columns from lag {first_lag} need covariances to lag "
-                         f"{i + q - 1 + first_lag}, got {R.shape[0] - 1}")  # fmt: skip
+        raise ValueError(
+            f"{i} block rows and {q} columns from lag {first_lag} need covariances to lag "
+            f"{i + q - 1 + first_lag}, got {R.shape[0] - 1}"
+        )
     idx = np.arange(i + 1)[:, None] + np.arange(q)[None, :] + first_lag
     return R[idx].transpose(0, 2, 1, 3).reshape((i + 1) * l, q * r)
 
@@ -159,8 +161,9 @@ class Realisation:
         return lam[keep], self.C[:, :order] @ v[:, keep]
 
 
-def realise(R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_columns: int | None = None,
-            first_lag: int = 1) -> Realisation:  # fmt: skip
+def realise(
+    R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, block_columns: int | None = None, first_lag: int = 1
+) -> Realisation:
     """Factorise the covariance Hankel matrix (SVD) and prepare the multi-order solution (QR).
 
     ``first_lag`` is the lag the Hankel matrix starts at (:func:`hankel`); ``R`` must reach lag

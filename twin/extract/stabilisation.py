@@ -124,8 +124,13 @@ def diagram(real: Realisation, orders: np.ndarray, fmin_hz: float, fmax_hz: floa
     n_ch = real.C.shape[0]
     shape = np.concatenate(rows_shape) if rows_shape else np.zeros((0, n_ch), complex)
     pole = np.concatenate(rows_pole) if rows_pole else np.zeros(0, complex)
-    return Diagram(order=np.concatenate(rows_order).astype(int), pole=pole, shape=shape.reshape(-1, n_ch),
-                   status=np.concatenate(rows_status).astype(np.int8), cluster=np.full(len(pole), -1))  # fmt: skip
+    return Diagram(
+        order=np.concatenate(rows_order).astype(int),
+        pole=pole,
+        shape=shape.reshape(-1, n_ch),
+        status=np.concatenate(rows_status).astype(np.int8),
+        cluster=np.full(len(pole), -1),
+    )
 
 
 @dataclass(frozen=True)
@@ -222,9 +227,10 @@ def _merge_duplicates(d: Diagram, clusters: list[Cluster], crit: Criteria) -> li
     kept: list[Cluster] = []
     for c in clusters:
         p, s = d.pole[[c.representative]], d.shape[[c.representative]]
-        if any(pole_distance(p, s, d.pole[[k.representative]], d.shape[[k.representative]])[0, 0]
-               < crit.cluster_distance for k in kept):  # fmt: skip
+        if any(
+            pole_distance(p, s, d.pole[[k.representative]], d.shape[[k.representative]])[0, 0] < crit.cluster_distance
+            for k in kept
+        ):
             continue
         kept.append(c)
     return kept
-

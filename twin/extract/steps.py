@@ -31,7 +31,7 @@ from twin.extract.blocks import (
     MIN_BLOCK_TIME_CONSTANTS,
     adapted_blocks,
     block_count,
-    check_block_length,  # fmt: skip
+    check_block_length,
     most_blocks,
 )
 from twin.extract.harmonics import remove_running_harmonics
@@ -43,7 +43,7 @@ from twin.extract.passes import (
     first_lag_for,
     modes_from_differenced,
     shape_lag_rows,
-    shapes_at_longer_lags,  # fmt: skip
+    shapes_at_longer_lags,
     ssi_pass,
 )
 from twin.extract.quantities import displacement_shapes
@@ -160,19 +160,26 @@ def prepare(signals, opts: ExtractOptions) -> Prepared:
     if not 0 < fmax <= nyquist:
         raise SignalError(f"{source}: fmax = {fmax:g} Hz must be positive and at most Nyquist ({nyquist:g} Hz)")
     if fmax > DEFAULT_FMAX_FRACTION * rec.fs_hz * (1 + 1e-9):
-        warnings.warn(f"{source}: fmax = {fmax:g} Hz is above {DEFAULT_FMAX_FRACTION:.0%} of the sampling rate "
-                      f"({DEFAULT_FMAX_FRACTION * rec.fs_hz:g} Hz): modes near Nyquist are seen with few samples per "
-                      "period and through the anti-alias filter's roll-off; their estimates are poor", TwinWarning,
-                      stacklevel=4)  # fmt: skip
+        warnings.warn(
+            f"{source}: fmax = {fmax:g} Hz is above {DEFAULT_FMAX_FRACTION:.0%} of the sampling rate "
+            f"({DEFAULT_FMAX_FRACTION * rec.fs_hz:g} Hz): modes near Nyquist are seen with few samples per "
+            "period and through the anti-alias filter's roll-off; their estimates are poor",
+            TwinWarning,
+            stacklevel=4,
+        )
     if not 0 <= fmin_hz < fmax:
         raise SignalError(f"{source}: fmin = {fmin_hz:g} Hz must be at least 0 and below fmax = {fmax:g} Hz")
     if differenced_above_hz is not None and not 0 <= as_float(differenced_above_hz) < fmax:  # NaN fails too
-        raise SignalError(f"{source}: differenced_above_hz must be a frequency from 0 to below fmax = {fmax:g} Hz, "
-                          f"got {differenced_above_hz!r}")  # fmt: skip
+        raise SignalError(
+            f"{source}: differenced_above_hz must be a frequency from 0 to below fmax = {fmax:g} Hz, "
+            f"got {differenced_above_hz!r}"
+        )
     n_blocks, samples = opts.n_blocks, opts.n_samples
     if fmin_hz > 0 and rec.duration_s * fmin_hz < MIN_CYCLES:
-        raise SignalError(f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
-                          f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)")  # fmt: skip
+        raise SignalError(
+            f"{source}: the record lasts {rec.duration_s:g} s, too short for modes down to "
+            f"fmin = {fmin_hz:g} Hz: it needs {MIN_CYCLES / fmin_hz:g} s ({MIN_CYCLES} periods)"
+        )
     warn_about_layout(source, len(rec.channels), rec.fs_hz, opts.fmax_hz)
     y, fs, q = decimate(rec, fmax)
     speed_rpm = rec.attrs.get("speed_rpm")
@@ -181,8 +188,12 @@ def prepare(signals, opts: ExtractOptions) -> Prepared:
     if opts.remove_harmonics and running_hz:
         y, removed = remove_running_harmonics(y, fs, running_hz, fmax)
         for h in removed:
-            log.info("%.4f Hz (%dX) removed before SSI: a line %.0f dB above the spectrum around it",
-                     h["frequency_hz"], h["running_speed_multiple"], h["line_to_floor_db"])  # fmt: skip
+            log.info(
+                "%.4f Hz (%dX) removed before SSI: a line %.0f dB above the spectrum around it",
+                h["frequency_hz"],
+                h["running_speed_multiple"],
+                h["line_to_floor_db"],
+            )
     f_low = max(fmin_hz, DEFAULT_FMIN_FRACTION * fmax)  # lags cover a quarter period of f_low
     i = opts.block_rows or max(int(np.ceil(fs / (4 * f_low))), int(np.ceil(opts.max_order / y.shape[1])) + 1)
     k0 = first_lag_for(fs, fmax) if opts.first_lag is None else int(opts.first_lag)
@@ -198,42 +209,105 @@ def first_pass(p: Prepared, opts: ExtractOptions, progress: bool) -> Modes:
     """SSI-cov over the model orders, the stabilisation diagram cleared into modes, and each mode's jackknife
     samples over the blocks and spread over its model orders (:func:`jackknife_samples`)."""
     n_deleted, repeats = jackknife_plan(p.n_blocks, p.samples, opts)
-    log.info("SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
-             p.source, p.y.shape[1], p.rec.duration_s, p.fs, p.block_rows, p.first_lag, opts.max_order)  # fmt: skip
-    found = ssi_pass(p.y, p.fs, p.block_rows, p.n_blocks, opts.max_order, opts.fmin_hz, p.fmax, opts.criteria,
-                     p.running_hz, p.rec.channels, p.spectrum, first_lag=p.first_lag)  # fmt: skip
+    log.info(
+        "SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
+        p.source,
+        p.y.shape[1],
+        p.rec.duration_s,
+        p.fs,
+        p.block_rows,
+        p.first_lag,
+        opts.max_order,
+    )
+    found = ssi_pass(
+        p.y,
+        p.fs,
+        p.block_rows,
+        p.n_blocks,
+        opts.max_order,
+        opts.fmin_hz,
+        p.fmax,
+        opts.criteria,
+        p.running_hz,
+        p.rec.channels,
+        p.spectrum,
+        first_lag=p.first_lag,
+    )
     reason = None
     if opts.chosen:
-        plan = adapted_blocks(p.y.shape[0] / p.fs, p.most, np.array([found.diag.pole[c.representative]
-                                                                     for c in found.modes]))  # fmt: skip
+        plan = adapted_blocks(
+            p.y.shape[0] / p.fs, p.most, np.array([found.diag.pole[c.representative] for c in found.modes])
+        )
         log.info("jackknife: %s", plan.reason)
         reason = plan.reason
     harmonics = list(p.removed) + found.harmonics
     if not found.modes:
-        raise NoModeError(f"{p.source}: no physical mode found between {opts.fmin_hz:g} and {p.fmax:g} Hz "
-                          f"({len(harmonics)} harmonic(s) rejected)", block_rows=p.block_rows)  # fmt: skip
+        raise NoModeError(
+            f"{p.source}: no physical mode found between {opts.fmin_hz:g} and {p.fmax:g} Hz "
+            f"({len(harmonics)} harmonic(s) rejected)",
+            block_rows=p.block_rows,
+        )
     return jackknife_samples(p, found, opts, progress, n_deleted, repeats, reason, harmonics)
 
 
-def jackknife_samples(p: Prepared, found, opts: ExtractOptions, progress: bool, n_deleted: int, repeats: int,
-                      plan_reason: str | None, harmonics: list) -> Modes:  # fmt: skip
+def jackknife_samples(
+    p: Prepared,
+    found,
+    opts: ExtractOptions,
+    progress: bool,
+    n_deleted: int,
+    repeats: int,
+    plan_reason: str | None,
+    harmonics: list,
+) -> Modes:
     """Each mode of the first pass with its delete-d jackknife samples (and, with ``shape_samples``, shape
     samples of their own delete-half jackknife) and its deviations over the model orders it is averaged over."""
     members = mode_members(found, opts.orders_per_mode)
-    poles, shapes, sample_p, sample_s, missing = jackknife(found.covariances, p.block_rows, p.fs, members, progress,
-                                                           delete=opts.delete_blocks, n_samples=p.samples,
-                                                           first_lag=p.first_lag)  # fmt: skip
+    poles, shapes, sample_p, sample_s, missing = jackknife(
+        found.covariances,
+        p.block_rows,
+        p.fs,
+        members,
+        progress,
+        delete=opts.delete_blocks,
+        n_samples=p.samples,
+        first_lag=p.first_lag,
+    )
     n_samples = p.samples
     if repeats > 1:  # the shapes from their own delete-half samples, each pole sample used `repeats` times
         n_samples = p.samples * repeats
         log.info("shape samples: %d random halves of the %d blocks", n_samples, p.n_blocks)
-        sample_s = jackknife(found.covariances, p.block_rows, p.fs, members, progress, delete=None,
-                             n_samples=n_samples, first_lag=p.first_lag)[3]  # fmt: skip
+        sample_s = jackknife(
+            found.covariances,
+            p.block_rows,
+            p.fs,
+            members,
+            progress,
+            delete=None,
+            n_samples=n_samples,
+            first_lag=p.first_lag,
+        )[3]
         sample_p, missing = repeated(sample_p, repeats), np.repeat(missing, repeats, axis=1)
     d_p, d_s = order_deviations(members, shapes, n_samples)
-    return Modes(list(found.modes), members, found.diag, int(found.real.max_order), harmonics, poles, shapes,
-                 sample_p, sample_s, missing, d_p, d_s, n_samples, n_deleted, repeats, plan_reason,
-                 np.zeros(len(poles), dtype=int))  # fmt: skip
+    return Modes(
+        list(found.modes),
+        members,
+        found.diag,
+        int(found.real.max_order),
+        harmonics,
+        poles,
+        shapes,
+        sample_p,
+        sample_s,
+        missing,
+        d_p,
+        d_s,
+        n_samples,
+        n_deleted,
+        repeats,
+        plan_reason,
+        np.zeros(len(poles), dtype=int),
+    )
 
 
 def differenced_pass(p: Prepared, m: Modes, opts: ExtractOptions, progress: bool) -> None:
@@ -241,13 +315,26 @@ def differenced_pass(p: Prepared, m: Modes, opts: ExtractOptions, progress: bool
     strong modes no longer fill the covariances; a mode without a counterpart there keeps its estimate."""
     above = opts.differenced_above_hz
     log.info("SSI-cov again on the record differenced %d times for the modes above %g Hz", DIFFERENCES, above)
-    again = ssi_pass(differenced(p.y), p.fs, p.block_rows, p.n_blocks, opts.max_order, max(opts.fmin_hz, above),
-                     p.fmax, opts.criteria, p.running_hz, p.rec.channels, {}, quiet=True,
-                     first_lag=max(p.first_lag, DIFFERENCES + 1))  # fmt: skip
+    again = ssi_pass(
+        differenced(p.y),
+        p.fs,
+        p.block_rows,
+        p.n_blocks,
+        opts.max_order,
+        max(opts.fmin_hz, above),
+        p.fmax,
+        opts.criteria,
+        p.running_hz,
+        p.rec.channels,
+        {},
+        quiet=True,
+        first_lag=max(p.first_lag, DIFFERENCES + 1),
+    )
     first = (m.members, m.poles, m.shapes, m.sample_p, m.sample_s, m.missing, m.d_p, m.d_s)
     again_members = mode_members(again, opts.orders_per_mode)
-    read, counterpart = modes_from_differenced(again, again_members, p.fs, above, first, progress,
-                                               delete=opts.delete_blocks, n_samples=p.samples)  # fmt: skip
+    read, counterpart = modes_from_differenced(
+        again, again_members, p.fs, above, first, progress, delete=opts.delete_blocks, n_samples=p.samples
+    )
     m.members, m.poles, m.shapes, m.sample_p, m.sample_s, m.missing, m.d_p, m.d_s = read
     m.differences[counterpart >= 0] = DIFFERENCES
     m.clusters = [again.modes[j] if j >= 0 else c for c, j in zip(m.clusters, counterpart)]  # for the cluster sizes
@@ -265,19 +352,35 @@ def drop_undetermined(p: Prepared, m: Modes, opts: ExtractOptions) -> None:
     damping_judged = p.block_length / p.fs >= MIN_BLOCK_TIME_CONSTANTS / np.maximum(np.abs(m.poles.real), 1e-12)
     scatter = pole_scatter(m.poles, m.sample_p, m.missing.mean(axis=1), damping_judged, p.rec.duration_s)
     keep = scatter < MAX_POLE_SE  # pole_determined's test, with the scatter kept for the warnings
-    m.undetermined = left_out(p.source, m.poles[~keep], m.sample_p[~keep], scatter[~keep], damping_judged[~keep],
-                              p.rec.duration_s)  # fmt: skip
+    m.undetermined = left_out(
+        p.source, m.poles[~keep], m.sample_p[~keep], scatter[~keep], damping_judged[~keep], p.rec.duration_s
+    )
     if not keep.any():
-        raise NoModeError(f"{p.source}: no physical mode found between {opts.fmin_hz:g} and {p.fmax:g} Hz "
-                          f"({len(m.undetermined)} stable pole(s) dropped: their samples scatter beyond their "
-                          "bandwidth)", block_rows=p.block_rows)  # fmt: skip
+        raise NoModeError(
+            f"{p.source}: no physical mode found between {opts.fmin_hz:g} and {p.fmax:g} Hz "
+            f"({len(m.undetermined)} stable pole(s) dropped: their samples scatter beyond their "
+            "bandwidth)",
+            block_rows=p.block_rows,
+        )
     if m.undetermined:
         new_index = np.where(keep, np.cumsum(keep) - 1, -1)
-        m.diag = dataclasses.replace(m.diag, cluster=np.where(m.diag.cluster >= 0, new_index[m.diag.cluster],
-                                                              m.diag.cluster))  # fmt: skip
+        m.diag = dataclasses.replace(
+            m.diag, cluster=np.where(m.diag.cluster >= 0, new_index[m.diag.cluster], m.diag.cluster)
+        )
         m.poles, m.shapes, m.sample_p, m.sample_s, m.d_s, m.missing, m.jackknife_p, m.n_orders, m.differences = (
-            x[keep] for x in (m.poles, m.shapes, m.sample_p, m.sample_s, m.d_s, m.missing, m.jackknife_p,
-                              m.n_orders, m.differences))  # fmt: skip
+            x[keep]
+            for x in (
+                m.poles,
+                m.shapes,
+                m.sample_p,
+                m.sample_s,
+                m.d_s,
+                m.missing,
+                m.jackknife_p,
+                m.n_orders,
+                m.differences,
+            )
+        )
         m.members = [x for x, k in zip(m.members, keep) if k]
         m.clusters = [c for c, k in zip(m.clusters, keep) if k]
 
@@ -291,13 +394,36 @@ def shapes_pass(p: Prepared, m: Modes, opts: ExtractOptions, progress: bool) -> 
     m.shape_block_rows = max(i, i_s)
     if i_s <= i:
         return
-    log.info("SSI-cov again with %d block rows for the shapes of %d mode(s) (lags of %.3g s)",
-             i_s, slow.sum(), i_s / p.fs)  # fmt: skip
-    again = ssi_pass(p.y, p.fs, i_s, p.n_blocks, opts.max_order, opts.fmin_hz, p.fmax, opts.criteria, p.running_hz,
-                     p.rec.channels, p.spectrum, quiet=True, first_lag=p.first_lag)  # fmt: skip
-    read = shapes_at_longer_lags(again, p.fs, mode_members(again, opts.orders_per_mode), m.poles[slow],
-                                 m.shapes[slow], m.sample_s[slow], m.d_s[slow], progress, delete=opts.delete_blocks,
-                                 n_samples=p.samples)  # fmt: skip
+    log.info(
+        "SSI-cov again with %d block rows for the shapes of %d mode(s) (lags of %.3g s)", i_s, slow.sum(), i_s / p.fs
+    )
+    again = ssi_pass(
+        p.y,
+        p.fs,
+        i_s,
+        p.n_blocks,
+        opts.max_order,
+        opts.fmin_hz,
+        p.fmax,
+        opts.criteria,
+        p.running_hz,
+        p.rec.channels,
+        p.spectrum,
+        quiet=True,
+        first_lag=p.first_lag,
+    )
+    read = shapes_at_longer_lags(
+        again,
+        p.fs,
+        mode_members(again, opts.orders_per_mode),
+        m.poles[slow],
+        m.shapes[slow],
+        m.sample_s[slow],
+        m.d_s[slow],
+        progress,
+        delete=opts.delete_blocks,
+        n_samples=p.samples,
+    )
     m.shapes[slow], m.sample_s[slow], m.d_s[slow], matched = read
     m.shape_rows[np.flatnonzero(slow)[matched]] = i_s
     for f in m.poles[slow][~matched].imag / (2 * np.pi):
@@ -318,8 +444,9 @@ def finish_shapes(p: Prepared, m: Modes, opts: ExtractOptions) -> np.ndarray:
     return ref_channel
 
 
-def shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int,
-               source: str, first_lag: int = 1) -> tuple[int, np.ndarray]:  # fmt: skip
+def shape_rows(
+    asked: int | str, poles: np.ndarray, fs: float, i: int, block_len: int, source: str, first_lag: int = 1
+) -> tuple[int, np.ndarray]:
     """Block rows of the pass the shapes are read at, and which modes' shapes it reads.
 
     ``asked``: every mode's, at that many rows (``i``, the poles' pass, or fewer: none). ``"auto"``: the
@@ -333,20 +460,29 @@ def shape_rows(asked: int | str, poles: np.ndarray, fs: float, i: int, block_len
             return i, slow
         return shape_lag_rows(float(f_hz[slow].min()), fs, minimum=i, maximum=longest), slow
     if asked > longest:
-        raise SignalError(f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
-                          f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "
-                          f"(at most {longest})")  # fmt: skip
+        raise SignalError(
+            f"{source}: shape_block_rows = {asked} is too many for blocks of {block_len / fs:g} s: "
+            f"each block must hold {MIN_BLOCK_LAGS:g} times the {hankel_max_lag(asked, first_lag)} lags "
+            f"(at most {longest})"
+        )
     return int(asked), np.ones(len(poles), dtype=bool)
 
 
 def warn_about_layout(source: str, n_channels: int, fs_hz: float, fmax_hz: float | None) -> None:
     """Warn about a record that can only give a poor extraction: few channels, or a low rate and no fmax."""
     if n_channels < MIN_CHANNELS:
-        warnings.warn(f"{source}: {n_channels} channel(s): shapes known at so few points cannot tell modes apart "
-                      f"(MAC), and a mode with a node there is missed; use at least {MIN_CHANNELS} (two x-y "
-                      "proximeter pairs)", TwinWarning, stacklevel=5)  # fmt: skip
+        warnings.warn(
+            f"{source}: {n_channels} channel(s): shapes known at so few points cannot tell modes apart "
+            f"(MAC), and a mode with a node there is missed; use at least {MIN_CHANNELS} (two x-y "
+            "proximeter pairs)",
+            TwinWarning,
+            stacklevel=5,
+        )
     if fmax_hz is None and fs_hz < LOW_RATE_HZ:
-        warnings.warn(f"{source}: sampled at {fs_hz:g} Hz and no fmax given: modes are extracted up to "
-                      f"{DEFAULT_FMAX_FRACTION * fs_hz:g} Hz only ({DEFAULT_FMAX_FRACTION:.0%} of the rate); "
-                      "sample faster to see a rotor's higher modes, or give fmax to say that is the band you want",
-                      TwinWarning, stacklevel=5)  # fmt: skip
+        warnings.warn(
+            f"{source}: sampled at {fs_hz:g} Hz and no fmax given: modes are extracted up to "
+            f"{DEFAULT_FMAX_FRACTION * fs_hz:g} Hz only ({DEFAULT_FMAX_FRACTION:.0%} of the rate); "
+            "sample faster to see a rotor's higher modes, or give fmax to say that is the band you want",
+            TwinWarning,
+            stacklevel=5,
+        )

@@ -7,6 +7,18 @@ from twin.fem.modelfile import load_model, shipped_model
 from twin.fem.parameters import Parameter, Term
 
 __all__ = [
-    "Bearing", "Disk", "Effect", "Material", "Parameter", "RotorModel", "Sensor", "ShaftElement",
-    "Term", "ThrustBearing", "effect_classes", "load_model", "register", "shipped_model",
-]  # fmt: skip
+    "Bearing",
+    "Disk",
+    "Effect",
+    "Material",
+    "Parameter",
+    "RotorModel",
+    "Sensor",
+    "ShaftElement",
+    "Term",
+    "ThrustBearing",
+    "effect_classes",
+    "load_model",
+    "register",
+    "shipped_model",
+]

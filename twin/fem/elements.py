@@ -147,42 +147,48 @@ class ShaftElement:
     def _plane_stiffness(self) -> np.ndarray:
         L, phi = self.length, self.phi
         a = self.material.E * self.second_moment / ((1 + phi) * L**3)
-        return a * np.array([
-            [12,      6*L,              -12,     6*L],
-            [6*L,     (4 + phi)*L**2,   -6*L,    (2 - phi)*L**2],
-            [-12,     -6*L,             12,      -6*L],
-            [6*L,     (2 - phi)*L**2,   -6*L,    (4 + phi)*L**2],
-        ])  # fmt: skip
+        return a * np.array(
+            [
+                [12, 6 * L, -12, 6 * L],
+                [6 * L, (4 + phi) * L**2, -6 * L, (2 - phi) * L**2],
+                [-12, -6 * L, 12, -6 * L],
+                [6 * L, (2 - phi) * L**2, -6 * L, (4 + phi) * L**2],
+            ]
+        )
 
     def _plane_translational_mass(self) -> np.ndarray:
         L, p = self.length, self.phi
-        m1 = 13/35 + 7*p/10 + p**2/3
-        m2 = (11/210 + 11*p/120 + p**2/24) * L
-        m3 = 9/70 + 3*p/10 + p**2/6
-        m4 = (13/420 + 3*p/40 + p**2/24) * L
-        m5 = (1/105 + p/60 + p**2/120) * L**2
-        m6 = (1/140 + p/60 + p**2/120) * L**2
+        m1 = 13 / 35 + 7 * p / 10 + p**2 / 3
+        m2 = (11 / 210 + 11 * p / 120 + p**2 / 24) * L
+        m3 = 9 / 70 + 3 * p / 10 + p**2 / 6
+        m4 = (13 / 420 + 3 * p / 40 + p**2 / 24) * L
+        m5 = (1 / 105 + p / 60 + p**2 / 120) * L**2
+        m6 = (1 / 140 + p / 60 + p**2 / 120) * L**2
         a = self.mass / (1 + p) ** 2
-        return a * np.array([
-            [m1,   m2,   m3,  -m4],
-            [m2,   m5,   m4,  -m6],
-            [m3,   m4,   m1,  -m2],
-            [-m4, -m6,  -m2,   m5],
-        ])  # fmt: skip
+        return a * np.array(
+            [
+                [m1, m2, m3, -m4],
+                [m2, m5, m4, -m6],
+                [m3, m4, m1, -m2],
+                [-m4, -m6, -m2, m5],
+            ]
+        )
 
     def _plane_rotary_mass(self) -> np.ndarray:
         L, p = self.length, self.phi
-        r1 = 6/5
-        r2 = (1/10 - p/2) * L
-        r3 = (2/15 + p/6 + p**2/3) * L**2
-        r4 = (1/30 + p/6 - p**2/6) * L**2
+        r1 = 6 / 5
+        r2 = (1 / 10 - p / 2) * L
+        r3 = (2 / 15 + p / 6 + p**2 / 3) * L**2
+        r4 = (1 / 30 + p / 6 - p**2 / 6) * L**2
         a = self.material.rho * self.second_moment / ((1 + p) ** 2 * L)
-        return a * np.array([
-            [r1,   r2,  -r1,   r2],
-            [r2,   r3,  -r2,  -r4],
-            [-r1, -r2,   r1,  -r2],
-            [r2,  -r4,  -r2,   r3],
-        ])  # fmt: skip
+        return a * np.array(
+            [
+                [r1, r2, -r1, r2],
+                [r2, r3, -r2, -r4],
+                [-r1, -r2, r1, -r2],
+                [r2, -r4, -r2, r3],
+            ]
+        )
 
     @staticmethod
     def _both_planes(plane: np.ndarray) -> np.ndarray:
@@ -250,24 +256,39 @@ class Disk:
         x, y, a, b = node_dofs(self.node)
         gyro = np.array([[0.0, 1.0], [-1.0, 0.0]])
         return [
-            Parameter(f"{self.name}.m", self.m, "kg", (Term("M", (x, y), np.eye(2)),), f"mass of {self.name}",
-                      bounds=POSITIVE),
             Parameter(
-                f"{self.name}.Id", self.Id, "kg m^2", (Term("M", (a, b), np.eye(2)),),
-                f"diametral moment of inertia of {self.name}", bounds=POSITIVE,
+                f"{self.name}.m", self.m, "kg", (Term("M", (x, y), np.eye(2)),), f"mass of {self.name}", bounds=POSITIVE
             ),
             Parameter(
-                f"{self.name}.Ip", self.Ip, "kg m^2", (Term("G", (a, b), gyro),),
-                f"polar moment of inertia of {self.name} (gyroscopic)", bounds=POSITIVE,
+                f"{self.name}.Id",
+                self.Id,
+                "kg m^2",
+                (Term("M", (a, b), np.eye(2)),),
+                f"diametral moment of inertia of {self.name}",
+                bounds=POSITIVE,
             ),
-        ]  # fmt: skip
+            Parameter(
+                f"{self.name}.Ip",
+                self.Ip,
+                "kg m^2",
+                (Term("G", (a, b), gyro),),
+                f"polar moment of inertia of {self.name} (gyroscopic)",
+                bounds=POSITIVE,
+            ),
+        ]
 
 
 #: The eight bearing coefficients, with (matrix, row, col) on [x, y].
 BEARING_COEFFICIENTS: dict[str, tuple[str, int, int]] = {
-    "kxx": ("K", 0, 0), "kxy": ("K", 0, 1), "kyx": ("K", 1, 0), "kyy": ("K", 1, 1),
-    "cxx": ("C", 0, 0), "cxy": ("C", 0, 1), "cyx": ("C", 1, 0), "cyy": ("C", 1, 1),
-}  # fmt: skip
+    "kxx": ("K", 0, 0),
+    "kxy": ("K", 0, 1),
+    "kyx": ("K", 1, 0),
+    "kyy": ("K", 1, 1),
+    "cxx": ("C", 0, 0),
+    "cxy": ("C", 0, 1),
+    "cyx": ("C", 1, 0),
+    "cyy": ("C", 1, 1),
+}
 
 
 @dataclass(frozen=True)
@@ -299,11 +320,14 @@ class Bearing:
             what = "stiffness" if kind == "K" else "damping"
             out.append(
                 Parameter(
-                    f"{self.name}.{key}", self.coefficients[key], unit,
-                    (_single_entry(kind, dofs, row, col),), f"{self.name} bearing {what} {key}",
+                    f"{self.name}.{key}",
+                    self.coefficients[key],
+                    unit,
+                    (_single_entry(kind, dofs, row, col),),
+                    f"{self.name} bearing {what} {key}",
                     bounds=POSITIVE if row == col else UNBOUNDED,
                 )
-            )  # fmt: skip
+            )
         return out
 
 
@@ -331,8 +355,20 @@ class ThrustBearing:
         """Tilt stiffness and damping as parameters."""
         dofs = node_dofs(self.node)[2:]
         return [
-            Parameter(f"{self.name}.k_tilt", self.k_tilt, "N m/rad", (Term("K", dofs, np.eye(2)),),
-                      f"{self.name} tilt stiffness", bounds=POSITIVE),
-            Parameter(f"{self.name}.c_tilt", self.c_tilt, "N m s/rad", (Term("C", dofs, np.eye(2)),),
-                      f"{self.name} tilt damping", bounds=POSITIVE),
-        ]  # fmt: skip
+            Parameter(
+                f"{self.name}.k_tilt",
+                self.k_tilt,
+                "N m/rad",
+                (Term("K", dofs, np.eye(2)),),
+                f"{self.name} tilt stiffness",
+                bounds=POSITIVE,
+            ),
+            Parameter(
+                f"{self.name}.c_tilt",
+                self.c_tilt,
+                "N m s/rad",
+                (Term("C", dofs, np.eye(2)),),
+                f"{self.name} tilt damping",
+                bounds=POSITIVE,
+            ),
+        ]

@@ -251,9 +251,8 @@ class RotorModel:
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import MagneticPull
-        >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull(-1e8))
+        >>> m = hydro_unit.with_effects(MagneticPull(-1e8))
         >>> m.parameter("MAG.stiffness").nominal
         -100000000.0
         """
@@ -268,9 +267,8 @@ class RotorModel:
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import FluidAddedMassPerMode, MagneticPull
-        >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull(-1e8))
+        >>> m = hydro_unit.with_effects(MagneticPull(-1e8))
         >>> m.per_mode_effect is None
         True
         >>> m.with_effects(FluidAddedMassPerMode((1e5,), (0.0,))).per_mode_effect.added_mass
@@ -283,9 +281,8 @@ class RotorModel:
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import FluidAddedMassPerMode
-        >>> m = load_model(shipped_model("hydro_unit"))
+        >>> m = hydro_unit
         >>> m.with_effects(FluidAddedMassPerMode((1e5,), (0.0,))).without_per_mode_effect().effects == m.effects
         True
         """
@@ -348,7 +345,4 @@ class RotorModel:
     @cached_property
     def total_mass(self) -> float:
         """Mass of shaft and disks [kg]."""
-        return sum(el.mass for el in self.shaft) + sum(
-            self.values.get(f"{d.name}.m", d.m) for d in self.disks
-        )
-
+        return sum(el.mass for el in self.shaft) + sum(self.values.get(f"{d.name}.m", d.m) for d in self.disks)

@@ -131,23 +131,37 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     disks = []
     for t in array_of_tables(top, "disk"):
         nm = unique(t, "disk")
-        disks.append(Disk(nm, t.node("node", n_nodes), t.number("mass", nonnegative=True),
-                          t.number("Id", nonnegative=True), t.number("Ip", nonnegative=True)))  # fmt: skip
+        disks.append(
+            Disk(
+                nm,
+                t.node("node", n_nodes),
+                t.number("mass", nonnegative=True),
+                t.number("Id", nonnegative=True),
+                t.number("Ip", nonnegative=True),
+            )
+        )
         t.finish()
     bearings = []
     for t in array_of_tables(top, "bearing"):
         nm = unique(t, "bearing")
         node = t.node("node", n_nodes)
         # a guide bearing holds the shaft: positive direct stiffness, non-negative direct damping
-        rules = {"kxx": {"positive": True}, "kyy": {"positive": True}, "cxx": {"nonnegative": True},
-                 "cyy": {"nonnegative": True}}  # fmt: skip
+        rules = {
+            "kxx": {"positive": True},
+            "kyy": {"positive": True},
+            "cxx": {"nonnegative": True},
+            "cyy": {"nonnegative": True},
+        }
         bearings.append(Bearing(nm, node, {k: t.number(k, **rules.get(k, {})) for k in BEARING_COEFFICIENTS}))
         t.finish()
     thrusts = []
     for t in array_of_tables(top, "thrust"):
         nm = unique(t, "thrust bearing")
-        thrusts.append(ThrustBearing(nm, t.node("node", n_nodes), t.number("k_tilt", nonnegative=True),
-                                     t.number("c_tilt", nonnegative=True)))  # fmt: skip
+        thrusts.append(
+            ThrustBearing(
+                nm, t.node("node", n_nodes), t.number("k_tilt", nonnegative=True), t.number("c_tilt", nonnegative=True)
+            )
+        )
         t.finish()
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
@@ -155,10 +169,19 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     tables: list[str] = []
     effects = _read_effects(top, regions, effect_elements(bearings, thrusts), tables)
     model = RotorModel(
-        name=name, shaft=shaft, disks=disks, bearings=bearings, thrusts=thrusts, sensors=sensors,
-        speed_rpm=speed_rpm, regions=regions, effects=(), rayleigh=rayleigh, source=source,
+        name=name,
+        shaft=shaft,
+        disks=disks,
+        bearings=bearings,
+        thrusts=thrusts,
+        sensors=sensors,
+        speed_rpm=speed_rpm,
+        regions=regions,
+        effects=(),
+        rayleigh=rayleigh,
+        source=source,
         description=description,
-    )  # fmt: skip
+    )
     check_effect_bounds(effects, model, source, tables)
     model = model.with_effects(*effects)
     operation = read_operation(top, model)
@@ -184,9 +207,12 @@ def check_effect_bounds(effects: Sequence, model, path: str, tables: Sequence[st
             key = p.name.split(".", 1)[1]
             if effect.per_mode:  # FSI.added_mass_3: entry 3 of added_mass
                 key = key.rsplit("_", 1)[0]
-            raise ModelFileError(path, table, key,
-                                 f"{p.name} = {p.nominal:.4g} is outside its physical bounds ({p.bounds_text()}: "
-                                 f"{p.description})")  # fmt: skip
+            raise ModelFileError(
+                path,
+                table,
+                key,
+                f"{p.name} = {p.nominal:.4g} is outside its physical bounds ({p.bounds_text()}: {p.description})",
+            )
 
 
 def _read_materials(top: Table) -> dict[str, Material]:
@@ -242,11 +268,26 @@ def _read_shaft(top: Table, materials: dict[str, Material], flags: dict[str, boo
         if mat not in materials:
             raise t.error("material", f"unknown material '{mat}' (defined: {', '.join(sorted(materials))})")
         t.finish()
-        sections.append((first, last, t, [
-            ShaftElement(first + i, float(L), od, id_, materials[mat], flags["shear_deformation"],
-                         flags["rotary_inertia"], flags["gyroscopic"])
-            for i, L in enumerate(lengths)
-        ]))  # fmt: skip
+        sections.append(
+            (
+                first,
+                last,
+                t,
+                [
+                    ShaftElement(
+                        first + i,
+                        float(L),
+                        od,
+                        id_,
+                        materials[mat],
+                        flags["shear_deformation"],
+                        flags["rotary_inertia"],
+                        flags["gyroscopic"],
+                    )
+                    for i, L in enumerate(lengths)
+                ],
+            )
+        )
     sections.sort(key=lambda s: s[0])
     expected = 0
     elements: list[ShaftElement] = []
@@ -303,11 +344,13 @@ def effect_elements(bearings, thrusts) -> dict[str, list[str]]:
     return {"bearing": [b.name for b in bearings], "thrust": [t.name for t in thrusts]}
 
 
-def _read_effects(top: Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]],
-                  tables_read: list[str]) -> list:  # fmt: skip
+def _read_effects(
+    top: Table, regions: Mapping[str, tuple[int, ...]], elements: Mapping[str, Sequence[str]], tables_read: list[str]
+) -> list:
     tables = Table(top.path, "[effects]", top._get("effects", {}))
-    return read_effect_tables(tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements,
-                              tables_read=tables_read)  # fmt: skip
+    return read_effect_tables(
+        tables, regions, prefix="effects.", per_mode_allowed=False, elements=elements, tables_read=tables_read
+    )
 
 
 def read_effect_tables(
@@ -349,7 +392,9 @@ def read_effect_tables(
             raise tables.error(key, f"a local change names its element: ['{base}:<{cls.element}>']")
         t = Table(tables.path, f"[{prefix}{key}]" if ":" not in key else f'[{prefix}"{key}"]', tables.data[key])
         if element and cls.element is None:
-            raise t.error(None, f"effect '{base}' acts on a region, not on a named element: call the table [{prefix}{base}]")
+            raise t.error(
+                None, f"effect '{base}' acts on a region, not on a named element: call the table [{prefix}{base}]"
+            )
         if cls.per_mode and not per_mode_allowed:
             raise t.error(None, "a per-mode effect is not a single FEM; it belongs in a truth file")
         if cls.region is not None and cls.region not in regions:
@@ -370,8 +415,11 @@ def read_effect_tables(
                 kind = cls.element_kind or cls.element
                 names = elements.get(kind) if elements is not None else None
                 if names is not None and values[name] not in names:
-                    raise t.error(name, f"no {kind} named {values[name]!r} in the model "
-                                        f"(its {kind}s: {', '.join(map(repr, names)) or 'none'})")
+                    raise t.error(
+                        name,
+                        f"no {kind} named {values[name]!r} in the model "
+                        f"(its {kind}s: {', '.join(map(repr, names)) or 'none'})",
+                    )
             elif kind is tuple:
                 items = t.array(name)
                 for v in items:

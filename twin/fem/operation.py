@@ -94,8 +94,7 @@ class Operation:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> op = load_model(shipped_model("hydro_unit")).operation
+    >>> op = hydro_unit.operation
     >>> op.names[:3]
     ('power', 'reactive_power', 'head')
     >>> round(op.reference_point()["head"], 1)
@@ -138,17 +137,23 @@ class Operation:
         """
         unknown = sorted(set(point) - set(self.names))
         if unknown:
-            raise ModelError(f"{where}: unknown operating condition '{unknown[0]}' (the model declares: "
-                             f"{', '.join(self.names)})")  # fmt: skip
+            raise ModelError(
+                f"{where}: unknown operating condition '{unknown[0]}' (the model declares: {', '.join(self.names)})"
+            )
         out = {}
         for c in self.conditions:
             value = point.get(c.name, c.reference)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(float(value)):  # fmt: skip
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.floating, np.integer))
+                or not math.isfinite(float(value))
+            ):
                 raise ModelError(f"{where}: {c.name} must be a finite number [{c.units}], got {value!r}")
             if not c.contains(float(value)):
-                raise ModelError(f"{where}: {c.name} = {float(value):g} {c.units} is outside the model's range "
-                                 f"[{c.low:g}, {c.high:g}] {c.units}, where its laws hold")  # fmt: skip
+                raise ModelError(
+                    f"{where}: {c.name} = {float(value):g} {c.units} is outside the model's range "
+                    f"[{c.low:g}, {c.high:g}] {c.units}, where its laws hold"
+                )
             out[c.name] = float(value)
         return out
 
@@ -167,8 +172,7 @@ def with_parameters(model, names) -> object:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> m = with_parameters(load_model(shipped_model("hydro_unit")), ["MAG.stiffness", "UGB.kxx"])
+    >>> m = with_parameters(hydro_unit, ["MAG.stiffness", "UGB.kxx"])
     >>> m.parameter("MAG.stiffness").nominal
     0.0
     """
@@ -191,9 +195,8 @@ def with_change(model, effect):
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import BearingChange
-    >>> unit = load_model(shipped_model("hydro_unit")).with_effects(BearingChange("UGB", -1e7))
+    >>> unit = hydro_unit.with_effects(BearingChange("UGB", -1e7))
     >>> with_change(unit, BearingChange("UGB", -2e7)).parameter("UGB.stiffness_change").nominal
     -30000000.0
     """
@@ -216,8 +219,7 @@ def at_operating_point(model, point: Mapping[str, float]):
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> unit = hydro_unit
     >>> low = at_operating_point(unit, {"power": 80.0})
     >>> low.parameter("MAG.stiffness").nominal > at_operating_point(unit, {}).parameter("MAG.stiffness").nominal
     True
@@ -230,8 +232,10 @@ def at_operating_point(model, point: Mapping[str, float]):
 def operation_of(model) -> Operation:
     """The model's operating conditions and laws; a :class:`~twin.errors.ModelError` if it declares none."""
     if model.operation is None:
-        raise ModelError(f"model '{model.name}' declares no operating conditions: the twin over time needs its "
-                         "[[condition]] and [[law]] tables (see models/hydro_unit.toml)")  # fmt: skip
+        raise ModelError(
+            f"model '{model.name}' declares no operating conditions: the twin over time needs its "
+            "[[condition]] and [[law]] tables (see models/hydro_unit.toml)"
+        )
     return model.operation
 
 
@@ -254,12 +258,17 @@ def read_operation(top, model) -> Operation | None:
         _check_units(t, units)
         reference = t.number("reference")
         span = t.array("range")
-        if len(span) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in span) \
-                or not span[0] < span[1]:  # fmt: skip
+        if (
+            len(span) != 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in span)
+            or not span[0] < span[1]
+        ):
             raise t.error("range", f"expected [low, high] with low < high, got {span!r}")
         if not span[0] <= reference <= span[1]:
             raise t.error("reference", f"{reference:g} {units} is outside the range [{span[0]:g}, {span[1]:g}]")
-        conditions.append(Condition(name, units, reference, float(span[0]), float(span[1]), t.string("description", "")))
+        conditions.append(
+            Condition(name, units, reference, float(span[0]), float(span[1]), t.string("description", ""))
+        )
         t.finish()
     laws_tables = array_of_tables(top, "law")
     if not conditions:
@@ -319,6 +328,10 @@ def _check_bounds(table, op: Operation, law: Law, parameter, model) -> None:
         value = one.values(model, point)[law.parameter]
         if not parameter.within(value):
             at = ", ".join(f"{k} = {v:g} {op.condition(k).units}" for k, v in point.items())
-            raise ModelFileError(table.path, table.where, "slopes",
-                                 f"at {at} the law gives {law.parameter} = {value:.4g} {parameter.unit}, outside its "
-                                 f"physical bounds ({parameter.bounds_text()})")  # fmt: skip
+            raise ModelFileError(
+                table.path,
+                table.where,
+                "slopes",
+                f"at {at} the law gives {law.parameter} = {value:.4g} {parameter.unit}, outside its "
+                f"physical bounds ({parameter.bounds_text()})",
+            )

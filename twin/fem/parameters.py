@@ -150,7 +150,5 @@ class Parameter:
             vals.append(t.value[r, c])
         if not rows:
             return sp.csr_array((n_dof, n_dof))
-        coo = sp.coo_array(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof)
-        )
+        coo = sp.coo_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
         return coo.tocsr()  # duplicates are summed

@@ -77,7 +77,9 @@ class Table:
     def name(self, key: str = "name") -> str:
         value = self.string(key)
         if not NAME.match(value):
-            raise self.error(key, f"{value!r} is not a valid name (letters, digits, '_' or '-', starting with a letter)")
+            raise self.error(
+                key, f"{value!r} is not a valid name (letters, digits, '_' or '-', starting with a letter)"
+            )
         return value
 
     def boolean(self, key: str, default: Any = MISSING) -> bool:

@@ -38,11 +38,41 @@ from twin.fem.tables import Table, read_toml
 
 #: The reference paper's Table 2: per-mode added mass [kg] and added damping [N s/m] of modes 1-15.
 PAPER_TABLE2 = FluidAddedMassPerMode(
-    added_mass=(1.00e5, 9.83e4, 7.80e4, 6.09e4, 7.00e4, 5.08e4, 5.09e4, 7.05e4, 3.48e4, 4.87e4, 6.67e4, 7.49e4,
-                5.15e4, 3.07e4, 5.15e4),
-    added_damping=(7.52e7, 1.26e7, 9.99e5, 7.92e6, 1.01e7, 1.43e6, 6.45e6, 1.65e6, 2.90e6, 1.64e7, 1.20e7, 1.92e6,
-                   1.51e8, 7.32e7, 1.37e8),
-)  # fmt: skip
+    added_mass=(
+        1.00e5,
+        9.83e4,
+        7.80e4,
+        6.09e4,
+        7.00e4,
+        5.08e4,
+        5.09e4,
+        7.05e4,
+        3.48e4,
+        4.87e4,
+        6.67e4,
+        7.49e4,
+        5.15e4,
+        3.07e4,
+        5.15e4,
+    ),
+    added_damping=(
+        7.52e7,
+        1.26e7,
+        9.99e5,
+        7.92e6,
+        1.01e7,
+        1.43e6,
+        6.45e6,
+        1.65e6,
+        2.90e6,
+        1.64e7,
+        1.20e7,
+        1.92e6,
+        1.51e8,
+        7.32e7,
+        1.37e8,
+    ),
+)
 #: The reference paper's noise of its synthetic modal data (its Figure 2): the coefficient of variation of
 #: the shape entries, and the pole samples' variances [rad²/s²] of the real and the imaginary part.
 PAPER_SHAPE_COV = 0.05
@@ -73,8 +103,11 @@ class Truth:
 
 
 #: Fields of the truth descriptions in files written before the fields took their parameters' names.
-_RENAMED = {("bearing_change", "stiffness"): "stiffness_change", ("bearing_change", "damping"): "damping_change",
-            ("thrust_tilt", "k_tilt"): "k_tilt_change"}  # fmt: skip
+_RENAMED = {
+    ("bearing_change", "stiffness"): "stiffness_change",
+    ("bearing_change", "damping"): "damping_change",
+    ("thrust_tilt", "k_tilt"): "k_tilt_change",
+}
 
 
 def truth_from_json(text: str) -> Truth:
@@ -118,17 +151,21 @@ def load_truth(path: str | Path, model: RotorModel) -> Truth:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> t = load_truth("paper", load_model(shipped_model("hydro_unit")))
+    >>> t = load_truth("paper", hydro_unit)
     >>> t.per_mode.n_modes
     15
     """
     if str(path) == "paper":
         region = PAPER_TABLE2.region
         if region not in model.regions:
-            raise ModelFileError("paper", "(truth)", None, f"the paper's truth is per-mode FSI on the region "
-                                 f"'{region}', which model '{model.name}' does not declare: give 'none' or a truth "
-                                 "file of effects this model can take")  # fmt: skip
+            raise ModelFileError(
+                "paper",
+                "(truth)",
+                None,
+                f"the paper's truth is per-mode FSI on the region "
+                f"'{region}', which model '{model.name}' does not declare: give 'none' or a truth "
+                "file of effects this model can take",
+            )
         return paper_truth()
     if str(path) == "none":
         return Truth((), "none (the model as it is)")
@@ -143,15 +180,20 @@ def truth_from_tables(data: dict, model: RotorModel, path: str, where: str = "(t
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> unit = hydro_unit
     >>> truth_from_tables({"shaft_stiffness:18": {"change": -0.3}}, unit, "schedule.toml").effects
     (ShaftStiffnessChange(index=18, change=-0.3),)
     """
     elements = effect_elements(model.bearings, model.thrusts)
     tables: list[str] = []
-    effects = read_effect_tables(Table(path, where, data), model.regions, prefix=prefix, elements=elements,
-                                 tables_read=tables, local_allowed=True)  # fmt: skip
+    effects = read_effect_tables(
+        Table(path, where, data),
+        model.regions,
+        prefix=prefix,
+        elements=elements,
+        tables_read=tables,
+        local_allowed=True,
+    )
     if not effects:
         raise ModelFileError(path, where, None, "a truth needs at least one effect table")
     if sum(e.per_mode for e in effects) > 1:

@@ -5,6 +5,11 @@ from twin.fmu.export import export_fmu
 from twin.fmu.statespace import StateSpace, discretize, full_state_space, simulate_reference, truncated_state_space
 
 __all__ = [
-    "FMUBuildError", "StateSpace", "discretize", "export_fmu", "full_state_space", "simulate_reference",
+    "FMUBuildError",
+    "StateSpace",
+    "discretize",
+    "export_fmu",
+    "full_state_space",
+    "simulate_reference",
     "truncated_state_space",
-]  # fmt: skip
+]

@@ -107,8 +107,15 @@ def platform_folder() -> str:
 def platform_tuple() -> str:
     """FMI 3.0 binaries folder name for this machine, e.g. ``x86_64-linux``."""
     system = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(platform.system())
-    machine = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64",
-               "i386": "x86", "i686": "x86", "x86": "x86"}.get(platform.machine().lower())  # fmt: skip
+    machine = {
+        "amd64": "x86_64",
+        "x86_64": "x86_64",
+        "arm64": "aarch64",
+        "aarch64": "aarch64",
+        "i386": "x86",
+        "i686": "x86",
+        "x86": "x86",
+    }.get(platform.machine().lower())
     if system is None or machine is None:
         raise FMUBuildError(f"no FMI 3.0 platform tuple for {platform.machine()} {platform.system()}")
     return f"{machine}-{system}"
@@ -175,10 +182,19 @@ def compiled_recorder(rebuild: bool = False) -> Path:
     return _compiled(source, {}, "twin_record", "the FMU recording loop", rebuild)
 
 
-def _compiled(source: Path, headers: dict[str, bytes], name: str, what: str, rebuild: bool,
-              included: bytes = b"", cross: CrossTarget | None = None) -> Path:
+def _compiled(
+    source: Path,
+    headers: dict[str, bytes],
+    name: str,
+    what: str,
+    rebuild: bool,
+    included: bytes = b"",
+    cross: CrossTarget | None = None,
+) -> Path:
     digest = hashlib.sha256(source.read_bytes() + included + b"".join(headers.values())).hexdigest()[:16]
-    folder, suffix = (platform_folder(), shared_library_suffix()) if cross is None else (cross.fmi2_folder, cross.suffix)
+    folder, suffix = (
+        (platform_folder(), shared_library_suffix()) if cross is None else (cross.fmi2_folder, cross.suffix)
+    )
     target = cache_dir() / f"{folder}-{digest}" / (name + suffix)
     if target.is_file() and not rebuild:
         return target

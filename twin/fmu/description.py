@@ -20,19 +20,36 @@ from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
 from twin.fmu import build
 
 #: The FMU's units: name, SI base-unit exponents, display units (name, factor: shown = factor x value).
-UNITS = (("s", {"s": "1"}, ()), ("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))),
-         ("m/s", {"m": "1", "s": "-1"}, (("mm/s", 1e3),)), ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
-         ("kg.m", {"kg": "1", "m": "1"}, (("g.mm", 1e6),)), ("rad", {"rad": "1"}, (("deg", 180 / np.pi),)),
-         ("N/sqrt(Hz)", {}, ()))  # fmt: skip
+UNITS = (
+    ("s", {"s": "1"}, ()),
+    ("m", {"m": "1"}, (("um", 1e6), ("mm", 1e3))),
+    ("m/s", {"m": "1", "s": "-1"}, (("mm/s", 1e3),)),
+    ("N", {"kg": "1", "m": "1", "s": "-2"}, (("kN", 1e-3),)),
+    ("kg.m", {"kg": "1", "m": "1"}, (("g.mm", 1e6),)),
+    ("rad", {"rad": "1"}, (("deg", 180 / np.pi),)),
+    ("N/sqrt(Hz)", {}, ()),
+)
 #: Value references of the parameters (shared with the runtime); inputs, outputs, states and their
 #: derivatives count from VR_INPUT0, VR_OUTPUT0, VR_STATE0 (Re z_i at 2i, Im z_i at 2i + 1) and VR_DER0.
-VR = {"unbalance_me": 1, "unbalance_phase": 2, "turbulence_asd": 3, "noise_std": 4,
-      "unbalance_node": 5, "turbulence_seed": 6, "noise_seed": 7, "steady_start": 8}  # fmt: skip
+VR = {
+    "unbalance_me": 1,
+    "unbalance_phase": 2,
+    "turbulence_asd": 3,
+    "noise_std": 4,
+    "unbalance_node": 5,
+    "turbulence_seed": 6,
+    "noise_seed": 7,
+    "steady_start": 8,
+}
 VR_TIME, VR_INPUT0, VR_OUTPUT0, VR_STATE0, VR_DER0 = 0, 100, 1000, 100000, 200000
 #: Start values of the real parameters (modelDescription and runtime, where a reset returns them): the
 #: default experiment shows the unit running with twin's default unbalance and turbulence.
-START = {"unbalance_me": DEFAULT_UNBALANCE_ME, "unbalance_phase": 0.0, "turbulence_asd": DEFAULT_TURBULENCE_ASD,
-         "noise_std": 0.0}  # fmt: skip
+START = {
+    "unbalance_me": DEFAULT_UNBALANCE_ME,
+    "unbalance_phase": 0.0,
+    "turbulence_asd": DEFAULT_TURBULENCE_ASD,
+    "noise_std": 0.0,
+}
 #: Length of the default experiment [s].
 DEFAULT_STOP_S = 30.0
 #: The FMI 3.0 log category of the runtime's messages (every one reports an error).
@@ -62,53 +79,157 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
         return Variable(name, vr, causality, variability, description, attrs=tuple(attrs.items()))
 
     out = [
-        real("unbalance_me", VR["unbalance_me"], "parameter", "fixed", "unbalance mass times eccentricity (1X, forward)",
-             start=repr(START["unbalance_me"]), unit="kg.m", min="0"),
-        real("unbalance_phase", VR["unbalance_phase"], "parameter", "fixed", "phase of the unbalance at t = 0",
-             start=repr(START["unbalance_phase"]), unit="rad", displayUnit="deg"),
-        real("turbulence_asd", VR["turbulence_asd"], "parameter", "fixed",
-             "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
-             start=repr(START["turbulence_asd"]), unit="N/sqrt(Hz)", min="0"),
-        real("noise_std", VR["noise_std"], "parameter", "fixed", "standard deviation of the sensor noise",
-             start=repr(START["noise_std"]), unit="m", displayUnit="um", min="0"),
-        Variable("unbalance_node", VR["unbalance_node"], "parameter", "fixed", "node carrying the unbalance", "int",
-                 attrs=(("start", str(unbalance_node)), ("min", "0"), ("max", str(model.n_nodes - 1)))),
-        Variable("turbulence_seed", VR["turbulence_seed"], "parameter", "fixed", "seed of the turbulence", "int",
-                 attrs=(("start", "1"),)),
-        Variable("noise_seed", VR["noise_seed"], "parameter", "fixed", "seed of the sensor noise", "int",
-                 attrs=(("start", "2"),)),
-        Variable("steady_start", VR["steady_start"], "parameter", "fixed",
-                 "start in the stationary response to the built-in excitation (else from rest)"
-                 + ("" if steady else "; this FMU was exported without it"), "bool",
-                 attrs=(("start", "true" if steady else "false"),)),
-    ]  # fmt: skip
+        real(
+            "unbalance_me",
+            VR["unbalance_me"],
+            "parameter",
+            "fixed",
+            "unbalance mass times eccentricity (1X, forward)",
+            start=repr(START["unbalance_me"]),
+            unit="kg.m",
+            min="0",
+        ),
+        real(
+            "unbalance_phase",
+            VR["unbalance_phase"],
+            "parameter",
+            "fixed",
+            "phase of the unbalance at t = 0",
+            start=repr(START["unbalance_phase"]),
+            unit="rad",
+            displayUnit="deg",
+        ),
+        real(
+            "turbulence_asd",
+            VR["turbulence_asd"],
+            "parameter",
+            "fixed",
+            "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
+            start=repr(START["turbulence_asd"]),
+            unit="N/sqrt(Hz)",
+            min="0",
+        ),
+        real(
+            "noise_std",
+            VR["noise_std"],
+            "parameter",
+            "fixed",
+            "standard deviation of the sensor noise",
+            start=repr(START["noise_std"]),
+            unit="m",
+            displayUnit="um",
+            min="0",
+        ),
+        Variable(
+            "unbalance_node",
+            VR["unbalance_node"],
+            "parameter",
+            "fixed",
+            "node carrying the unbalance",
+            "int",
+            attrs=(("start", str(unbalance_node)), ("min", "0"), ("max", str(model.n_nodes - 1))),
+        ),
+        Variable(
+            "turbulence_seed",
+            VR["turbulence_seed"],
+            "parameter",
+            "fixed",
+            "seed of the turbulence",
+            "int",
+            attrs=(("start", "1"),),
+        ),
+        Variable(
+            "noise_seed",
+            VR["noise_seed"],
+            "parameter",
+            "fixed",
+            "seed of the sensor noise",
+            "int",
+            attrs=(("start", "2"),),
+        ),
+        Variable(
+            "steady_start",
+            VR["steady_start"],
+            "parameter",
+            "fixed",
+            "start in the stationary response to the built-in excitation (else from rest)"
+            + ("" if steady else "; this FMU was exported without it"),
+            "bool",
+            attrs=(("start", "true" if steady else "false"),),
+        ),
+    ]
     for j, port in enumerate(ports):
-        out.append(real(port.name, VR_INPUT0 + j, "input", "continuous", f"external force at {port.port} (held over a "
-                        "step)", start="0", unit="N"))  # fmt: skip
+        out.append(
+            real(
+                port.name,
+                VR_INPUT0 + j,
+                "input",
+                "continuous",
+                f"external force at {port.port} (held over a step)",
+                start="0",
+                unit="N",
+            )
+        )
     for i, channel in enumerate(ss.outputs):
         sensor = next((s for s in model.sensors if s.name == channel), None)
         where = f" at {sensor.location} (node {sensor.node})" if sensor else ""
-        out.append(Variable(channel, VR_OUTPUT0 + i, "output", "continuous", f"proximeter displacement {channel}{where}",
-                            initial="calculated", attrs=(("unit", "m"), ("displayUnit", "um"))))  # fmt: skip
+        out.append(
+            Variable(
+                channel,
+                VR_OUTPUT0 + i,
+                "output",
+                "continuous",
+                f"proximeter displacement {channel}{where}",
+                initial="calculated",
+                attrs=(("unit", "m"), ("displayUnit", "um")),
+            )
+        )
     n_states = 2 * form.n_modes
     for k in range(n_states):
         lam = form.poles[k // 2]
-        what = (f"mode {k // 2 + 1} ({abs(lam.imag) / (2 * np.pi):.4g} Hz, damping ratio {-lam.real / abs(lam):.3g})"
-                if lam.imag else f"real pole {k // 2 + 1} ({lam.real:.4g} 1/s)")  # fmt: skip
-        out.append(real(f"z[{k // 2 + 1}].{'im' if k % 2 else 're'}", VR_STATE0 + k, "local", "continuous",
-                        f"{'imaginary' if k % 2 else 'real'} part of the modal coordinate of {what}: the mode's "
-                        "displacement at the sensor it moves most", unit="m", displayUnit="um"))  # fmt: skip
+        what = (
+            f"mode {k // 2 + 1} ({abs(lam.imag) / (2 * np.pi):.4g} Hz, damping ratio {-lam.real / abs(lam):.3g})"
+            if lam.imag
+            else f"real pole {k // 2 + 1} ({lam.real:.4g} 1/s)"
+        )
+        out.append(
+            real(
+                f"z[{k // 2 + 1}].{'im' if k % 2 else 're'}",
+                VR_STATE0 + k,
+                "local",
+                "continuous",
+                f"{'imaginary' if k % 2 else 'real'} part of the modal coordinate of {what}: the mode's "
+                "displacement at the sensor it moves most",
+                unit="m",
+                displayUnit="um",
+            )
+        )
     for k in range(n_states):
-        out.append(Variable(f"der(z[{k // 2 + 1}].{'im' if k % 2 else 're'})", VR_DER0 + k, "local", "continuous",
-                            "its time derivative", derivative_of=VR_STATE0 + k, attrs=(("unit", "m/s"),)))  # fmt: skip
+        out.append(
+            Variable(
+                f"der(z[{k // 2 + 1}].{'im' if k % 2 else 're'})",
+                VR_DER0 + k,
+                "local",
+                "continuous",
+                "its time derivative",
+                derivative_of=VR_STATE0 + k,
+                attrs=(("unit", "m/s"),),
+            )
+        )
     return out
 
 
 def _root(version, name, token_key, token, description) -> ET.Element:
-    return ET.Element("fmiModelDescription", fmiVersion=version, modelName=name, **{token_key: token},
-                      description=description, generationTool=f"twin {__version__}",
-                      generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-                      variableNamingConvention="flat")  # fmt: skip
+    return ET.Element(
+        "fmiModelDescription",
+        fmiVersion=version,
+        modelName=name,
+        **{token_key: token},
+        description=description,
+        generationTool=f"twin {__version__}",
+        generationDateAndTime=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        variableNamingConvention="flat",
+    )
 
 
 def _units(root: ET.Element) -> None:
@@ -135,20 +256,42 @@ def _dependencies(vs: Sequence[Variable], key) -> tuple[list, dict, list]:
     return outputs, derivatives, states
 
 
-def fmi2_description(model, ss, vs: Sequence[Variable], *, guid: str, identifier: str, name: str, description: str,
-                     step_s: float, kinds: Sequence[str]) -> bytes:  # fmt: skip
+def fmi2_description(
+    model,
+    ss,
+    vs: Sequence[Variable],
+    *,
+    guid: str,
+    identifier: str,
+    name: str,
+    description: str,
+    step_s: float,
+    kinds: Sequence[str],
+) -> bytes:
     """``modelDescription.xml`` in FMI 2.0 (``kinds``: ``"cs"`` and/or ``"me"``)."""
     root = _root("2.0", name, "guid", guid, description)
     root.set("numberOfEventIndicators", "0")
-    common = {"modelIdentifier": identifier, "canBeInstantiatedOnlyOncePerProcess": "false",
-              "canNotUseMemoryManagementFunctions": "true", "canGetAndSetFMUstate": "true",
-              "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"}  # fmt: skip
+    common = {
+        "modelIdentifier": identifier,
+        "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canNotUseMemoryManagementFunctions": "true",
+        "canGetAndSetFMUstate": "true",
+        "canSerializeFMUstate": "true",
+        "providesDirectionalDerivative": "true",
+    }
     interfaces = []
     if "me" in kinds:
         interfaces.append(ET.SubElement(root, "ModelExchange", completedIntegratorStepNotNeeded="true", **common))
     if "cs" in kinds:
-        interfaces.append(ET.SubElement(root, "CoSimulation", canHandleVariableCommunicationStepSize="true",
-                                        canInterpolateInputs="false", **common))  # fmt: skip
+        interfaces.append(
+            ET.SubElement(
+                root,
+                "CoSimulation",
+                canHandleVariableCommunicationStepSize="true",
+                canInterpolateInputs="false",
+                **common,
+            )
+        )
     for element in interfaces:
         ET.SubElement(ET.SubElement(element, "SourceFiles"), "File", name=f"{build.MODEL_IDENTIFIER}.c")
     _units(root)
@@ -156,8 +299,15 @@ def fmi2_description(model, ss, vs: Sequence[Variable], *, guid: str, identifier
     mv = ET.SubElement(root, "ModelVariables")
     index = {v.vr: i + 1 for i, v in enumerate(vs)}  # FMI 2.0 refers to variables by 1-based index
     for v in vs:
-        sv = ET.SubElement(mv, "ScalarVariable", name=v.name, valueReference=str(v.vr), causality=v.causality,
-                           variability=v.variability, description=v.description)  # fmt: skip
+        sv = ET.SubElement(
+            mv,
+            "ScalarVariable",
+            name=v.name,
+            valueReference=str(v.vr),
+            causality=v.causality,
+            variability=v.variability,
+            description=v.description,
+        )
         if v.initial:
             sv.set("initial", v.initial)
         attrs = dict(v.attrs)
@@ -177,29 +327,58 @@ def fmi2_description(model, ss, vs: Sequence[Variable], *, guid: str, identifier
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
 
-def fmi3_description(model, ss, vs: Sequence[Variable], *, guid: str, identifier: str, name: str, description: str,
-                     step_s: float, kinds: Sequence[str]) -> bytes:  # fmt: skip
+def fmi3_description(
+    model,
+    ss,
+    vs: Sequence[Variable],
+    *,
+    guid: str,
+    identifier: str,
+    name: str,
+    description: str,
+    step_s: float,
+    kinds: Sequence[str],
+) -> bytes:
     """``modelDescription.xml`` in FMI 3.0 (``kinds``: ``"cs"`` and/or ``"me"``), with the independent
     variable ``time``."""
     root = _root("3.0", name, "instantiationToken", guid, description)
-    common = {"modelIdentifier": identifier, "canBeInstantiatedOnlyOncePerProcess": "false",
-              "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-              "providesDirectionalDerivatives": "true"}  # fmt: skip
+    common = {
+        "modelIdentifier": identifier,
+        "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canGetAndSetFMUState": "true",
+        "canSerializeFMUState": "true",
+        "providesDirectionalDerivatives": "true",
+    }
     if "me" in kinds:
         ET.SubElement(root, "ModelExchange", needsCompletedIntegratorStep="false", **common)
     if "cs" in kinds:
-        ET.SubElement(root, "CoSimulation", canHandleVariableCommunicationStepSize="true", hasEventMode="false",
-                      **common)  # fmt: skip
+        ET.SubElement(
+            root, "CoSimulation", canHandleVariableCommunicationStepSize="true", hasEventMode="false", **common
+        )
     _units(root)
     categories = ET.SubElement(root, "LogCategories")
     ET.SubElement(categories, "Category", name=LOG_CATEGORY, description="why a call failed")
     ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=repr(DEFAULT_STOP_S), stepSize=repr(step_s))
     mv = ET.SubElement(root, "ModelVariables")
-    ET.SubElement(mv, "Float64", name="time", valueReference=str(VR_TIME), causality="independent",
-                  variability="continuous", description="simulation time", unit="s")  # fmt: skip
+    ET.SubElement(
+        mv,
+        "Float64",
+        name="time",
+        valueReference=str(VR_TIME),
+        causality="independent",
+        variability="continuous",
+        description="simulation time",
+        unit="s",
+    )
     for v in vs:
-        attrs = {"name": v.name, "valueReference": str(v.vr), "causality": v.causality,
-                 "variability": v.variability, "description": v.description, **dict(v.attrs)}  # fmt: skip
+        attrs = {
+            "name": v.name,
+            "valueReference": str(v.vr),
+            "causality": v.causality,
+            "variability": v.variability,
+            "description": v.description,
+            **dict(v.attrs),
+        }
         if v.initial:
             attrs["initial"] = v.initial
         if v.derivative_of is not None:

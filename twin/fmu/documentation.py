@@ -30,20 +30,32 @@ def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> 
     root = ET.fromstring(model_description)
     name, description = root.get("modelName", ""), root.get("description", "")
     version = root.get("fmiVersion", "2.0")
-    interfaces = " and ".join(label for tag, label in (("CoSimulation", "co-simulation"),
-                                                      ("ModelExchange", "model exchange")) if root.find(tag) is not None)
+    interfaces = " and ".join(
+        label
+        for tag, label in (("CoSimulation", "co-simulation"), ("ModelExchange", "model exchange"))
+        if root.find(tag) is not None
+    )
     rows = []
     for element in _variables(root):
-        cells = (element.get("name", ""), element.get("causality", ""), element.get("unit", ""),
-                 element.get("start", ""), element.get("description", ""))  # fmt: skip
+        cells = (
+            element.get("name", ""),
+            element.get("causality", ""),
+            element.get("unit", ""),
+            element.get("start", ""),
+            element.get("description", ""),
+        )
         rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
     truth = ""
     effects = hidden_effects(attrs)
     if effects is not None:
-        items = "".join(f"<li><code>{html.escape(label)}</code>: {html.escape(json.dumps(values))}</li>"
-                        for label, values in effects.items())  # fmt: skip
-        truth = ("<h2>Truth</h2><p>This FMU simulates the model with hidden effects (a truth), for synthetic "
-                 f"measurements:</p><ul>{items or '<li>nothing hidden</li>'}</ul>")
+        items = "".join(
+            f"<li><code>{html.escape(label)}</code>: {html.escape(json.dumps(values))}</li>"
+            for label, values in effects.items()
+        )
+        truth = (
+            "<h2>Truth</h2><p>This FMU simulates the model with hidden effects (a truth), for synthetic "
+            f"measurements:</p><ul>{items or '<li>nothing hidden</li>'}</ul>"
+        )
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}</title></head>
 <body>

@@ -84,9 +84,8 @@ def excitation_forces(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fmu.statespace import full_state_space
-    >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
+    >>> ss = full_state_space(hydro_unit)
     >>> t = np.arange(4) / 256.0
     >>> f = excitation_forces(ss, t, 8, 100.0, 28, turbulence_force(4, 3000.0, 1, 1 / 256.0))
     >>> f.shape == (4, len(ss.ports)), int(np.count_nonzero(f.any(axis=0)))
@@ -95,8 +94,7 @@ def excitation_forces(
     t = np.asarray(t, dtype=float)
     turbulence = np.asarray(turbulence, dtype=float)
     if turbulence.shape != (len(t), 2):
-        raise ValueError(f"turbulence must be {len(t)} samples of x and y, shape ({len(t)}, 2), "
-                         f"got {turbulence.shape}")  # fmt: skip
+        raise ValueError(f"turbulence must be {len(t)} samples of x and y, shape ({len(t)}, 2), got {turbulence.shape}")
     forces = np.zeros((len(t), len(ss.ports)))
     forces[:, ss.node_ports(unbalance_node)] = unbalance_force(t, me_kgm, phase_rad, ss.speed_rpm * RPM_TO_RAD_S)
     forces[:, ss.node_ports(turbulence_node)] += turbulence

@@ -72,8 +72,7 @@ def resolve_inputs(model: RotorModel, inputs: Sequence[str] | None) -> list[Port
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> [p.name for p in resolve_inputs(load_model(shipped_model("hydro_unit")), ["runner.x", "12.y"])]
+    >>> [p.name for p in resolve_inputs(hydro_unit, ["runner.x", "12.y"])]
     ['F_runner_x', 'F_12_y']
     """
     if inputs is None:
@@ -93,8 +92,10 @@ def resolve_inputs(model: RotorModel, inputs: Sequence[str] | None) -> list[Port
         elif where in named:
             node = named[where]
         else:
-            raise ModelError(f"force input '{item}': no node, disk, bearing or sensor called '{where}' "
-                             f"(names: {', '.join(sorted(named))})")  # fmt: skip
+            raise ModelError(
+                f"force input '{item}': no node, disk, bearing or sensor called '{where}' "
+                f"(names: {', '.join(sorted(named))})"
+            )
         out.append(Port(f"F_{where}_{axis}", f"{node}.{axis}"))
     if len({p.name for p in out}) != len(out):
         raise ModelError(f"force inputs are given twice: {list(inputs)}")
@@ -182,9 +183,8 @@ def export_fmu(
     --------
     >>> from twin.fmu import export_fmu
     >>> import tempfile, pathlib
-    >>> from twin import load_model, shipped_model
     >>> out = pathlib.Path(tempfile.mkdtemp()) / "unit.fmu"
-    >>> export_fmu(load_model(shipped_model("hydro_unit")), out, basis="modal", fmax_hz=50.0).name
+    >>> export_fmu(hydro_unit, out, basis="modal", fmax_hz=50.0).name
     'unit.fmu'
     """
     path = Path(path)
@@ -211,11 +211,13 @@ def export_fmu(
     steady = None
     if steady_start:
         steady = stationary_start(discretize(state_space, step_s), omega, [p for p in turb if p >= 0])
-    body = b"".join([
-        np.asarray(in_ports, dtype="<i4").tobytes(),
-        *(np.ascontiguousarray(a, dtype="<c16").tobytes() for a in (form.poles, form.wb.T, form.cv)),
-        *([] if steady is None else [np.ascontiguousarray(form.left @ steady.factor, dtype="<c16").tobytes()]),
-    ])  # fmt: skip
+    body = b"".join(
+        [
+            np.asarray(in_ports, dtype="<i4").tobytes(),
+            *(np.ascontiguousarray(a, dtype="<c16").tobytes() for a in (form.poles, form.wb.T, form.cv)),
+            *([] if steady is None else [np.ascontiguousarray(form.left @ steady.factor, dtype="<c16").tobytes()]),
+        ]
+    )
     name = model.name if name is None else str(name)
     identifier = model_identifier(name)
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
@@ -226,11 +228,22 @@ def export_fmu(
     resource = head + guid.encode().ljust(64, b"\0") + body
 
     vs = variables(model, state_space, form, ports, unbalance_node, steady is not None)
-    text = description or (f"{model.name} at {state_space.speed_rpm:g} rpm, {state_space.basis} basis, "
-                            f"{state_space.n_states} states (twin linear rotor)")  # fmt: skip
+    text = description or (
+        f"{model.name} at {state_space.speed_rpm:g} rpm, {state_space.basis} basis, "
+        f"{state_space.n_states} states (twin linear rotor)"
+    )
     write = fmi2_description if fmi_version == 2 else fmi3_description
-    xml = write(model, state_space, vs, guid=guid, identifier=identifier, name=name, description=text, step_s=step_s,
-                kinds=KINDS[kind])  # fmt: skip
+    xml = write(
+        model,
+        state_space,
+        vs,
+        guid=guid,
+        identifier=identifier,
+        name=name,
+        description=text,
+        step_s=step_s,
+        kinds=KINDS[kind],
+    )
     library = build.compiled_runtime()
     plat = build.platform_folder() if fmi_version == 2 else build.platform_tuple()
     headers = build.fmi_headers()  # sources/ compile without a prefix to both APIs: both versions' headers
@@ -246,7 +259,9 @@ def export_fmu(
             z.writestr(f"sources/{file_name}", source)
         if fmi_version == 3:
             z.writestr("sources/buildDescription.xml", fmi3_build_description(identifier))
-    log.info("wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s)
+    log.info(
+        "wrote %s: %d states, %d inputs, %d outputs, step %g s", path, n, len(ports), len(state_space.outputs), step_s
+    )
     return path
 
 
@@ -263,6 +278,3 @@ def model_identifier(name: str) -> str:
     """
     ident = re.sub(r"_+", "_", re.sub(r"[^0-9A-Za-z_]", "_", name)).strip("_") or "model"
     return ("m_" + ident if ident[0].isdigit() else ident)[:64]
-
-
-

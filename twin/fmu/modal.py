@@ -84,21 +84,28 @@ def modal_form(ss: StateSpace) -> ModalForm:
     try:
         left = np.linalg.inv(right)
     except np.linalg.LinAlgError:
-        raise ModelError(f"{ss.attrs.get('model', 'the system')}: its eigenvectors are linearly dependent "
-                         "(a defective system); it has no modal form") from None  # fmt: skip
+        raise ModelError(
+            f"{ss.attrs.get('model', 'the system')}: its eigenvectors are linearly dependent "
+            "(a defective system); it has no modal form"
+        ) from None
     scale = np.linalg.norm(ss.A, 1)
     mismatch = np.linalg.norm((right * lam) @ left - ss.A, 1) / (scale if scale > 0 else 1.0)
     if not mismatch <= MAX_RECONSTRUCTION_ERROR:
-        raise ModelError(f"{ss.attrs.get('model', 'the system')}: its modal form reproduces A only to "
-                         f"{mismatch:.1e} (nearly defective: poles too close for a diagonal form)")  # fmt: skip
+        raise ModelError(
+            f"{ss.attrs.get('model', 'the system')}: its modal form reproduces A only to "
+            f"{mismatch:.1e} (nearly defective: poles too close for a diagonal form)"
+        )
     keep = lam.imag >= 0  # LAPACK returns the poles of a real matrix in exact conjugate pairs
     order = np.lexsort((lam.real[keep], lam.imag[keep]))
     lam, right, left = lam[keep][order], right[:, keep][:, order], left[keep][order]
     # scale each coordinate to metres: its largest sensor displacement is 1 (for a mode no sensor sees,
     # its largest state entry)
     seen = ss.C @ right
-    ref = np.where(np.abs(seen).max(axis=0) > 0, seen[np.abs(seen).argmax(axis=0), np.arange(len(lam))],
-                   right[np.abs(right).argmax(axis=0), np.arange(len(lam))])  # fmt: skip
+    ref = np.where(
+        np.abs(seen).max(axis=0) > 0,
+        seen[np.abs(seen).argmax(axis=0), np.arange(len(lam))],
+        right[np.abs(right).argmax(axis=0), np.arange(len(lam))],
+    )
     right, left = right / ref, left * ref[:, None]
     weight = np.where(lam.imag > 0, 2.0, 1.0)
     return ModalForm(lam, (ss.C @ right) * weight, left @ ss.B, left)
@@ -136,8 +143,9 @@ def step_coefficients(poles: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarr
     return np.exp(x), h * p1, h * p2
 
 
-def simulate_modal(form: ModalForm, h: float, foh: np.ndarray, zoh: np.ndarray | None = None,
-                   z0: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+def simulate_modal(
+    form: ModalForm, h: float, foh: np.ndarray, zoh: np.ndarray | None = None, z0: np.ndarray | None = None
+) -> np.ndarray:
     """Outputs of the modal recursion for port forces sampled every ``h`` [s] (the runtime's reference).
 
     Parameters

@@ -29,9 +29,19 @@ def _recorder():
 
     lib = ctypes.CDLL(str(compiled_recorder()))
     f = lib.twin_record
-    f.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
-                  ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p,
-                  ctypes.c_void_p]  # fmt: skip
+    f.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_double,
+        ctypes.c_double,
+        ctypes.c_long,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_size_t,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+    ]
     f.restype = ctypes.c_long
     return f
 
@@ -77,9 +87,8 @@ def record_outputs(
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from twin import load_model, shipped_model
     >>> from twin.fmu import export_fmu
-    >>> fmu = export_fmu(load_model(shipped_model("hydro_unit")), pathlib.Path(tempfile.mkdtemp()) / "u.fmu")
+    >>> fmu = export_fmu(hydro_unit, pathlib.Path(tempfile.mkdtemp()) / "u.fmu")
     >>> record_outputs(fmu, outputs=["UGB_x", "UGB_y"], n_samples=256, step_s=1 / 256).shape
     (256, 2)
     """
@@ -91,8 +100,10 @@ def record_outputs(
     by_name = {v.name: v for v in md.modelVariables}
     missing = [name for name in outputs if name not in by_name]
     if missing:
-        raise TwinError(f"{fmu}: no variable {', '.join(missing)} (outputs: "
-                        f"{', '.join(v.name for v in md.modelVariables if v.causality == 'output')})")  # fmt: skip
+        raise TwinError(
+            f"{fmu}: no variable {', '.join(missing)} (outputs: "
+            f"{', '.join(v.name for v in md.modelVariables if v.causality == 'output')})"
+        )
     messages: list[str] = []
 
     def logger(env, instance, status, category, message):
@@ -115,8 +126,18 @@ def record_outputs(
         status = ctypes.c_int(0)
         for k0 in range(0, n_samples, CHUNK):
             n = min(CHUNK, n_samples - k0)
-            done = recorder(*functions, slave.component, start_time, step_s, k0, n, vr, len(outputs),
-                            out[k0:].ctypes.data, ctypes.byref(status))  # fmt: skip
+            done = recorder(
+                *functions,
+                slave.component,
+                start_time,
+                step_s,
+                k0,
+                n,
+                vr,
+                len(outputs),
+                out[k0:].ctypes.data,
+                ctypes.byref(status),
+            )
             if done < n:
                 k = k0 + done
                 call = "fmi2GetReal" if status.value >= 10 else f"fmi2DoStep to t = {start_time + k * step_s:.6g} s"

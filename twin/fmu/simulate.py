@@ -87,8 +87,14 @@ def default_warmup_s(ss: StateSpace) -> float:
     return float(min(MAX_WARMUP_S, WARMUP_TIME_CONSTANTS * slowest))
 
 
-def sensor_noise_std(ss: StateSpace, h: float, turbulence_asd: float, turbulence_ports: list[int],
-                     noise_ratio: float, noise_std_m: float | None = None) -> float:
+def sensor_noise_std(
+    ss: StateSpace,
+    h: float,
+    turbulence_asd: float,
+    turbulence_ports: list[int],
+    noise_ratio: float,
+    noise_std_m: float | None = None,
+) -> float:
     """Sensor noise std [m] per sample: ``noise_std_m`` when given, else ``noise_ratio`` times the
     median channel RMS of the turbulence response (computed only then)."""
     if noise_std_m is not None:
@@ -161,8 +167,7 @@ def simulate(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> ds = simulate(load_model(shipped_model("hydro_unit")), duration_s=1.0, fs_hz=256.0, progress=False)
+    >>> ds = simulate(hydro_unit, duration_s=1.0, fs_hz=256.0, progress=False)
     >>> ds.displacement.dims, ds.sizes["time"], ds.attrs["sampling_rate"]
     (('time', 'channel'), 256, 256.0)
     """
@@ -181,12 +186,16 @@ def simulate(
     check_stable(ss, model.name)  # before any work on a system that would diverge
     poles = ss.poles[ss.poles.imag > 0]
     light = poles[damping_ratio(poles) < MAX_TARGET_DAMPING]
-    f_interest = (fmax_hz if fmax_hz is not None else
-                  min(100.0, float(np.max(light.imag)) / (2 * np.pi)) if light.size else 0.0)  # fmt: skip
+    f_interest = (
+        fmax_hz if fmax_hz is not None else min(100.0, float(np.max(light.imag)) / (2 * np.pi)) if light.size else 0.0
+    )
     if fs_hz < 2.5 * f_interest:
-        warnings.warn(f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
-                      f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)", TwinWarning,
-                      stacklevel=2)  # fmt: skip
+        warnings.warn(
+            f"fs = {fs_hz:g} Hz is low for modes up to {f_interest:.1f} Hz: use at least "
+            f"{2.5 * f_interest:.0f} Hz (2.5 samples per period at the highest mode)",
+            TwinWarning,
+            stacklevel=2,
+        )
     steady = warmup_s is None if steady_start is None else bool(steady_start)
     if steady and warmup_s is not None:
         raise ModelError("a steady start needs no warm-up: give steady_start or warmup_s, not both")
@@ -203,29 +212,60 @@ def simulate(
     turb_ports = [] if turb_node is None else ss.node_ports(turb_node)
     noise_std = sensor_noise_std(ss, h, turbulence_asd, turb_ports, noise_ratio, noise_std_m)
     start_values = {
-        "unbalance_me": unbalance_me, "unbalance_phase": unbalance_phase_rad, "turbulence_asd": turbulence_asd,
-        "noise_std": noise_std, "turbulence_seed": int(seed), "noise_seed": int(seed) + 7919,
+        "unbalance_me": unbalance_me,
+        "unbalance_phase": unbalance_phase_rad,
+        "turbulence_asd": turbulence_asd,
+        "noise_std": noise_std,
+        "turbulence_seed": int(seed),
+        "noise_seed": int(seed) + 7919,
         "steady_start": steady,
-    }  # fmt: skip
+    }
     import fmpy
 
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = export_fmu(model, Path(tmp) / f"{model.name}.fmu", step_s=h, state_space=ss, inputs=[],
-                         name=fmu_name(model, ss), steady_start=steady, cross=False)  # fmt: skip
+        fmu = export_fmu(
+            model,
+            Path(tmp) / f"{model.name}.fmu",
+            step_s=h,
+            state_space=ss,
+            inputs=[],
+            name=fmu_name(model, ss),
+            steady_start=steady,
+            cross=False,
+        )
         n_total = n_warm + n_rec
-        with bar(total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress,
-                 mininterval=0.5) as steps:  # fmt: skip
-            data = record_outputs(fmu, outputs=ss.outputs, n_samples=n_total, step_s=h, start_time=-n_warm * h,
-                                  start_values=start_values, on_progress=steps.update)[n_warm:]  # fmt: skip
+        with bar(
+            total=n_total, desc=f"simulate {model.name}", unit="step", progress=progress, mininterval=0.5
+        ) as steps:
+            data = record_outputs(
+                fmu,
+                outputs=ss.outputs,
+                n_samples=n_total,
+                step_s=h,
+                start_time=-n_warm * h,
+                start_values=start_values,
+                on_progress=steps.update,
+            )[n_warm:]
     time = np.arange(n_rec) * h
 
     sensors = {s.name: s for s in model.sensors}
     settings = {
-        "duration_s": duration_s, "fs_hz": fs_hz, "seed": seed, "turbulence_asd": turbulence_asd,
-        "turbulence_node": turb_node, "unbalance_me": unbalance_me, "unbalance_phase_rad": unbalance_phase_rad,
-        "unbalance_node": default_unbalance_node(model), "noise_ratio": noise_ratio, "noise_std_m": noise_std,
-        "basis": ss.basis, "fmax_hz": fmax_hz, "warmup_s": n_warm * h, "steady_start": steady, "n_states": ss.n_states,
-    }  # fmt: skip
+        "duration_s": duration_s,
+        "fs_hz": fs_hz,
+        "seed": seed,
+        "turbulence_asd": turbulence_asd,
+        "turbulence_node": turb_node,
+        "unbalance_me": unbalance_me,
+        "unbalance_phase_rad": unbalance_phase_rad,
+        "unbalance_node": default_unbalance_node(model),
+        "noise_ratio": noise_ratio,
+        "noise_std_m": noise_std,
+        "basis": ss.basis,
+        "fmax_hz": fmax_hz,
+        "warmup_s": n_warm * h,
+        "steady_start": steady,
+        "n_states": ss.n_states,
+    }
     attrs = {
         "title": f"simulated proximeter signals of {model.name}",
         "sampling_rate": float(fs_hz),
@@ -246,12 +286,21 @@ def simulate(
         coords={
             "time": ("time", time, {"units": "s", "long_name": "time from the start of the record"}),
             "channel": ("channel", list(ss.outputs), {"long_name": "proximeter (sensor name)"}),
-            "node": ("channel", [sensors[c].node for c in ss.outputs],
-                     {"units": "1", "long_name": "FEM node the proximeter faces (0 at the shaft's first node)"}),
-            "direction": ("channel", [sensors[c].direction for c in ss.outputs],
-                          {"units": "1", "long_name": "measuring direction in the plane of the node (x or y)"}),
-            "location": ("channel", [sensors[c].location for c in ss.outputs],
-                         {"units": "1", "long_name": "what the proximeter faces (bearing, disk or region)"}),
+            "node": (
+                "channel",
+                [sensors[c].node for c in ss.outputs],
+                {"units": "1", "long_name": "FEM node the proximeter faces (0 at the shaft's first node)"},
+            ),
+            "direction": (
+                "channel",
+                [sensors[c].direction for c in ss.outputs],
+                {"units": "1", "long_name": "measuring direction in the plane of the node (x or y)"},
+            ),
+            "location": (
+                "channel",
+                [sensors[c].location for c in ss.outputs],
+                {"units": "1", "long_name": "what the proximeter faces (bearing, disk or region)"},
+            ),
         },
         attrs=attrs,
     )

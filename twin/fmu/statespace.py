@@ -78,15 +78,16 @@ class StateSpace:
         try:
             return self.ports.index(port)
         except ValueError:
-            raise ModelError(f"no force port '{port}'; ports are '<node>.x' / '<node>.y' for nodes 0..{len(self.ports) // 2 - 1}") from None
+            raise ModelError(
+                f"no force port '{port}'; ports are '<node>.x' / '<node>.y' for nodes 0..{len(self.ports) // 2 - 1}"
+            ) from None
 
     def node_ports(self, node: int | str) -> list[int]:
         """Columns of ``B`` for the x and y forces at ``node`` (:meth:`port_index` of ``"<node>.x"``, ``"<node>.y"``).
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
-        >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
+        >>> ss = full_state_space(hydro_unit)
         >>> ss.node_ports(28) == [ss.port_index("28.x"), ss.port_index("28.y")]
         True
         """
@@ -113,8 +114,7 @@ def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=N
     Examples
     --------
     >>> from twin.fmu import full_state_space
-    >>> from twin import load_model, shipped_model
-    >>> ss = full_state_space(load_model(shipped_model("hydro_unit")))
+    >>> ss = full_state_space(hydro_unit)
     >>> ss.A.shape, ss.B.shape, ss.C.shape
     ((232, 232), (232, 58), (8, 232))
     """
@@ -128,8 +128,9 @@ def full_state_space(model: RotorModel, speed_rpm: float | None = None, values=N
     B = np.vstack([np.zeros((n, len(ports))), sla.cho_solve(sla.cho_factor(mats["M"]), unit)])
     C = np.zeros((len(model.sensors), 2 * n))
     C[np.arange(len(model.sensors)), model.sensor_dofs] = 1.0
-    return StateSpace(A, B, C, force_ports(model), model.channels, speed_rpm, "full",
-                      {"model": model.name, "basis": "full"})  # fmt: skip
+    return StateSpace(
+        A, B, C, force_ports(model), model.channels, speed_rpm, "full", {"model": model.name, "basis": "full"}
+    )
 
 
 def modal_state_space(
@@ -183,8 +184,7 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
     Examples
     --------
     >>> from twin.fmu import truncated_state_space
-    >>> from twin import load_model, shipped_model
-    >>> ss = truncated_state_space(full_state_space(load_model(shipped_model("hydro_unit"))), 100.0)
+    >>> ss = truncated_state_space(full_state_space(hydro_unit), 100.0)
     >>> ss.n_states
     34
     """
@@ -195,8 +195,9 @@ def truncated_state_space(full: StateSpace, fmax_hz: float) -> StateSpace:
     if not keep.any():
         raise ModelError(f"no mode below {fmax_hz:g} Hz to build a modal basis from")
     attrs = {**full.attrs, "basis": "modal", "fmax_hz": fmax_hz, "n_modes": int(keep.sum())}
-    return modal_state_space(lam[keep], full.C @ right[keep].T, left[keep] @ full.B, full.ports, full.outputs,
-                             full.speed_rpm, attrs)  # fmt: skip
+    return modal_state_space(
+        lam[keep], full.C @ right[keep].T, left[keep] @ full.B, full.ports, full.outputs, full.speed_rpm, attrs
+    )
 
 
 def check_stable(ss: StateSpace, name: str) -> None:
@@ -204,8 +205,9 @@ def check_stable(ss: StateSpace, name: str) -> None:
     growing = ss.poles[ss.poles.real > 0]
     if growing.size:
         freqs = ", ".join(f"{f:.3f}" for f in sorted({abs(p.imag) / (2 * np.pi) for p in growing}))
-        raise ModelError(f"{name} is unstable at {ss.speed_rpm:g} rpm: modes at [{freqs}] Hz grow; "
-                         "a simulation of it would diverge")  # fmt: skip
+        raise ModelError(
+            f"{name} is unstable at {ss.speed_rpm:g} rpm: modes at [{freqs}] Hz grow; a simulation of it would diverge"
+        )
 
 
 @dataclass(frozen=True)
@@ -245,7 +247,10 @@ def discretize(ss: StateSpace, h: float) -> Discrete:
 
 
 def simulate_reference(
-    disc: Discrete, C: np.ndarray, zoh: np.ndarray | None = None, foh: np.ndarray | None = None,
+    disc: Discrete,
+    C: np.ndarray,
+    zoh: np.ndarray | None = None,
+    foh: np.ndarray | None = None,
     x0: np.ndarray | None = None,
 ) -> np.ndarray:
     """Outputs of the exact recursion for sampled forces (the numpy reference).

@@ -72,9 +72,20 @@ def steady_start(disc: Discrete, omega_rad_s: float, turbulence_ports: list[int]
     return SteadyStart(factor, response)
 
 
-def steady_state(start: SteadyStart, disc: Discrete, *, t0_s: float, omega_rad_s: float, me_kgm: float,
-                 phase_rad: float, unbalance_ports: list[int], turbulence_asd: float, g: np.ndarray,
-                 turbulence_ports: list[int], f0: np.ndarray) -> np.ndarray:  # fmt: skip
+def steady_state(
+    start: SteadyStart,
+    disc: Discrete,
+    *,
+    t0_s: float,
+    omega_rad_s: float,
+    me_kgm: float,
+    phase_rad: float,
+    unbalance_ports: list[int],
+    turbulence_asd: float,
+    g: np.ndarray,
+    turbulence_ports: list[int],
+    f0: np.ndarray,
+) -> np.ndarray:
     """The initial state the runtime forms (the numpy reference of it): the unbalance's periodic state at
     ``t0_s``, plus ``turbulence_asd F g`` and ``Γ1 f0`` (``f0``: the turbulence force at ``t0_s``)."""
     c = me_kgm * omega_rad_s**2 * np.exp(1j * (phase_rad + omega_rad_s * t0_s))

@@ -51,8 +51,10 @@ def target_mode_indices(poles: np.ndarray, n: int | None = None) -> np.ndarray:
     zeta = damping_ratio(poles)
     light = np.nonzero(zeta < MAX_TARGET_DAMPING)[0]
     if n is not None and len(light) < n:
-        raise ModelError(f"{n} target modes asked for, but the model has only {len(light)} modes "
-                         f"damped less than {MAX_TARGET_DAMPING:.0%}")  # fmt: skip
+        raise ModelError(
+            f"{n} target modes asked for, but the model has only {len(light)} modes "
+            f"damped less than {MAX_TARGET_DAMPING:.0%}"
+        )
     return light if n is None else light[:n]
 
 
@@ -81,9 +83,7 @@ def truth_model(model: RotorModel, truth: Truth) -> RotorModel:
     return dataclasses.replace(model, effects=tuple(model.effects) + truth.mode_independent)
 
 
-def truth_state_space(
-    model: RotorModel, truth: Truth, basis: str = "full", fmax_hz: float | None = None
-) -> StateSpace:
+def truth_state_space(model: RotorModel, truth: Truth, basis: str = "full", fmax_hz: float | None = None) -> StateSpace:
     """State space of the truth: the altered FEM, or the per-mode modal synthesis.
 
     Parameters
@@ -102,9 +102,8 @@ def truth_state_space(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.truthfile import paper_truth
-    >>> ss = truth_state_space(load_model(shipped_model("hydro_unit")), paper_truth())
+    >>> ss = truth_state_space(hydro_unit, paper_truth())
     >>> ss.n_states, ss.basis
     (30, 'modal')
     """
@@ -162,9 +161,8 @@ def truth_modes(model: RotorModel, truth: Truth, n_modes: int | None = None) -> 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.truthfile import paper_truth
-    >>> tm = truth_modes(load_model(shipped_model("hydro_unit")), paper_truth())
+    >>> tm = truth_modes(hydro_unit, paper_truth())
     >>> tm.shapes.shape
     (15, 116)
     """
@@ -248,8 +246,7 @@ def synthesize_per_mode_fsi(model: RotorModel, added_mass: tuple, added_damping:
     tm = per_mode_fsi_modes(model, added_mass, added_damping)
     dry = tm.ss
     attrs = {"basis": "modal", "synthesis": "per-mode FSI", "target_modes": [int(k) + 1 for k in tm.targets]}
-    return modal_state_space(tm.poles, dry.C @ tm.right.T, tm.wb, dry.ports, dry.outputs,
-                             dry.speed_rpm, attrs)  # fmt: skip
+    return modal_state_space(tm.poles, dry.C @ tm.right.T, tm.wb, dry.ports, dry.outputs, dry.speed_rpm, attrs)
 
 
 def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | None = None) -> StateSpace:
@@ -261,11 +258,10 @@ def model_state_space(model: RotorModel, basis: str = "full", fmax_hz: float | N
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> model_state_space(load_model(shipped_model("hydro_unit")), "modal", 50.0).n_states  # modes 1-11
+    >>> model_state_space(hydro_unit, "modal", 50.0).n_states  # modes 1-11
     22
     >>> from twin.fem.effects import FluidAddedMassPerMode
-    >>> wet = load_model(shipped_model("hydro_unit")).with_effects(FluidAddedMassPerMode((1e5, 1e5), (1e6, 1e6)))
+    >>> wet = hydro_unit.with_effects(FluidAddedMassPerMode((1e5, 1e5), (1e6, 1e6)))
     >>> model_state_space(wet).n_states  # its two target modes
     4
     """

@@ -129,18 +129,28 @@ def posterior_table(posterior: xr.DataTree, model: RotorModel) -> xr.Dataset:
             method = f"APerCEM, {posterior.attrs.get('sampler', kind)}, {runs}"
         undetermined = set(json.loads(posterior.attrs.get("undetermined", "[]")))
         determined = [str(n) not in undetermined for n in table["parameter"].values]
-        return table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]].assign(
-            unit=("parameter", units), determined=("parameter", determined)).assign_attrs(method=method)
+        return (
+            table[["map", "std", "q05", "q95", "r_hat", "ess_bulk"]]
+            .assign(unit=("parameter", units), determined=("parameter", determined))
+            .assign_attrs(method=method)
+        )
     fit = posterior["constant_data"].to_dataset()
     units = [model.parameter(str(n)).unit for n in fit["parameter"].values]
     z = 1.6448536269514722  # the 95% point of the standard normal
     nan = np.full(fit.sizes["parameter"], np.nan)
     return xr.Dataset(
-        {"map": fit["map"], "std": fit["std"], "q05": fit["map"] - z * fit["std"],
-         "q95": fit["map"] + z * fit["std"], "r_hat": ("parameter", nan), "ess_bulk": ("parameter", nan),
-         "unit": ("parameter", units), "determined": ("parameter", np.full(fit.sizes["parameter"], True))},
+        {
+            "map": fit["map"],
+            "std": fit["std"],
+            "q05": fit["map"] - z * fit["std"],
+            "q95": fit["map"] + z * fit["std"],
+            "r_hat": ("parameter", nan),
+            "ess_bulk": ("parameter", nan),
+            "unit": ("parameter", units),
+            "determined": ("parameter", np.full(fit.sizes["parameter"], True)),
+        },
         attrs={"method": posterior.attrs["method"]},
-    )  # fmt: skip
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,12 +198,15 @@ class DemoResult:
         truth = np.array([self.truth.get(str(n), np.nan) for n in post["parameter"].values])
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(truth != 0, post["map"].values / truth - 1.0, np.nan)
-        return post.assign(truth=("parameter", truth, {"units": "SI"}),
-                           relative_error=("parameter", rel, {"units": "1", "long_name": "MAP / truth - 1"}))  # fmt: skip
+        return post.assign(
+            truth=("parameter", truth, {"units": "SI"}),
+            relative_error=("parameter", rel, {"units": "1", "long_name": "MAP / truth - 1"}),
+        )
 
 
-def check_demo(out: str | Path, model: RotorModel | None, hidden: str, method: str = "hmc",
-               bootstrap: int | None = None) -> tuple[RotorModel, Scenario, Path]:  # fmt: skip
+def check_demo(
+    out: str | Path, model: RotorModel | None, hidden: str, method: str = "hmc", bootstrap: int | None = None
+) -> tuple[RotorModel, Scenario, Path]:
     """Check the demo's inputs before any work (and before a cluster starts): the model, what is hidden, the
     method and its calibration, the report folder. Returns the model, the scenario and the (made) folder.
 
@@ -212,8 +225,9 @@ def check_demo(out: str | Path, model: RotorModel | None, hidden: str, method: s
     if model is None:
         path = default_model_path()
         if not path.exists():
-            raise TwinError(f"the demo model {path} is not there (an installed copy without the source tree?): "
-                            "give a model file")  # fmt: skip
+            raise TwinError(
+                f"the demo model {path} is not there (an installed copy without the source tree?): give a model file"
+            )
         model = load_model(path)
     scenario.check(model)
     return model, scenario, check_folder(out)
@@ -292,11 +306,25 @@ def run_demo(
     with stage("export FMU", timings):
         export_fmu(model, out / f"{model.name}.fmu", step_s=1.0 / fs_hz)
     with stage("simulate truth (FMU through FMPy)", timings):
-        signals = simulate(model, duration_s=duration_s, fs_hz=fs_hz, seed=seed, truth=scenario.truth(),
-                           output=out / "signals.nc", progress=progress, command="twin demo")  # fmt: skip
+        signals = simulate(
+            model,
+            duration_s=duration_s,
+            fs_hz=fs_hz,
+            seed=seed,
+            truth=scenario.truth(),
+            output=out / "signals.nc",
+            progress=progress,
+            command="twin demo",
+        )
     with stage("extract modes", timings):
-        modes = extract(signals, samples=samples, shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples,
-                        fmax_hz=fmax_hz, progress=progress, command="twin demo")  # fmt: skip
+        modes = extract(
+            signals,
+            samples=samples,
+            shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples,
+            fmax_hz=fmax_hz,
+            progress=progress,
+            command="twin demo",
+        )
         modes = judge_targets(modes, signals)
         write_modes(modes, out / "modes.nc")
         fig = plot_stabilisation(modes)
@@ -304,9 +332,13 @@ def run_demo(
         pyplot().close(fig)
     with stage("diagnose, add, update (loop rounds)", timings):
         tw = Twin(model, modes)
-        tw.run(method=method, tasks=tasks, progress=progress,
-               **({"seed": seed} if method != "laplace" else {}),
-               **({"bootstrap": bootstrap} if method == "hmc" else {}))  # fmt: skip
+        tw.run(
+            method=method,
+            tasks=tasks,
+            progress=progress,
+            **({"seed": seed} if method != "laplace" else {}),
+            **({"bootstrap": bootstrap} if method == "hmc" else {}),
+        )
     meas = tw.measured
     with atomic_output(out / "diagnosis.json", ".json.part") as tmp:
         tmp.write_text(json.dumps({"rounds": [d.to_dict(meas) for d in tw.diagnoses]}, indent=2))
@@ -327,7 +359,9 @@ def _diag(value: float, fmt: str) -> str:
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    return ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+    return ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)] + [
+        "| " + " | ".join(r) + " |" for r in rows
+    ]
 
 
 def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
@@ -337,70 +371,144 @@ def write_report(result: DemoResult, modes: xr.Dataset) -> Path:
     if result.scenario.nothing:
         hidden = f"Nothing is hidden: the truth is the twin's model, `{name}`."
     else:
-        hidden = (f"Hidden in the truth: **{result.hidden_text()}** (SI; spec `{result.scenario.spec}`). "
-                  f"The twin's model, `{name}`, does not have it. The right diagnosis: {result.scenario.expected()}.")
+        hidden = (
+            f"Hidden in the truth: **{result.hidden_text()}** (SI; spec `{result.scenario.spec}`). "
+            f"The twin's model, `{name}`, does not have it. The right diagnosis: {result.scenario.expected()}."
+        )
     settings = json.loads(modes.attrs["settings"])
-    removed, rejected = (", ".join(f"{f:.3f} Hz" for f in fs) or "none" for fs in line_frequencies(modes.attrs["harmonics"]))
-    lines = ["# twin demo", "", hidden,
-             "", "## What was run", ""]  # fmt: skip
+    removed, rejected = (
+        ", ".join(f"{f:.3f} Hz" for f in fs) or "none" for fs in line_frequencies(modes.attrs["harmonics"])
+    )
+    lines = ["# twin demo", "", hidden, "", "## What was run", ""]
     lines += _md_table(["stage", "time [s]"], [[k, f"{v:.1f}"] for k, v in result.timings_s.items()])
-    lines += ["", f"Total: {sum(result.timings_s.values()):.1f} s.", "",
-              "## Identified modes", "",
-              f"{modes.sizes['mode']} modes, {_samples_text(settings)} "
-              f"(fmax {settings.get('fmax_hz')} Hz); running-speed lines removed before SSI: {removed}; "
-              f"harmonics rejected: {rejected}.", *[f"\n{line}." for line in target_lines(modes.attrs)], "",
-              "![stabilisation diagram](stabilisation.png)", ""]  # fmt: skip
+    lines += [
+        "",
+        f"Total: {sum(result.timings_s.values()):.1f} s.",
+        "",
+        "## Identified modes",
+        "",
+        f"{modes.sizes['mode']} modes, {_samples_text(settings)} "
+        f"(fmax {settings.get('fmax_hz')} Hz); running-speed lines removed before SSI: {removed}; "
+        f"harmonics rejected: {rejected}.",
+        *[f"\n{line}." for line in target_lines(modes.attrs)],
+        "",
+        "![stabilisation diagram](stabilisation.png)",
+        "",
+    ]
     before = tw.history[0].table
     lines += ["## Model against measurement", "", f"Error {error_text(before)}. {ERROR_WEIGHTS}.", ""]
-    rows = [[str(int(r["mode"])), f"{float(r.measured_frequency):.4f}", f"{float(r.model_frequency):.4f}",
-             f"{100 * float(r.frequency_error):+.2f}", f"{100 * float(r.measured_damping_ratio):.3f}",
-             f"{100 * float(r.model_damping_ratio):.3f}", f"{float(r.mac):.3f}"]
-            for r in (before.isel(mode=k) for k in range(before.sizes["mode"]))]  # fmt: skip
-    lines += _md_table(["mode", "f meas [Hz]", "f model [Hz]", "df [%]", "zeta meas [%]", "zeta model [%]", "MAC"], rows)
-    lines += ["", "The model's errors per measured mode" + (" before and after the update, on one scale" if tw.added else "")
-              + "; the bars at zero are the measurement's own standard uncertainty:", "", "![errors](errors.png)", "",
-              "The MAC of each measured mode against the model modes near the band (red: the model mode paired "
-              "with it):", "", "![MAC](mac.png)", "",
-              "The record's power spectral density per channel, with the identified modes (black) and the model's "
-              "partners (dashed) marked:", "",
-              "![spectra](spectra.png)", "", "## Diagnosis", ""]  # fmt: skip
+    rows = [
+        [
+            str(int(r["mode"])),
+            f"{float(r.measured_frequency):.4f}",
+            f"{float(r.model_frequency):.4f}",
+            f"{100 * float(r.frequency_error):+.2f}",
+            f"{100 * float(r.measured_damping_ratio):.3f}",
+            f"{100 * float(r.model_damping_ratio):.3f}",
+            f"{float(r.mac):.3f}",
+        ]
+        for r in (before.isel(mode=k) for k in range(before.sizes["mode"]))
+    ]
+    lines += _md_table(
+        ["mode", "f meas [Hz]", "f model [Hz]", "df [%]", "zeta meas [%]", "zeta model [%]", "MAC"], rows
+    )
+    lines += [
+        "",
+        "The model's errors per measured mode"
+        + (" before and after the update, on one scale" if tw.added else "")
+        + "; the bars at zero are the measurement's own standard uncertainty:",
+        "",
+        "![errors](errors.png)",
+        "",
+        "The MAC of each measured mode against the model modes near the band (red: the model mode paired with it):",
+        "",
+        "![MAC](mac.png)",
+        "",
+        "The record's power spectral density per channel, with the identified modes (black) and the model's "
+        "partners (dashed) marked:",
+        "",
+        "![spectra](spectra.png)",
+        "",
+        "## Diagnosis",
+        "",
+    ]
     for k, dk in enumerate(tw.diagnoses, start=1):
-        lines += [f"Round {k}: **{dk.verdict}**" + (f" ({', '.join(dk.missing)})" if dk.missing else "") + ".", "",
-                  dk.summary, ""]  # fmt: skip
+        lines += [
+            f"Round {k}: **{dk.verdict}**" + (f" ({', '.join(dk.missing)})" if dk.missing else "") + ".",
+            "",
+            dk.summary,
+            "",
+        ]
     lines += ["Round 1, every candidate fitted alone:", ""]
-    rows = [[str(k), f.label, f"{f.log_bayes_factor:.1f}", f"{100 * f.error_after(meas):.3f}"]
-            for k, f in enumerate(d.ranking, start=1)]  # fmt: skip
+    rows = [
+        [str(k), f.label, f"{f.log_bayes_factor:.1f}", f"{100 * f.error_after(meas):.3f}"]
+        for k, f in enumerate(d.ranking, start=1)
+    ]
     lines += _md_table(["rank", "effect", "ln B", "E after fit [%]"], rows)
     lines += ["", LN_B_KEY + ".", "", "Why:", ""] + [f"- {d.explanations[f.label]}" for f in d.ranking] + [""]
     if result.posterior is not None:
         ident = result.identified()
-        lines += ["## Update", "", f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.", ""]
-        rows = [[str(r["parameter"].values) + ("" if bool(r.determined) else " (not determined)"),
-                 f"{float(r.truth):.4g}", f"{float(r['map']):.4g}",
-                 f"{float(r.q05):.4g} to {float(r.q95):.4g}", f"{float(r['std']):.2g}", _diag(float(r.r_hat), ".3f"),
-                 _diag(float(r.ess_bulk), ".0f"), f"{100 * float(r.relative_error):+.1f}", str(r["unit"].values)]
-                for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))]  # fmt: skip
-        lines += _md_table(["parameter", "truth", "MAP", "90% interval", "std", "R-hat", "ESS", "error [%]", "unit"], rows)
-        lines += ["", "R-hat (at most 1.01 when the chains agree) and the bulk ESS over all chains are the "
-                  "sampler's own diagnostics (ArviZ); '-' where the method has none. A parameter marked not "
-                  "determined has a posterior std over half its size: its interval is what the data allow.", ""]
+        lines += [
+            "## Update",
+            "",
+            f"Every effect the loop added ({', '.join(tw.added)}), jointly: {ident.attrs['method']}.",
+            "",
+        ]
+        rows = [
+            [
+                str(r["parameter"].values) + ("" if bool(r.determined) else " (not determined)"),
+                f"{float(r.truth):.4g}",
+                f"{float(r['map']):.4g}",
+                f"{float(r.q05):.4g} to {float(r.q95):.4g}",
+                f"{float(r['std']):.2g}",
+                _diag(float(r.r_hat), ".3f"),
+                _diag(float(r.ess_bulk), ".0f"),
+                f"{100 * float(r.relative_error):+.1f}",
+                str(r["unit"].values),
+            ]
+            for r in (ident.isel(parameter=k) for k in range(ident.sizes["parameter"]))
+        ]
+        lines += _md_table(
+            ["parameter", "truth", "MAP", "90% interval", "std", "R-hat", "ESS", "error [%]", "unit"], rows
+        )
+        lines += [
+            "",
+            "R-hat (at most 1.01 when the chains agree) and the bulk ESS over all chains are the "
+            "sampler's own diagnostics (ArviZ); '-' where the method has none. A parameter marked not "
+            "determined has a posterior std over half its size: its interval is what the data allow.",
+            "",
+        ]
         calibration = json.loads(result.posterior.attrs.get("bootstrap_calibration", "null"))
         if calibration is not None:
             records = len(json.loads(result.posterior.attrs["bootstrap_records"]))
-            lines += [f"The intervals are calibrated on {records} records simulated at the estimate "
-                      "(twin.loop.bootstrap): each determined parameter's draws stretched by its RMS error over "
-                      "those records in the posterior's std: "
-                      + (", ".join(f"{k} x{v:.2f}" for k, v in calibration.items()) or "none determined") + ".", ""]
+            lines += [
+                f"The intervals are calibrated on {records} records simulated at the estimate "
+                "(twin.loop.bootstrap): each determined parameter's draws stretched by its RMS error over "
+                "those records in the posterior's std: "
+                + (", ".join(f"{k} x{v:.2f}" for k, v in calibration.items()) or "none determined")
+                + ".",
+                "",
+            ]
     lines += ["## History", ""]
-    rows = [[str(k), s.action, f"{100 * s.error:.3f}", interval_text(s.interval), f"{float(s.table.attrs['chi2']):.1f}"]
-            for k, s in enumerate(tw.history)]  # fmt: skip
+    rows = [
+        [str(k), s.action, f"{100 * s.error:.3f}", interval_text(s.interval), f"{float(s.table.attrs['chi2']):.1f}"]
+        for k, s in enumerate(tw.history)
+    ]
     lines += _md_table(["step", "action", "E [%]", "E, 90% over the posterior [%]", "chi2"], rows)
-    lines += ["", f"{HISTORY_KEY}. The interval is E's spread over the update's posterior: E of the model at {INTERVAL_DRAWS} of "
-              "its draws (twin.loop.history.error_interval). E is not the density the update fits, so E at the "
-              "estimate need not be the interval's least."]  # fmt: skip
+    lines += [
+        "",
+        f"{HISTORY_KEY}. The interval is E's spread over the update's posterior: E of the model at {INTERVAL_DRAWS} of "
+        "its draws (twin.loop.history.error_interval). E is not the density the update fits, so E at the "
+        "estimate need not be the interval's least.",
+    ]
     first, last = tw.history[0].error, tw.history[-1].error
-    lines += ["", f"The error fell from {100 * first:.2f}% to {100 * last:.3f}% ({100 * (1 - last / first):.1f}% less).",
-              "", "![history](history.png)", ""]  # fmt: skip
+    lines += [
+        "",
+        f"The error fell from {100 * first:.2f}% to {100 * last:.3f}% ({100 * (1 - last / first):.1f}% less).",
+        "",
+        "![history](history.png)",
+        "",
+    ]
     path = result.out / "report.md"
     with atomic_output(path, ".md.part") as tmp:
         tmp.write_text("\n".join(lines))

@@ -112,8 +112,7 @@ class Scenario:
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
-        >>> parse_scenario("magnetic_pull").truth_values(load_model(shipped_model("hydro_unit")))
+        >>> parse_scenario("magnetic_pull").truth_values(hydro_unit)
         {'MAG.stiffness': -100000000.0}
         """
         return {p.name: p.nominal for e in self.effects for p in e.parameters(model.with_effects(e))}
@@ -135,7 +134,9 @@ class Scenario:
             if e.per_mode:
                 parts.append(f"{effect_label(e)} ({e.n_modes} modes, FSI.added_mass_1 = {e.added_mass[0]:.4g} kg, ...)")
             else:
-                values = {f.name: getattr(e, f.name) for f in dataclasses.fields(e) if isinstance(getattr(e, f.name), float)}
+                values = {
+                    f.name: getattr(e, f.name) for f in dataclasses.fields(e) if isinstance(getattr(e, f.name), float)
+                }
                 parts.append(f"{effect_label(e)} (" + ", ".join(f"{k} = {v:.4g}" for k, v in values.items()) + ")")
         for c in self.changes:
             where = c.where(model) if model is not None else effect_label(c)

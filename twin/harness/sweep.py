@@ -152,8 +152,9 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
             options = dataclasses.asdict(settings)
             if options["bootstrap"] is None and options["method"] == "hmc":
                 options["bootstrap"] = DEFAULT_RECORDS
-            r = run_demo(Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False,
-                         **options)  # fmt: skip
+            r = run_demo(
+                Path(out) / folder_name(hidden, seed), model=model, hidden=hidden, seed=seed, progress=False, **options
+            )
         except Exception as exc:  # one scenario's failure fails that scenario, not the sweep  # noqa: BLE001
             log.exception("scenario %s, seed %d failed", hidden, seed)
             return _failed_row(f"{type(exc).__name__}: {exc}", time.perf_counter() - t0, caught)
@@ -166,8 +167,9 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
             params[str(name)] = {v: float(ident[v][k]) for v in PARAMETER_VARIABLES}
     located = final.locations or d.locations
     return {
-        "verdict": d.verdict if not r.named else ("missing effect" if final.verdict == "nothing missing"
-                                                   else final.verdict),
+        "verdict": d.verdict
+        if not r.named
+        else ("missing effect" if final.verdict == "nothing missing" else final.verdict),
         "missing": "+".join(r.named) if r.named else "+".join(d.missing),
         "rounds": len(r.twin.diagnoses),
         "final_verdict": final.verdict,
@@ -188,11 +190,24 @@ def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, setting
 
 def _failed_row(message: str, elapsed_s: float, caught) -> dict:
     """A scenario whose run raised: verdict ``error``, nothing measured, the message as the last warning."""
-    return {"verdict": "error", "missing": "", "rounds": 0, "final_verdict": "error", "top_score": np.nan,
-            "lead": np.nan, "error_before": np.nan, "error_after": np.nan, "error_after_interval": (np.nan, np.nan),
-            "chi2_before": np.nan,
-            "chi2_after": np.nan, "n_data": 0, "parameters": {}, "location": "", "elapsed_s": elapsed_s,
-            "warnings": [(w.category, str(w.message)) for w in caught] + [(TwinWarning, f"the run failed: {message}")]}  # fmt: skip
+    return {
+        "verdict": "error",
+        "missing": "",
+        "rounds": 0,
+        "final_verdict": "error",
+        "top_score": np.nan,
+        "lead": np.nan,
+        "error_before": np.nan,
+        "error_after": np.nan,
+        "error_after_interval": (np.nan, np.nan),
+        "chi2_before": np.nan,
+        "chi2_after": np.nan,
+        "n_data": 0,
+        "parameters": {},
+        "location": "",
+        "elapsed_s": elapsed_s,
+        "warnings": [(w.category, str(w.message)) for w in caught] + [(TwinWarning, f"the run failed: {message}")],
+    }
 
 
 def sweep(
@@ -263,8 +278,12 @@ def sweep(
     table = tabulate(scenarios, rows, settings)
     table.attrs["elapsed_s"] = time.perf_counter() - t0
     write_netcdf(table, out / "sweep.nc")
-    log.info("sweep of %d scenarios in %.0f s: %d passed", len(scenarios), table.attrs["elapsed_s"],
-             int(table["passed"].sum()))  # fmt: skip
+    log.info(
+        "sweep of %d scenarios in %.0f s: %d passed",
+        len(scenarios),
+        table.attrs["elapsed_s"],
+        int(table["passed"].sum()),
+    )
     return table
 
 
@@ -300,44 +319,102 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
     return xr.Dataset(
         {
             "verdict": (dims, [r["verdict"] for r in rows]),
-            "missing": (dims, [r["missing"] for r in rows], {"long_name": "effects the loop named, joined by + ('' for none)"}),
+            "missing": (
+                dims,
+                [r["missing"] for r in rows],
+                {"long_name": "effects the loop named, joined by + ('' for none)"},
+            ),
             "expected": (dims, [sc.expected() for sc in parsed], {"long_name": "the right diagnosis"}),
-            "final_verdict": (dims, [r["final_verdict"] for r in rows], {"long_name": "verdict of the loop's last round"}),
+            "final_verdict": (
+                dims,
+                [r["final_verdict"] for r in rows],
+                {"long_name": "verdict of the loop's last round"},
+            ),
             "rounds": (dims, [r["rounds"] for r in rows], {"long_name": "diagnosis rounds of the loop"}),
             "chi2_before": (dims, [r["chi2_before"] for r in rows], {"long_name": "chi2 of the model before the loop"}),
             "chi2_after": (dims, [r["chi2_after"] for r in rows], {"long_name": "chi2 after the loop"}),
-            "n_data": (dims, [r["n_data"] for r in rows], {"long_name": "data of the comparison (2 per measured mode)"}),
+            "n_data": (
+                dims,
+                [r["n_data"] for r in rows],
+                {"long_name": "data of the comparison (2 per measured mode)"},
+            ),
             "top_score": (dims, [r["top_score"] for r in rows], {"long_name": "log Bayes factor of the top candidate"}),
             "lead": (dims, [r["lead"] for r in rows], {"long_name": "log Bayes factor of the top over the runner-up"}),
             "error_before": (dims, before, {"units": "1", "long_name": "overall error E before the update"}),
             "error_after": (dims, after, {"units": "1", "long_name": "overall error E after the update"}),
-            "error_after_low": (dims, after_interval[:, 0], {"units": "1", "long_name": "5% quantile of E after the "
-                                                             "update over its posterior (NaN: no sampler's posterior)"}),
-            "error_after_high": (dims, after_interval[:, 1], {"units": "1", "long_name": "95% quantile of E after the "
-                                                              "update over its posterior"}),
+            "error_after_low": (
+                dims,
+                after_interval[:, 0],
+                {
+                    "units": "1",
+                    "long_name": "5% quantile of E after the update over its posterior (NaN: no sampler's posterior)",
+                },
+            ),
+            "error_after_high": (
+                dims,
+                after_interval[:, 1],
+                {"units": "1", "long_name": "95% quantile of E after the update over its posterior"},
+            ),
             "fall": (dims, fall, {"units": "1", "long_name": "1 - E after / E before"}),
-            "found": (dims, found, {"long_name": "the diagnosis is right: exactly the hidden effects named, nothing "
-                                                 "missing with none hidden, unexplained at the hidden local change"}),
-            "passed": (dims, passed, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
-                                                   f"{MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of its truth"}),
-            "passed_strict": (dims, strict, {"long_name": f"found, fall >= {MIN_FALL}, every parameter within "
-                                                          f"{MAX_PARAMETER_ERROR:.0%} of its truth"}),
-            "location": (dims, [r["location"] for r in rows], {"long_name": "local change the diagnosis points to when "
-                                                                             "the library does not explain the data ('' for none)"}),
+            "found": (
+                dims,
+                found,
+                {
+                    "long_name": "the diagnosis is right: exactly the hidden effects named, nothing "
+                    "missing with none hidden, unexplained at the hidden local change"
+                },
+            ),
+            "passed": (
+                dims,
+                passed,
+                {
+                    "long_name": f"found, fall >= {MIN_FALL}, every parameter within "
+                    f"{MAX_PARAMETER_ERROR:.0%} or {MAX_Z:g} std of its truth"
+                },
+            ),
+            "passed_strict": (
+                dims,
+                strict,
+                {
+                    "long_name": f"found, fall >= {MIN_FALL}, every parameter within "
+                    f"{MAX_PARAMETER_ERROR:.0%} of its truth"
+                },
+            ),
+            "location": (
+                dims,
+                [r["location"] for r in rows],
+                {
+                    "long_name": "local change the diagnosis points to when "
+                    "the library does not explain the data ('' for none)"
+                },
+            ),
             "elapsed_s": (dims, [r["elapsed_s"] for r in rows], {"units": "s"}),
             "map": (pdims, par["map"], {"units": "SI", "long_name": "identified value (posterior MAP)"}),
             "std": (pdims, par["std"], {"units": "SI", "long_name": "posterior standard deviation"}),
             "q05": (pdims, par["q05"], {"units": "SI", "long_name": "5% posterior quantile"}),
             "q95": (pdims, par["q95"], {"units": "SI", "long_name": "95% posterior quantile"}),
             "r_hat": (pdims, par["r_hat"], {"units": "1", "long_name": "R-hat over the chains (NaN: Laplace)"}),
-            "ess_bulk": (pdims, par["ess_bulk"], {"units": "1", "long_name": "bulk ESS over the chains (NaN: Laplace)"}),
+            "ess_bulk": (
+                pdims,
+                par["ess_bulk"],
+                {"units": "1", "long_name": "bulk ESS over the chains (NaN: Laplace)"},
+            ),
             "truth": (pdims, par["truth"], {"units": "SI"}),
-            "determined": (pdims, par["determined"], {"units": "1", "long_name": "1: determined by the data, 0: "
-                                                                              "reported as not determined (NaN: not identified)"}),
+            "determined": (
+                pdims,
+                par["determined"],
+                {
+                    "units": "1",
+                    "long_name": "1: determined by the data, 0: reported as not determined (NaN: not identified)",
+                },
+            ),
             "relative_error": (pdims, rel, {"units": "1", "long_name": "MAP / truth - 1"}),
             "z": (pdims, z, {"units": "1", "long_name": "(MAP - truth) / std"}),
         },
         coords={"hidden": (dims, hidden), "seed": (dims, [s for _, s in scenarios]), "parameter": names},
-        attrs={"title": "twin scenario sweep", "producer": f"twin {__version__}",
-               "settings": json.dumps(dataclasses.asdict(settings))},  # fmt: skip
+        attrs={
+            "title": "twin scenario sweep",
+            "producer": f"twin {__version__}",
+            "settings": json.dumps(dataclasses.asdict(settings)),
+        },
     )

@@ -52,9 +52,22 @@ from twin.tasks import mapper, one_blas_thread
 log = logging.getLogger(__name__)
 
 #: Keys of ``modes.nc``'s ``settings`` attr that are :func:`twin.extract.extract`'s own keywords.
-EXTRACT_KEYS = ("samples", "shape_samples", "blocks", "fmin_hz", "fmax_hz", "block_rows", "shape_block_rows",
-                "first_lag", "max_order", "delete_blocks", "order_spread", "orders_per_mode", "remove_harmonics",
-                "differenced_above_hz")  # fmt: skip
+EXTRACT_KEYS = (
+    "samples",
+    "shape_samples",
+    "blocks",
+    "fmin_hz",
+    "fmax_hz",
+    "block_rows",
+    "shape_block_rows",
+    "first_lag",
+    "max_order",
+    "delete_blocks",
+    "order_spread",
+    "orders_per_mode",
+    "remove_harmonics",
+    "differenced_above_hz",
+)
 #: A simulated record's mode is the measured mode whose simulated frequency (:func:`simulated_reference`) is
 #: within this fraction of its own. The records' modes scatter about the system's: the 3.81 Hz mode of the
 #: seal records (damped 13.6%) by 0.55% (std over twelve records), the others by 0.2% or less.
@@ -141,12 +154,11 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     The records simulated at the estimate scatter about the simulated system's frequencies, not about the
     measured ones: matched against the measured frequencies (which carry the measured record's own
     extraction error), a record's mode is dropped whenever the two errors add up beyond the tolerance, and
-    the records that keep it are the ones extracted best. On seal records the 3.81 Hz mode
-    (damped 13.6%) scatters by 0.55%: against a measured 3.759 Hz (record 10406, 1.3% off) nearly every
-    record lost it, the bootstrap's errors came from records unlike the measured one, and its factor was too
-    small. Each measured mode takes the frequency of the system's pole (``Im > 0``) nearest it, one to one
-    in order of distance, within ``limit`` of its own; a measured mode the system has no pole near keeps
-    its own frequency.
+    the records that keep it are the ones extracted best, so the calibration's errors would come from
+    records unlike the measured one. Each measured mode takes the frequency of the system's pole
+    (``Im > 0``) assigned to it one to one (:func:`twin.modes.pairing.assign`: the most pairs, then the
+    least total relative distance) within ``limit`` of its own; a measured mode the system has no pole near
+    keeps its own frequency.
 
     Parameters
     ----------
@@ -188,18 +200,14 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
     the target mode it pairs with (:func:`twin.loop.compare.pair_with_measured`). A target mode below the
     last one measured that no measured mode pairs with (one the sensors hardly see) gets the measured
     modes' median values: the water acts on it too, and left dry it would sit where the record's did not.
-    On per-mode FSI record 10305 (17.14 Hz measured between two such modes, 16.2 and 19.1 Hz), eight
-    records simulated with them dry put that mode's added mass -0.53 of its std from the value simulated
-    on average; with the truth's values +1.73, with the median +1.76; the measured records' estimates
-    lay +1.88 of their std above the truth on average (sixteen records). A model without
+    (The decision log's loop-calibration page has the measurement behind the median.) A model without
     per-mode FSI is returned as it is.
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import FluidAddedMassPerMode
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> modes = synthesize_modes(model, samples=20, seed=1).sel(mode=[1, 2, 4])  # target mode 3 not measured
     >>> updated = model.with_effects(FluidAddedMassPerMode((1e5, 2e5, 4e5), (0.0, 0.0, 0.0)))
     >>> target_numbered(updated, modes.assign_coords(mode=[1, 2, 3])).effects[-1].added_mass  # 3: the median
@@ -222,17 +230,20 @@ def target_numbered(model: RotorModel, modes: xr.Dataset) -> RotorModel:
         if not 0 < label <= per_mode.n_modes:
             continue
         if col not in light:
-            raise TwinError(f"measured mode {label} pairs with the model's mode at "
-                            f"{sol.poles[col].imag / (2 * np.pi):.3f} Hz, damped more than a target mode "
-                            f"({MAX_TARGET_DAMPING:.0%}): its per-mode FSI cannot be simulated")  # fmt: skip
+            raise TwinError(
+                f"measured mode {label} pairs with the model's mode at "
+                f"{sol.poles[col].imag / (2 * np.pi):.3f} Hz, damped more than a target mode "
+                f"({MAX_TARGET_DAMPING:.0%}): its per-mode FSI cannot be simulated"
+            )
         j = int(np.flatnonzero(light == col)[0])
         mass[j], damping[j] = per_mode.added_mass[label - 1], per_mode.added_damping[label - 1]
     n = int(np.flatnonzero(np.isfinite(mass)).max(initial=-1)) + 1
     if n:
         mass[:n] = np.where(np.isfinite(mass[:n]), mass[:n], np.nanmedian(mass[:n]))
         damping[:n] = np.where(np.isfinite(damping[:n]), damping[:n], np.nanmedian(damping[:n]))
-    effect = dataclasses.replace(per_mode, added_mass=tuple(map(float, mass[:n])),
-                                 added_damping=tuple(map(float, damping[:n])))  # fmt: skip
+    effect = dataclasses.replace(
+        per_mode, added_mass=tuple(map(float, mass[:n])), added_damping=tuple(map(float, damping[:n]))
+    )
     dry = model.without_per_mode_effect()
     return dry.with_effects(effect) if n else dry
 
@@ -254,8 +265,10 @@ def record_settings(modes: xr.Dataset) -> tuple[float, float, dict[str, Any]]:
         settings = json.loads(modes.attrs["settings"])
         duration_s, fs_hz = float(settings["duration_s"]), float(settings["fs_hz"])
     except (KeyError, TypeError, ValueError) as err:
-        raise TwinError("the modes do not say how they were extracted (attr 'settings' with 'duration_s' and "
-                        f"'fs_hz', as twin.extract writes it): {err!r}") from None  # fmt: skip
+        raise TwinError(
+            "the modes do not say how they were extracted (attr 'settings' with 'duration_s' and "
+            f"'fs_hz', as twin.extract writes it): {err!r}"
+        ) from None
     options = {k: settings[k] for k in EXTRACT_KEYS if settings.get(k) is not None}
     if options.get("shape_block_rows", 0) <= options.get("block_rows", 0):  # written resolved: the shapes' own
         options.pop("shape_block_rows", None)
@@ -275,9 +288,18 @@ def record_seeds(seed: int | None, records: int) -> list[int]:
 
 
 @one_blas_thread
-def _record_fit(seed: int, *, simulated: RotorModel, model: RotorModel, settings: Mapping[str, Any],
-                duration_s: float, fs_hz: float, extraction: Mapping[str, Any], reference: Mapping[int, float],
-                simulate_options: Mapping[str, Any]) -> dict[str, tuple[float, float]] | str:  # fmt: skip
+def _record_fit(
+    seed: int,
+    *,
+    simulated: RotorModel,
+    model: RotorModel,
+    settings: Mapping[str, Any],
+    duration_s: float,
+    fs_hz: float,
+    extraction: Mapping[str, Any],
+    reference: Mapping[int, float],
+    simulate_options: Mapping[str, Any],
+) -> dict[str, tuple[float, float]] | str:
     """Simulate and extract one record of ``simulated``; fit the update's density (of ``model``) to it, its
     modes numbered as the measured ones (``reference``, :func:`matched_modes`).
 
@@ -291,8 +313,9 @@ def _record_fit(seed: int, *, simulated: RotorModel, model: RotorModel, settings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        signals = simulate(simulated, duration_s=duration_s, fs_hz=fs_hz, seed=seed, progress=False,
-                           **dict(simulate_options))  # fmt: skip
+        signals = simulate(
+            simulated, duration_s=duration_s, fs_hz=fs_hz, seed=seed, progress=False, **dict(simulate_options)
+        )
         try:
             modes = matched_modes(extract(signals, progress=False, **dict(extraction)), reference)
             marg, prior = marginal_setup(model, modes, settings)
@@ -306,10 +329,20 @@ def _record_fit(seed: int, *, simulated: RotorModel, model: RotorModel, settings
     return {label: (float(t * s), float(e)) for label, t, s, e in zip(problem.parameter_labels, theta, scales, std)}
 
 
-def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Dataset, posterior: xr.DataTree,
-                      estimate: Mapping[str, float], *, records: int = 20, seed: int | None = None,
-                      pooled: Sequence[str] | None = None, simulate_options: Mapping[str, Any] | None = None,
-                      tasks: Any = None, progress: bool = False) -> xr.Dataset:  # fmt: skip
+def bootstrap_factors(
+    model: RotorModel,
+    simulated: RotorModel,
+    modes: xr.Dataset,
+    posterior: xr.DataTree,
+    estimate: Mapping[str, float],
+    *,
+    records: int = 20,
+    seed: int | None = None,
+    pooled: Sequence[str] | None = None,
+    simulate_options: Mapping[str, Any] | None = None,
+    tasks: Any = None,
+    progress: bool = False,
+) -> xr.Dataset:
     """Each parameter's error over records simulated at the posterior's estimate, in the posterior's std.
 
     Parameters
@@ -369,13 +402,18 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
     members = np.ones(len(labels), dtype=bool) if pooled is None else np.isin(labels, list(pooled))
     run = mapper(tasks, progress=progress, desc="bootstrap records")
     reference = simulated_reference(model_state_space(simulated).poles, modes)
-    shared = dict(simulated=simulated, model=model, settings=settings, duration_s=duration_s, fs_hz=fs_hz,
-                  extraction=extraction, reference=reference, simulate_options=dict(simulate_options or {}))  # fmt: skip
+    shared = dict(
+        simulated=simulated,
+        model=model,
+        settings=settings,
+        duration_s=duration_s,
+        fs_hz=fs_hz,
+        extraction=extraction,
+        reference=reference,
+        simulate_options=dict(simulate_options or {}),
+    )
     error, std = np.empty((0, len(labels))), np.empty((0, len(labels)))
     for batch in range(MAX_BATCHES):
-        if batch:
-            log.info("bootstrap: %s seen on %s of %d records; %d more", ", ".join(np.array(labels)[short]),
-                     "/".join(map(str, used[short])), len(error), records)  # fmt: skip
         more = record_errors(run(_record_fit, seeds[len(error) : len(error) + records], **shared), labels, estimate)
         error, std = np.vstack([error, more[0]]), np.vstack([std, more[1]])
         z = error / std
@@ -383,10 +421,20 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
         short = members & (used > 0) & (used < MIN_RECORDS)
         if not short.any():
             break
+        if batch + 1 < MAX_BATCHES:
+            log.info(
+                "bootstrap: %s seen on %s of %d records; %d more",
+                ", ".join(np.array(labels)[short]),
+                "/".join(map(str, used[short])),
+                len(error),
+                records,
+            )
     seeds = seeds[: len(z)]
     if used.max(initial=0) < MIN_RECORDS:
-        raise TwinError(f"the update's density was fitted on {used.max(initial=0)} of {len(z)} simulated records "
-                        f"(at least {MIN_RECORDS} are needed to calibrate)")  # fmt: skip
+        raise TwinError(
+            f"the update's density was fitted on {used.max(initial=0)} of {len(z)} simulated records "
+            f"(at least {MIN_RECORDS} are needed to calibrate)"
+        )
     enough = np.where(used >= MIN_RECORDS, 1.0, np.nan)
     sampler_std = posterior_std(posterior)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -396,34 +444,69 @@ def bootstrap_factors(model: RotorModel, simulated: RotorModel, modes: xr.Datase
     shrunk, tau2 = pooled_rms(ratio, used, members)
     factor = shrunk * predictive_widening(used)
     return xr.Dataset(
-        {"z": (("record", "parameter"), z, {"long_name": "error of the record's estimate in its Laplace std"}),
-         "error": (("record", "parameter"), error, {"long_name": "the record's estimate minus the estimate "
-                                                    "simulated", "units": "SI (the parameter's)"}),
-         "laplace_std": (("record", "parameter"), std, {"long_name": "the record's Laplace std",
-                                                        "units": "SI (the parameter's)"}),
-         "rms_z": ("parameter", rms, {"long_name": "RMS z over the records, each record's error in its own std "
-                                      "(a diagnostic)"}),
-         "rms_error": ("parameter", rms_error, {"long_name": "RMS error over the records",
-                                                "units": "SI (the parameter's)"}),
-         "posterior_std": ("parameter", sampler_std, {"long_name": "the std of the posterior's draws",
-                                                      "units": "SI (the parameter's)"}),
-         "error_ratio": ("parameter", ratio, {"long_name": "RMS error over the records in the posterior's std"}),
-         "pooled_error_ratio": ("parameter", shrunk, {"long_name": "error_ratio shrunk towards the pooled "
-                                                      "parameters' common value (empirical Bayes, on its log "
-                                                      "square)"}),
-         "factor": ("parameter", factor, {"long_name": "the posterior std's calibration: the pooled error "
-                                          "ratio times the Student t widening of a variance from that many "
-                                          "records"}),
-         "records_used": ("parameter", used)},
+        {
+            "z": (("record", "parameter"), z, {"long_name": "error of the record's estimate in its Laplace std"}),
+            "error": (
+                ("record", "parameter"),
+                error,
+                {"long_name": "the record's estimate minus the estimate simulated", "units": "SI (the parameter's)"},
+            ),
+            "laplace_std": (
+                ("record", "parameter"),
+                std,
+                {"long_name": "the record's Laplace std", "units": "SI (the parameter's)"},
+            ),
+            "rms_z": (
+                "parameter",
+                rms,
+                {"long_name": "RMS z over the records, each record's error in its own std (a diagnostic)"},
+            ),
+            "rms_error": (
+                "parameter",
+                rms_error,
+                {"long_name": "RMS error over the records", "units": "SI (the parameter's)"},
+            ),
+            "posterior_std": (
+                "parameter",
+                sampler_std,
+                {"long_name": "the std of the posterior's draws", "units": "SI (the parameter's)"},
+            ),
+            "error_ratio": ("parameter", ratio, {"long_name": "RMS error over the records in the posterior's std"}),
+            "pooled_error_ratio": (
+                "parameter",
+                shrunk,
+                {
+                    "long_name": "error_ratio shrunk towards the pooled "
+                    "parameters' common value (empirical Bayes, on its log "
+                    "square)"
+                },
+            ),
+            "factor": (
+                "parameter",
+                factor,
+                {
+                    "long_name": "the posterior std's calibration: the pooled error "
+                    "ratio times the Student t widening of a variance from that many "
+                    "records"
+                },
+            ),
+            "records_used": ("parameter", used),
+        },
         coords={"record": seeds, "parameter": labels},
-        attrs={"duration_s": duration_s, "fs_hz": fs_hz, "extraction": json.dumps(extraction),
-               "between_parameter_variance": tau2, "pooled": json.dumps([str(p) for p in np.array(labels)[members]]),
-               "description": "parametric bootstrap at the posterior's estimate (twin.loop.bootstrap)"},
-    )  # fmt: skip
+        attrs={
+            "duration_s": duration_s,
+            "fs_hz": fs_hz,
+            "extraction": json.dumps(extraction),
+            "between_parameter_variance": tau2,
+            "pooled": json.dumps([str(p) for p in np.array(labels)[members]]),
+            "description": "parametric bootstrap at the posterior's estimate (twin.loop.bootstrap)",
+        },
+    )
 
 
-def record_errors(fits: Sequence[Mapping[str, tuple[float, float]] | str], labels: Sequence[str],
-                  estimate: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+def record_errors(
+    fits: Sequence[Mapping[str, tuple[float, float]] | str], labels: Sequence[str], estimate: Mapping[str, float]
+) -> tuple[np.ndarray, np.ndarray]:
     """Each record's error ``θ_r - θ̂`` and its Laplace std ``s_r`` [SI], (record, parameter); NaN where the
     fit failed (a string, logged) or lacks the parameter.
 
@@ -497,8 +580,9 @@ def calibrated(posterior: xr.DataTree, factors: xr.Dataset, determined: Sequence
     for name, names in labels.items():
         if names:  # draws (chain, draw, parameter or mode): one factor along the last axis
             f = np.array([applied.get(n, 1.0) for n in names])
-            post[name] = post[name].copy(data=stretch(post[name].values.reshape(-1, len(f)), f)
-                                         .reshape(post[name].shape))  # fmt: skip
+            post[name] = post[name].copy(
+                data=stretch(post[name].values.reshape(-1, len(f)), f).reshape(post[name].shape)
+            )
     tree = posterior.copy()
     tree["posterior"] = xr.DataTree(post)
     tree.attrs["bootstrap_calibration"] = json.dumps({k: round(v, 4) for k, v in applied.items()})

@@ -43,8 +43,7 @@ class Candidate:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> c = candidates(load_model(shipped_model("hydro_unit")), local=True)[-1]
+    >>> c = candidates(hydro_unit, local=True)[-1]
     >>> c.label, c.library
     ('disk_inertia:runner', False)
     """
@@ -77,8 +76,9 @@ class Candidate:
         return dataclasses.replace(self.effect, **{k: float(v) for k, v in zip(numbers, np.ravel(values))})
 
 
-def candidates(model: RotorModel, *, present: bool = False, per_mode: bool = True, local: bool = False
-               ) -> list[Candidate]:  # fmt: skip
+def candidates(
+    model: RotorModel, *, present: bool = False, per_mode: bool = True, local: bool = False
+) -> list[Candidate]:
     """The changes a diagnosis of ``model`` can name: library effects first, in the library's order.
 
     Parameters
@@ -95,8 +95,7 @@ def candidates(model: RotorModel, *, present: bool = False, per_mode: bool = Tru
     Examples
     --------
     >>> from twin.loop import candidates
-    >>> from twin import load_model, shipped_model
-    >>> [c.label for c in candidates(load_model(shipped_model("hydro_unit")))][:5]
+    >>> [c.label for c in candidates(hydro_unit)][:5]
     ['fsi', 'fsi_per_mode', 'magnetic_pull', 'seal_cross_coupling', 'bearing_change:UGB']
     """
     have = [effect_label(e) for e in model.effects]
@@ -105,7 +104,9 @@ def candidates(model: RotorModel, *, present: bool = False, per_mode: bool = Tru
         label = effect_label(e)
         if e.per_mode and not per_mode:
             continue
-        known = label in have or any(holds(p, label) for p in have) or (e.per_mode and model.per_mode_effect is not None)
+        known = (
+            label in have or any(holds(p, label) for p in have) or (e.per_mode and model.per_mode_effect is not None)
+        )
         if known and not present:
             continue
         out.append(Candidate(label, e))
@@ -126,8 +127,10 @@ def select(model: RotorModel, labels: Sequence[str] | None) -> list[Candidate]:
     present = {effect_label(e) for e in model.effects}
     unknown = [lab for lab in labels if lab not in by_label and lab not in present]
     if unknown:
-        raise ModelError(f"no candidate effect {unknown} for model '{model.name}'; available: "
-                         f"{', '.join(by_label) or 'none'} (library keys: {', '.join(effect_classes(local=False))})")  # fmt: skip
+        raise ModelError(
+            f"no candidate effect {unknown} for model '{model.name}'; available: "
+            f"{', '.join(by_label) or 'none'} (library keys: {', '.join(effect_classes(local=False))})"
+        )
     return [by_label[lab] for lab in labels if lab in by_label]
 
 
@@ -141,8 +144,7 @@ def sized(candidate: Candidate, labels: Sequence[int]) -> Candidate:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> c = select(load_model(shipped_model("hydro_unit")), ["fsi_per_mode"])[0]
+    >>> c = select(hydro_unit, ["fsi_per_mode"])[0]
     >>> sized(c, [1, 2, 4]).effect.n_modes
     4
     """
@@ -160,8 +162,7 @@ def add_effects(model: RotorModel, labels: Sequence[str], mode_labels: Sequence[
     Examples
     --------
     >>> from twin.loop import add_effects
-    >>> from twin import load_model, shipped_model
-    >>> m = add_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull", "bearing_change:LGB"])
+    >>> m = add_effects(hydro_unit, ["magnetic_pull", "bearing_change:LGB"])
     >>> m.parameter_names[-3:]
     ['MAG.stiffness', 'LGB.stiffness_change', 'LGB.damping_change']
     """
@@ -180,9 +181,8 @@ def with_effects(model: RotorModel, labels: Sequence[str] = (), modes=None, post
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.loop.candidates import with_effects
-    >>> m = with_effects(load_model(shipped_model("hydro_unit")), ["magnetic_pull", "magnetic_pull"])
+    >>> m = with_effects(hydro_unit, ["magnetic_pull", "magnetic_pull"])
     >>> [n for n in m.parameter_names if n.startswith("MAG.")]
     ['MAG.stiffness']
     """
@@ -197,10 +197,55 @@ def with_effects(model: RotorModel, labels: Sequence[str] = (), modes=None, post
     return add_effects(model, wanted, mode_labels)
 
 
-def posterior_model(model: RotorModel, posterior, estimate: str = "map", labels: Sequence[str] = (),
-                    modes=None) -> RotorModel:  # fmt: skip
+def posterior_model(
+    model: RotorModel, posterior, estimate: str = "map", labels: Sequence[str] = (), modes=None
+) -> RotorModel:
     """The model ``posterior`` stands for: the effects it needs added (:func:`with_effects`), its ``estimate``
     (``"map"`` or ``"mean"``) applied (:func:`twin.update.apply_posterior`)."""
     from twin.update import apply_posterior
 
     return apply_posterior(with_effects(model, labels, modes, posterior), posterior, estimate)
+
+
+def parameters_json(model: RotorModel) -> dict:
+    """The ``twin params --json`` layout: a model's parameters, its effects and the library effects it can take.
+
+    Each parameter with its nominal value (SI, ``unit``), its group for ``--params``, its physical bounds
+    (``null`` for an open side: JSON has no infinity) and its description.
+
+    Examples
+    --------
+    >>> out = parameters_json(hydro_unit)
+    >>> out["groups"][:2], out["parameters"][0]["unit"], "magnetic_pull" in out["library"]
+    (['bearings', 'thrust'], 'kg', True)
+    """
+    from twin.update.problem import PARAMETER_GROUPS
+
+    groups = {n: g for g, f in PARAMETER_GROUPS.items() for n in f(model)}
+
+    def finite(x: float) -> float | None:
+        return float(x) if np.isfinite(x) else None
+
+    rows = [
+        {
+            "name": p.name,
+            "nominal": p.nominal,
+            "unit": p.unit,
+            "group": groups.get(p.name, "effects"),
+            "low": finite(p.bounds[0]),
+            "high": finite(p.bounds[1]),
+            "bounds": p.bounds_text() or "either sign",
+            "description": p.description,
+        }
+        for p in model.parameters
+    ]
+    return {
+        "model": model.name,
+        "n_dof": model.n_dof,
+        "speed_rpm": model.speed_rpm,
+        "channels": list(model.channels),
+        "parameters": rows,
+        "groups": list(PARAMETER_GROUPS),
+        "effects": [effect_label(e) for e in model.effects],
+        "library": [c.label for c in candidates(model)],
+    }

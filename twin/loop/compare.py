@@ -52,7 +52,7 @@ from twin.modes.measured import (
     overall_error,
     pair_with_measured,
     relative_pole_error,
-)  # fmt: skip
+)
 from twin.modes.pairing import pairing_cost
 from twin.modes.sensitivity import solve_modes
 from twin.modes.shapes import normalise_shapes
@@ -61,12 +61,16 @@ from twin.tasks import one_blas_thread
 log = logging.getLogger(__name__)
 
 #: What the ``error`` attr of a comparison is (see the module docstring).
-ERROR_DEFINITION = ("RMS over the measured modes of |model pole - measured pole| / |measured pole|, real and "
-                    "imaginary parts weighed by the inverse variance of the measured pole")
+ERROR_DEFINITION = (
+    "RMS over the measured modes of |model pole - measured pole| / |measured pole|, real and "
+    "imaginary parts weighed by the inverse variance of the measured pole"
+)
 #: What E weighs, in a sentence for the tables and reports that show it beside the per-mode errors.
-ERROR_WEIGHTS = ("E weighs each mode's error by the inverse variance of its measured pole: a mode the record "
-                 "determines well counts much, one it hardly determines (a wide error bar) little, so E can be small "
-                 "beside a large error of such a mode; the unweighted RMS weighs every mode alike")
+ERROR_WEIGHTS = (
+    "E weighs each mode's error by the inverse variance of its measured pole: a mode the record "
+    "determines well counts much, one it hardly determines (a wide error bar) little, so E can be small "
+    "beside a large error of such a mode; the unweighted RMS weighs every mode alike"
+)
 #: A measured mode whose partner has a MAC below this is reported as one the model cannot reproduce.
 MIN_MAC = 0.5
 
@@ -113,8 +117,9 @@ def model_modes(model: RotorModel, meas: Measured, values: Mapping[str, float] |
         cost, mm = pairing_cost(meas.pole[[r]], meas.shape[[r]], s.poles, s.right[:, dofs])
         k = int(np.argmin(cost[0]))
         poles.append(s.poles[k]), shapes.append(s.right[k]), macs.append(mm[0, k])
-    return ModelModes(rows, np.array(poles, dtype=complex), np.array(shapes), np.array(macs), m,
-                      sol.poles.imag / (2 * np.pi), cols)  # fmt: skip
+    return ModelModes(
+        rows, np.array(poles, dtype=complex), np.array(shapes), np.array(macs), m, sol.poles.imag / (2 * np.pi), cols
+    )
 
 
 def _shared_values(values: Mapping[str, float] | None) -> dict[str, float]:
@@ -166,9 +171,8 @@ def compare(
     Examples
     --------
     >>> from twin.loop import compare
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> table = compare(model, synthesize_modes(model, samples=20, seed=1))
     >>> round(100 * table.attrs["error"], 2)  # the model lacks the water's added mass: E in %
     1.91
@@ -189,24 +193,71 @@ def compare(
         {
             "measured_frequency": ("mode", f_meas, {"units": "Hz"}),
             "model_frequency": ("mode", f_mod, {"units": "Hz"}),
-            "frequency_error": ("mode", f_mod / f_meas - 1, {**pct, "long_name": "relative frequency error (model / measured - 1)"}),
+            "frequency_error": (
+                "mode",
+                f_mod / f_meas - 1,
+                {**pct, "long_name": "relative frequency error (model / measured - 1)"},
+            ),
             "measured_damping_ratio": ("mode", z_meas, pct),
             "model_damping_ratio": ("mode", z_mod, pct),
             "damping_error": ("mode", z_mod - z_meas, {**pct, "long_name": "damping ratio error (model - measured)"}),
-            "relative_damping_error": ("mode", z_mod / z_meas - 1, {**pct, "long_name": "relative damping ratio error"}),
-            "pole_error": ("mode", relative_pole_error(mm.poles, m.pole), {**pct, "long_name": "|model pole - measured pole| / |measured pole|"}),
-            "z_frequency": ("mode", z_im, {**pct, "long_name": "imaginary-part error in measurement sigmas (sign of the frequency error)"}),
-            "z_damping": ("mode", -z_re, {**pct, "long_name": "minus the real-part error in measurement sigmas (sign of the damping error: the real part is -zeta omega)"}),
-            "frequency_sigma": ("mode", m.sigma[:, 1] / np.abs(m.pole.imag), {**pct, "long_name": "relative standard uncertainty of the measured frequency"}),
-            "damping_sigma": ("mode", m.sigma[:, 0] / np.abs(m.pole), {**pct, "long_name": "standard uncertainty of the measured damping ratio"}),
+            "relative_damping_error": (
+                "mode",
+                z_mod / z_meas - 1,
+                {**pct, "long_name": "relative damping ratio error"},
+            ),
+            "pole_error": (
+                "mode",
+                relative_pole_error(mm.poles, m.pole),
+                {**pct, "long_name": "|model pole - measured pole| / |measured pole|"},
+            ),
+            "z_frequency": (
+                "mode",
+                z_im,
+                {**pct, "long_name": "imaginary-part error in measurement sigmas (sign of the frequency error)"},
+            ),
+            "z_damping": (
+                "mode",
+                -z_re,
+                {
+                    **pct,
+                    "long_name": "minus the real-part error in measurement sigmas (sign of the damping error: the real part is -zeta omega)",
+                },
+            ),
+            "frequency_sigma": (
+                "mode",
+                m.sigma[:, 1] / np.abs(m.pole.imag),
+                {**pct, "long_name": "relative standard uncertainty of the measured frequency"},
+            ),
+            "damping_sigma": (
+                "mode",
+                m.sigma[:, 0] / np.abs(m.pole),
+                {**pct, "long_name": "standard uncertainty of the measured damping ratio"},
+            ),
             "mac": ("mode", mm.mac, pct),
-            "partner": ("mode", mm.partner + 1, {"long_name": "model mode (column of mac_matrix) paired with the measured mode"}),
+            "partner": (
+                "mode",
+                mm.partner + 1,
+                {"long_name": "model mode (column of mac_matrix) paired with the measured mode"},
+            ),
             "measured_pole": ("mode", m.pole, {"units": "1/s", "long_name": "measured mean pole"}),
             "model_pole": ("mode", mm.poles, {"units": "1/s", "long_name": "model pole"}),
             "measured_shape": (("mode", "channel"), m.shape, {**pct, "long_name": "measured mean shape"}),
-            "model_shape": (("mode", "channel"), normalise_shapes(mm.shapes[:, dofs]), {**pct, "long_name": "model shape"}),
-            "shape_error": (("mode", "channel"), shape_err, {**pct, "long_name": "|aligned model shape - measured shape| (unit norm)"}),
-            "channel_shape_error": ("channel", np.sqrt(np.mean(shape_err**2, axis=0)), {**pct, "long_name": "RMS shape error over modes"}),
+            "model_shape": (
+                ("mode", "channel"),
+                normalise_shapes(mm.shapes[:, dofs]),
+                {**pct, "long_name": "model shape"},
+            ),
+            "shape_error": (
+                ("mode", "channel"),
+                shape_err,
+                {**pct, "long_name": "|aligned model shape - measured shape| (unit norm)"},
+            ),
+            "channel_shape_error": (
+                "channel",
+                np.sqrt(np.mean(shape_err**2, axis=0)),
+                {**pct, "long_name": "RMS shape error over modes"},
+            ),
             "mac_matrix": (("mode_measured", "mode_model"), mm.mac_matrix, pct),
             "model_mode_frequency": ("mode_model", mm.model_frequency, {"units": "Hz"}),
         },
@@ -229,7 +280,7 @@ def compare(
             "poorly_paired": np.array(poorly, dtype=int),
             "model": model.name,
         },
-    )  # fmt: skip
+    )
     if m.targets:
         ds.attrs["target_observability"] = m.targets
     if len(poorly):
@@ -242,12 +293,55 @@ def error_text(table: xr.Dataset) -> str:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> print(error_text(compare(model, synthesize_modes(model, samples=20, seed=1))))  # doctest: +NORMALIZE_WHITESPACE
     E = 1.91% (15 measured modes; RMS over the measured modes of |model pole - measured pole| / |measured pole|,
     real and imaginary parts weighed by the inverse variance of the measured pole; unweighted RMS 6.61%)
     """
-    return (f"E = {100 * table.attrs['error']:.2f}% ({table.sizes['mode']} measured modes; "
-            f"{table.attrs['error_definition']}; unweighted RMS {100 * table.attrs['error_rms']:.2f}%)")
+    return (
+        f"E = {100 * table.attrs['error']:.2f}% ({table.sizes['mode']} measured modes; "
+        f"{table.attrs['error_definition']}; unweighted RMS {100 * table.attrs['error_rms']:.2f}%)"
+    )
+
+
+COMPARISON_COLUMNS = (
+    "measured_frequency",
+    "model_frequency",
+    "frequency_error",
+    "measured_damping_ratio",
+    "model_damping_ratio",
+    "damping_error",
+    "pole_error",
+    "z_frequency",
+    "z_damping",
+    "mac",
+)
+
+
+def comparison_json(table: xr.Dataset) -> dict:
+    """The ``twin compare --json`` layout of a comparison table: ``E`` and its terms, one entry per measured mode.
+
+    Frequencies in Hz, damping ratios as fractions; ``channel_shape_error`` per sensor channel.
+
+    Examples
+    --------
+    >>> from twin.update import synthesize_modes
+    >>> out = comparison_json(compare(hydro_unit, synthesize_modes(hydro_unit, samples=20, seed=1)))
+    >>> round(out["error"], 4), len(out["modes"]), out["modes"][0]["mode"]
+    (0.0191, 15, 1)
+    """
+    rows = [
+        {"mode": int(m), **{k: float(table[k].sel(mode=m)) for k in COMPARISON_COLUMNS}} for m in table["mode"].values
+    ]
+    shape = {str(c): float(v) for c, v in zip(table["channel"].values, table["channel_shape_error"].values)}
+    return {
+        "error": table.attrs["error"],
+        "error_definition": table.attrs["error_definition"],
+        "error_rms": table.attrs["error_rms"],
+        "chi2": table.attrs["chi2"],
+        "n_data": table.attrs["n_data"],
+        "modes": rows,
+        "channel_shape_error": shape,
+        "poorly_paired": [int(m) for m in np.atleast_1d(table.attrs["poorly_paired"])],
+    }

@@ -57,15 +57,19 @@ class Coverage:
     def text(self) -> str:
         """What the data cover, and what is short, in words."""
         lo, hi = self.band_hz
-        words = (f"{self.n_measured} of the model's {len(self.in_band_hz)} modes between {lo:g} and {hi:g} Hz "
-                 f"are measured, from {self.duration_s:g} s of signals")  # fmt: skip
+        words = (
+            f"{self.n_measured} of the model's {len(self.in_band_hz)} modes between {lo:g} and {hi:g} Hz "
+            f"are measured, from {self.duration_s:g} s of signals"
+        )
         short = []
         if self.too_few:
             short.append(f"fewer than {MIN_COVERAGE:.0%} of the modes in the band")
         if self.too_short:
             need = MIN_CYCLES / self.lowest_hz
-            short.append(f"the record is shorter than {MIN_CYCLES} periods of the lowest mode "
-                         f"({self.lowest_hz:.3g} Hz: {need:.0f} s)")  # fmt: skip
+            short.append(
+                f"the record is shorter than {MIN_CYCLES} periods of the lowest mode "
+                f"({self.lowest_hz:.3g} Hz: {need:.0f} s)"
+            )
         return words + (f"; not enough: {' and '.join(short)}" if short else "")
 
 
@@ -75,10 +79,9 @@ def coverage(model: RotorModel, meas: Measured) -> Coverage | None:
     Examples
     --------
     >>> import dataclasses
-    >>> from twin import load_model, shipped_model
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> meas = measured_modes(synthesize_modes(model, samples=5, seed=1).isel(mode=[0, 3]))  # 2 modes
     >>> c = coverage(model, dataclasses.replace(meas, band_hz=(0.0, 60.0), duration_s=5.0, zeta_max=0.25))
     >>> len(c.in_band_hz), c.n_measured, c.enough

@@ -68,10 +68,12 @@ Z_LIMIT = 3.0
 #: Log Bayes factor counted as strong evidence (Kass & Raftery: 2 ln B > 6).
 STRONG_EVIDENCE = 3.0
 #: What ``ln B`` means, in a sentence for the tables that show it.
-LN_B_KEY = ("ln B: the log Bayes factor of the model with the candidate against the model without it (the evidence "
-            "of the better fit less the Occam penalty of its parameters over their plausible scales); above "
-            f"{STRONG_EVIDENCE:g} is strong evidence, below 0 the fit does not pay for its parameters; 'N ln-units "
-            "below the best' is the best candidate's ln B less this one's")
+LN_B_KEY = (
+    "ln B: the log Bayes factor of the model with the candidate against the model without it (the evidence "
+    "of the better fit less the Occam penalty of its parameters over their plausible scales); above "
+    f"{STRONG_EVIDENCE:g} is strong evidence, below 0 the fit does not pay for its parameters; 'N ln-units "
+    "below the best' is the best candidate's ln B less this one's"
+)
 #: Quantile of the χ² law above which residuals are not consistent with the uncertainty.
 CONSISTENCY_QUANTILE = 0.999
 #: Library effects named at most (the stepwise search stops there).
@@ -152,15 +154,21 @@ class Diagnosis:
             "failing": self.failing_modes,
             "poorly_paired": [int(m) for m in np.atleast_1d(self.table.attrs["poorly_paired"])],
             "sensors_by_shape_error": self.sensors,
-            "coverage": None if self.coverage is None else {
-                "band_hz": list(self.coverage.band_hz), "model_modes_in_band": len(self.coverage.in_band_hz),
-                "measured": self.coverage.n_measured, "duration_s": self.coverage.duration_s,
-                "enough": self.coverage.enough, "text": self.coverage.text()},
+            "coverage": None
+            if self.coverage is None
+            else {
+                "band_hz": list(self.coverage.band_hz),
+                "model_modes_in_band": len(self.coverage.in_band_hz),
+                "measured": self.coverage.n_measured,
+                "duration_s": self.coverage.duration_s,
+                "enough": self.coverage.enough,
+                "text": self.coverage.text(),
+            },
             "ranking": ranking,
             "final": None if self.final is None else _fit_dict(self.final, meas, ""),
             "path": [{"action": a, "effect": lab, "score": s} for a, lab, s in self.path],
             "locations": [loc.__dict__ | {"element": loc.element} for loc in self.locations],
-        }  # fmt: skip
+        }
 
     def to_json(self, meas: Measured) -> str:
         """The diagnosis as JSON text."""
@@ -176,12 +184,13 @@ def _fit_dict(f: Fit, meas: Measured, why: str) -> dict:
         "error_after": f.error_after(meas),
         "chi2_after": f.chi2_after,
         "explains": consistent(f.chi2_after, f.residual_dof),
-        "parameters": {n: {"value": float(v), "std": float(s), "unit": u}
-                       for n, v, s, u in zip(f.names, f.values, f.std, f.units)},
+        "parameters": {
+            n: {"value": float(v), "std": float(s), "unit": u} for n, v, s, u in zip(f.names, f.values, f.std, f.units)
+        },
         "at_bound": f.at_bound,
         "converged": f.converged,
         "why": why,
-    }  # fmt: skip
+    }
 
 
 def _explain(f: Fit, candidate: Candidate, model: RotorModel, meas: Measured, best: float) -> str:
@@ -198,17 +207,37 @@ def _explain(f: Fit, candidate: Candidate, model: RotorModel, meas: Measured, be
     return words
 
 
-def _fit_set(extra: Sequence[Candidate], model: RotorModel, meas: Measured, own: Sequence[str],
-             start: dict, reference: float, label: str | None = None) -> Fit:  # fmt: skip
+def _fit_set(
+    extra: Sequence[Candidate],
+    model: RotorModel,
+    meas: Measured,
+    own: Sequence[str],
+    start: dict,
+    reference: float,
+    label: str | None = None,
+) -> Fit:
     """The joint fit of the model's own effects and the candidates ``extra``."""
     m = model.with_effects(*[c.effect for c in extra])
     names = list(own) + [n for c in extra for n in free_names(m, c.effect, meas.mode)]
-    return fit(m, meas, names, label or "+".join(c.label for c in extra) or "the model's effects",
-               reference=reference, start=start)  # fmt: skip
+    return fit(
+        m,
+        meas,
+        names,
+        label or "+".join(c.label for c in extra) or "the model's effects",
+        reference=reference,
+        start=start,
+    )
 
 
-def _fit_with(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
-              included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
+def _fit_with(
+    candidate: Candidate,
+    model: RotorModel,
+    meas: Measured,
+    own: Sequence[str],
+    included: tuple[Candidate, ...],
+    start: dict,
+    reference: float,
+) -> Fit:
     """One candidate fitted jointly with the effects already chosen (less any it replaces); labelled by it."""
     rest = [c for c in included if not holds(candidate.label, c.label)]
     return _fit_set([*rest, candidate], model, meas, own, start, reference, label=candidate.label)
@@ -253,11 +282,10 @@ def diagnose(
     Examples
     --------
     >>> from twin.loop import diagnose
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
     >>> data = synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01))
     >>> d = diagnose(model, data, candidates=["magnetic_pull", "seal_cross_coupling", "bearing_change:UGB"])
@@ -282,13 +310,20 @@ def diagnose(
         chi2_now = current.chi2_after if current is not None else float(table.attrs["chi2"])
         dof_now = current.residual_dof if current is not None else int(table.attrs["n_data"])
         start = current.value_of() if current is not None else {}
-        shared = {"model": model, "meas": meas, "own": own, "included": tuple(included), "start": start,
-                  "reference": current_lnz}  # fmt: skip
+        shared = {
+            "model": model,
+            "meas": meas,
+            "own": own,
+            "included": tuple(included),
+            "start": start,
+            "reference": current_lnz,
+        }
         # Effects with a few parameters first; a per-mode effect (two parameters per mode: it can fit every pole
         # alone) only when none of them is strongly supported any more, so it never stands in for simpler ones.
         # Once max_effects are chosen, only a candidate that replaces one of them may still come in.
-        eligible = [c for c in remaining
-                    if len(included) < max_effects or any(holds(c.label, i.label) for i in included)]  # fmt: skip
+        eligible = [
+            c for c in remaining if len(included) < max_effects or any(holds(c.label, i.label) for i in included)
+        ]
         tiers = [[c for c in eligible if not c.per_mode], [c for c in eligible if c.per_mode]]
         fitted: dict[str, Fit] = {}
         if first is None:  # every candidate alone, for the ranking
@@ -320,8 +355,9 @@ def diagnose(
     first = first or []
     by_label = {c.label: c for c in chosen}
     best = max((f.log_bayes_factor for f in first), default=-np.inf)
-    explanations = {f.label: _explain(f, by_label[f.label], model.with_effects(by_label[f.label].effect), meas, best)
-                    for f in first}  # fmt: skip
+    explanations = {
+        f.label: _explain(f, by_label[f.label], model.with_effects(by_label[f.label].effect), meas, best) for f in first
+    }
 
     chi2, n_data = float(table.attrs["chi2"]), int(table.attrs["n_data"])
     fails = not consistent(chi2, n_data)
@@ -339,39 +375,54 @@ def diagnose(
     if alone and alone[0].log_bayes_factor > max(lib_gain, 0.0) + STRONG_EVIDENCE:
         verdict, missing, locations = "unexplained", (), alone
         loc = alone[0]
-        summary = (f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no effect of the library explains it"
-                   + (f" as well ({'+'.join(named)}: ln B = {lib_gain:.1f})" if named else "")
-                   + f". Outside the library, {loc.text()}. {where}")  # fmt: skip
+        summary = (
+            f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no effect of the library explains it"
+            + (f" as well ({'+'.join(named)}: ln B = {lib_gain:.1f})" if named else "")
+            + f". Outside the library, {loc.text()}. {where}"
+        )
     elif included:
         explains = consistent(final.chi2_after, final.residual_dof)
-        locations = [] if explains else locate(model.with_effects(*[c.effect for c in included]), meas, final,
-                                                reference=current_lnz, tasks=tasks)  # fmt: skip
+        locations = (
+            []
+            if explains
+            else locate(
+                model.with_effects(*[c.effect for c in included]), meas, final, reference=current_lnz, tasks=tasks
+            )
+        )
         verdict, missing = ("missing effect" if explains else "partly explained"), named
         steps = "; ".join(f"{a} {lab} (ln B = {s:.1f})" for a, lab, s in path)
-        summary = (f"The model misses {' and '.join(named)}: "
-                   + "; ".join(by_label[n].explanation for n in named)
-                   + f". Fitted jointly, they bring the error from {100 * final.error_before(meas):.2f}% to "
-                   f"{100 * final.error_after(meas):.2f}% (ln B = {lib_gain:.1f} against the model as it is; "
-                   f"search: {steps}).")  # fmt: skip
+        summary = (
+            f"The model misses {' and '.join(named)}: "
+            + "; ".join(by_label[n].explanation for n in named)
+            + f". Fitted jointly, they bring the error from {100 * final.error_before(meas):.2f}% to "
+            f"{100 * final.error_after(meas):.2f}% (ln B = {lib_gain:.1f} against the model as it is; "
+            f"search: {steps})."
+        )
         if explains:
             summary += " The residuals are within the measurement uncertainty."
         else:
-            summary += (f" They leave residuals beyond the measurement uncertainty (chi2 = {final.chi2_after:.1f} "
-                        f"for {final.residual_dof} degrees of freedom): something else is missing too. {where}")  # fmt: skip
+            summary += (
+                f" They leave residuals beyond the measurement uncertainty (chi2 = {final.chi2_after:.1f} "
+                f"for {final.residual_dof} degrees of freedom): something else is missing too. {where}"
+            )
             if locations and locations[0].log_bayes_factor > STRONG_EVIDENCE:
                 summary += f" Outside the library, {locations[0].text()}."
     elif fails:
         verdict, missing, locations = "unexplained", (), alone
         top = max(first, key=lambda f: f.log_bayes_factor) if first else None
-        summary = (f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no candidate effect of the library "
-                   f"explains it (best: {top.label if top else 'none'}, ln B = {best:.1f}). {where}")  # fmt: skip
+        summary = (
+            f"The model fails (chi2 = {chi2:.1f} for {n_data} data) and no candidate effect of the library "
+            f"explains it (best: {top.label if top else 'none'}, ln B = {best:.1f}). {where}"
+        )
         if alone:
             summary += f" Outside the library, {alone[0].text()}."
     else:
         verdict, missing, locations = "nothing missing", (), []
-        summary = (f"Nothing is missing: the model's poles agree with the measured ones within their uncertainty "
-                   f"(chi2 = {chi2:.1f} for {n_data} data) and no candidate effect is supported (best ln B = "
-                   f"{best:.1f}).")  # fmt: skip
+        summary = (
+            f"Nothing is missing: the model's poles agree with the measured ones within their uncertainty "
+            f"(chi2 = {chi2:.1f} for {n_data} data) and no candidate effect is supported (best ln B = "
+            f"{best:.1f})."
+        )
     if cover is not None and not cover.enough:
         found = f" With these data the diagnosis would be: {verdict}" + (f" ({', '.join(missing)})" if missing else "")
         verdict, missing = "not enough data", ()
@@ -379,18 +430,34 @@ def diagnose(
     elif cover is not None:
         summary += f" ({cover.text()}.)"
     log.info("diagnosis: %s", summary)
-    return Diagnosis(verdict, missing, first, explanations, table, chi2, n_data, failing, sensors, locations, summary,
-                     final, path, cover)  # fmt: skip
+    return Diagnosis(
+        verdict,
+        missing,
+        first,
+        explanations,
+        table,
+        chi2,
+        n_data,
+        failing,
+        sensors,
+        locations,
+        summary,
+        final,
+        path,
+        cover,
+    )
 
 
-def _drop_unneeded(included: list[Candidate], path: list, current: Fit, model: RotorModel, meas: Measured,
-                   own: Sequence[str], run) -> tuple[Fit, float]:  # fmt: skip
+def _drop_unneeded(
+    included: list[Candidate], path: list, current: Fit, model: RotorModel, meas: Measured, own: Sequence[str], run
+) -> tuple[Fit, float]:
     """Drop, one at a time, an earlier choice whose own log Bayes factor (given the others) is not strong."""
     while len(included) > 1:
         earlier = included[:-1]
         start = current.value_of()
-        without = run(_fit_without, earlier, model=model, meas=meas, own=own, included=tuple(included), start=start,
-                      reference=0.0)  # fmt: skip
+        without = run(
+            _fit_without, earlier, model=model, meas=meas, own=own, included=tuple(included), start=start, reference=0.0
+        )
         gains = [current.log_evidence - f.log_evidence for f in without]
         k = int(np.argmin(gains))
         if gains[k] > STRONG_EVIDENCE:
@@ -402,8 +469,15 @@ def _drop_unneeded(included: list[Candidate], path: list, current: Fit, model: R
     return current, current.log_evidence
 
 
-def _fit_without(candidate: Candidate, model: RotorModel, meas: Measured, own: Sequence[str],
-                 included: tuple[Candidate, ...], start: dict, reference: float) -> Fit:  # fmt: skip
+def _fit_without(
+    candidate: Candidate,
+    model: RotorModel,
+    meas: Measured,
+    own: Sequence[str],
+    included: tuple[Candidate, ...],
+    start: dict,
+    reference: float,
+) -> Fit:
     rest = [c for c in included if c is not candidate]
     return _fit_set(rest, model, meas, own, start, reference)
 

@@ -38,13 +38,20 @@ OLD_COLUMNS = COLUMNS[:5]
 #: Posterior draws the error's interval is computed at (evenly spaced over all chains' draws).
 INTERVAL_DRAWS = 100
 #: What a history's steps and columns mean, in a sentence for the tables that show them.
-HISTORY_KEY = ("Each step is the model after an action: an effect is added at zero, so its step keeps the error until "
-               "the update that sizes it; E is the error of the model's poles (inverse-variance weighted RMS of "
-               "|model pole - measured pole| / |measured pole|), chi2 the sum of the squared z of the poles' parts")
+HISTORY_KEY = (
+    "Each step is the model after an action: an effect is added at zero, so its step keeps the error until "
+    "the update that sizes it; E is the error of the model's poles (inverse-variance weighted RMS of "
+    "|model pole - measured pole| / |measured pole|), chi2 the sum of the squared z of the poles' parts"
+)
 
 
-def history_dataset(actions: list[str], errors: list[float], chi2: list[float], modes: str = "",
-                    intervals: Sequence[tuple[float, float] | None] | None = None) -> xr.Dataset:  # fmt: skip
+def history_dataset(
+    actions: list[str],
+    errors: list[float],
+    chi2: list[float],
+    modes: str = "",
+    intervals: Sequence[tuple[float, float] | None] | None = None,
+) -> xr.Dataset:
     """The history table over ``step``; ``intervals``: each step's 90% interval of E, or None (NaN).
 
     Examples
@@ -77,9 +84,17 @@ def write_history(history: xr.Dataset, path: str | Path) -> Path:
         w.writerow(COLUMNS)
         for k in range(history.sizes["step"]):
             low, high = (float(history[v][k]) if v in history else np.nan for v in ("error_low", "error_high"))
-            w.writerow([k, str(history["action"].values[k]), repr(100 * float(history["error"][k])),
-                        repr(float(history["chi2"][k])), history.attrs.get("modes", ""),
-                        "" if np.isnan(low) else repr(100 * low), "" if np.isnan(high) else repr(100 * high)])  # fmt: skip
+            w.writerow(
+                [
+                    k,
+                    str(history["action"].values[k]),
+                    repr(100 * float(history["error"][k])),
+                    repr(float(history["chi2"][k])),
+                    history.attrs.get("modes", ""),
+                    "" if np.isnan(low) else repr(100 * low),
+                    "" if np.isnan(high) else repr(100 * high),
+                ]
+            )
     return path
 
 
@@ -129,13 +144,18 @@ def append_step(path: str | Path, action: str, comparison: xr.Dataset, modes: st
     path = Path(path)
     old = read_history(path) if path.exists() else history_dataset([], [], [], modes)
     if old.sizes["step"] and old.attrs["modes"] != modes:
-        raise TwinError(f"{path}: this history compares against '{old.attrs['modes']}', not '{modes}': "
-                        "start a new history file for other measured modes")  # fmt: skip
+        raise TwinError(
+            f"{path}: this history compares against '{old.attrs['modes']}', not '{modes}': "
+            "start a new history file for other measured modes"
+        )
     before = [None if np.isnan(lo) else (lo, hi) for lo, hi in zip(old["error_low"].values, old["error_high"].values)]
-    new = history_dataset([*old["action"].values.tolist(), action],
-                          [*old["error"].values.tolist(), float(comparison.attrs["error"])],
-                          [*old["chi2"].values.tolist(), float(comparison.attrs["chi2"])], modes,
-                          [*before, None])  # fmt: skip
+    new = history_dataset(
+        [*old["action"].values.tolist(), action],
+        [*old["error"].values.tolist(), float(comparison.attrs["error"])],
+        [*old["chi2"].values.tolist(), float(comparison.attrs["chi2"])],
+        modes,
+        [*before, None],
+    )
     write_history(new, path)
     return new
 
@@ -158,8 +178,15 @@ def plot_history(history: xr.Dataset, path: str | Path) -> Path:
         low, high = 100 * history["error_low"].values, 100 * history["error_high"].values
         has = np.isfinite(low) & np.isfinite(high)
         yerr = np.vstack([np.clip(errors - low, 0, None), np.clip(high - errors, 0, None)])[:, has]
-        ax.errorbar(steps[has], errors[has], yerr=yerr, fmt="none", ecolor="tab:orange", capsize=4,
-                    label="90% interval of E over the update's posterior")  # fmt: skip
+        ax.errorbar(
+            steps[has],
+            errors[has],
+            yerr=yerr,
+            fmt="none",
+            ecolor="tab:orange",
+            capsize=4,
+            label="90% interval of E over the update's posterior",
+        )
     ax.legend(fontsize=8, loc="lower left")
     ax.set_xticks(steps, history["action"].values, rotation=15, fontsize=8)
     ax.set_xlabel("step")
@@ -186,8 +213,14 @@ def interval_text(interval: tuple[float, float] | None) -> str:
     return "-" if interval is None else f"{100 * interval[0]:.3g}-{100 * interval[1]:.3g}"
 
 
-def error_interval(model: RotorModel, posterior: xr.DataTree | xr.Dataset, measured: Measured, *,
-                   draws: int = INTERVAL_DRAWS, level: float = 0.90) -> tuple[float, float]:  # fmt: skip
+def error_interval(
+    model: RotorModel,
+    posterior: xr.DataTree | xr.Dataset,
+    measured: Measured,
+    *,
+    draws: int = INTERVAL_DRAWS,
+    level: float = 0.90,
+) -> tuple[float, float]:
     """The ``level`` interval of the overall error E over an update's posterior.
 
     E (:func:`twin.loop.compare.compare`) of ``model`` with the values of each of ``draws`` posterior draws
@@ -212,12 +245,11 @@ def error_interval(model: RotorModel, posterior: xr.DataTree | xr.Dataset, measu
     Examples
     --------
     >>> import numpy as np, xarray as xr
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> dry = load_model(shipped_model("hydro_unit"))
+    >>> dry = hydro_unit
     >>> meas = measured_modes(synthesize_modes(dry, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3))
     >>> model = dry.with_effects(MagneticPull(0.0))
     >>> draws = np.random.default_rng(0).normal(-1e8, 2e6, (2, 50, 1))

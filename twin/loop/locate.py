@@ -72,8 +72,10 @@ class Location:
 
     def text(self) -> str:
         """One sentence."""
-        return (f"a {100 * self.relative_change:+.0f}% (± {100 * self.std:.0f}%) change of {self.where} explains "
-                f"{100 * self.explained:.0f}% of the residual chi2 (ln B = {self.log_bayes_factor:.1f})")  # fmt: skip
+        return (
+            f"a {100 * self.relative_change:+.0f}% (± {100 * self.std:.0f}%) change of {self.where} explains "
+            f"{100 * self.explained:.0f}% of the residual chi2 (ln B = {self.log_bayes_factor:.1f})"
+        )
 
 
 @one_blas_thread
@@ -119,13 +121,12 @@ def locate(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import DiskMassChange
     >>> from twin.fem.truthfile import Truth
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update.laplace import log_evidence_as_is
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> data = synthesize_modes(model, Truth((DiskMassChange("generator", 0.1),)), n_modes=13, samples=50,
     ...                         seed=2, pole_variance=(0.01, 0.01))
     >>> meas = measured_modes(data)
@@ -136,8 +137,9 @@ def locate(
     names = list(hypothesis.names) if hypothesis is not None else []
     start = hypothesis.value_of() if hypothesis is not None else {}
     screened = screen(model, meas, start)[:top]
-    fits = mapper(tasks, desc="local changes")(_refit, [c for c, _ in screened], model=model, meas=meas,
-                                               names=names, start=start, reference=reference)  # fmt: skip
+    fits = mapper(tasks, desc="local changes")(
+        _refit, [c for c, _ in screened], model=model, meas=meas, names=names, start=start, reference=reference
+    )
     base_chi2 = hypothesis.chi2_after if hypothesis is not None else None
     out = []
     for (change, _), f in zip(screened, fits):
@@ -145,13 +147,22 @@ def locate(
         k = f.names.index(name)
         before = f.chi2_before if base_chi2 is None else base_chi2
         explained = 1.0 - f.chi2_after / before if before > 0 else 0.0
-        out.append(Location(effect_label(change), change.where(model), float(f.values[k]), float(f.std[k]),
-                            float(explained), f.log_bayes_factor))  # fmt: skip
+        out.append(
+            Location(
+                effect_label(change),
+                change.where(model),
+                float(f.values[k]),
+                float(f.std[k]),
+                float(explained),
+                f.log_bayes_factor,
+            )
+        )
     return sorted(out, key=lambda loc: -loc.log_bayes_factor)
 
 
-def _refit(change, model: RotorModel, meas: Measured, names: Sequence[str], start: Mapping[str, float],
-           reference: float) -> Fit:  # fmt: skip
+def _refit(
+    change, model: RotorModel, meas: Measured, names: Sequence[str], start: Mapping[str, float], reference: float
+) -> Fit:
     with_change = model.with_effects(change)
     name = change.parameters(with_change)[0].name
     return fit(with_change, meas, [*names, name], effect_label(change), reference=reference, start=start)

@@ -65,11 +65,10 @@ class Twin:
     Examples
     --------
     >>> from twin.loop import Twin
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> data = synthesize_modes(model, Truth((MagneticPull(-1e8),)), n_modes=13, samples=50, seed=3,
     ...                         pole_variance=(0.01, 0.01))
     >>> tw = Twin(model, data)
@@ -101,8 +100,12 @@ class Twin:
         interval = None if posterior is None else error_interval(self.model, posterior, self.measured)
         step = Step(action, model, compare(model, self.measured), interval)
         self.history.append(step)
-        log.info("%s: error %.3f%%%s", action, 100 * step.error,
-                 "" if interval is None else f" (90% over the posterior: {100 * interval[0]:.3g}-{100 * interval[1]:.3g}%)")
+        log.info(
+            "%s: error %.3f%%%s",
+            action,
+            100 * step.error,
+            "" if interval is None else f" (90% over the posterior: {100 * interval[0]:.3g}-{100 * interval[1]:.3g}%)",
+        )
         return step
 
     def compare(self) -> xr.Dataset:
@@ -132,21 +135,34 @@ class Twin:
         for old in [a for a in self.added if holds(label, a)]:
             gone = [e for e in self.model.effects if effect_label(e) == old]
             names = {p.name for e in gone for p in e.parameters(self.model)}
-            model = dataclasses.replace(self.model, effects=tuple(e for e in self.model.effects if e not in gone),
-                                        values={k: v for k, v in self.model.values.items() if k not in names})
+            model = dataclasses.replace(
+                self.model,
+                effects=tuple(e for e in self.model.effects if e not in gone),
+                values={k: v for k, v in self.model.values.items() if k not in names},
+            )
             self._record(f"drop {old} ({label} holds it)", model)
             self.added.remove(old)
 
     def added_parameters(self) -> list[str]:
         """The parameters of every effect the loop added (a per-mode effect's for the measured modes)."""
         labels = set(self.added)
-        return [n for e in self.model.effects if effect_label(e) in labels
-                for n in free_names(self.model, e, self.measured.mode)]  # fmt: skip
+        return [
+            n
+            for e in self.model.effects
+            if effect_label(e) in labels
+            for n in free_names(self.model, e, self.measured.mode)
+        ]
 
     def run(
-        self, *, method: str = "hmc", max_rounds: int = MAX_ROUNDS, candidates: Sequence[str] | None = None,
-        tasks: Any = None, progress: bool = False, **kwargs,
-    ) -> Diagnosis:  # fmt: skip
+        self,
+        *,
+        method: str = "hmc",
+        max_rounds: int = MAX_ROUNDS,
+        candidates: Sequence[str] | None = None,
+        tasks: Any = None,
+        progress: bool = False,
+        **kwargs,
+    ) -> Diagnosis:
         """Go round the loop to the end; returns the last diagnosis.
 
         Each round diagnoses the current model; when it names effects the
@@ -166,11 +182,10 @@ class Twin:
 
         Examples
         --------
-        >>> from twin import load_model, shipped_model
         >>> from twin.fem.effects import MagneticPull, SealCrossCoupling
         >>> from twin.fem.truthfile import Truth
         >>> from twin.update import synthesize_modes
-        >>> model = load_model(shipped_model("hydro_unit"))
+        >>> model = hydro_unit
         >>> truth = Truth((MagneticPull(-1.5e8), SealCrossCoupling(4e7)))
         >>> tw = Twin(model, synthesize_modes(model, truth, n_modes=13, samples=50, seed=1, pole_variance=(0.01, 0.01)))
         >>> tw.run(candidates=["magnetic_pull", "seal_cross_coupling", "thrust_tilt:thrust"], draws=200, chains=2,
@@ -200,10 +215,15 @@ class Twin:
             with stage(f"round {k}: update {', '.join(self.added)} ({method})"):
                 extra = {"progress": progress} if method != "laplace" and "progress" not in kwargs else {}
                 self.update(self.added_parameters(), method=method, bootstrap=0, tasks=tasks, **kwargs, **extra)
-            progress_log.info("round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error,
-                              100 * self.history[-1].error)  # fmt: skip
-        if bootstrap and self.posterior is not None and not is_laplace(self.posterior) and \
-                self.history[-1].action.startswith("update"):  # fmt: skip
+            progress_log.info(
+                "round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error, 100 * self.history[-1].error
+            )
+        if (
+            bootstrap
+            and self.posterior is not None
+            and not is_laplace(self.posterior)
+            and self.history[-1].action.startswith("update")
+        ):
             with stage(f"calibrate the posterior on {bootstrap} simulated records"):
                 self._calibrate_or_keep(bootstrap, seed=kwargs.get("seed"), tasks=tasks, progress=progress)
         return d
@@ -214,17 +234,29 @@ class Twin:
         try:
             self.calibrate(records, **kwargs)
         except TwinError as exc:
-            warnings.warn(f"the posterior could not be calibrated on simulated records ({exc}); it is the sampler's "
-                          "own, uncalibrated: its intervals may be too narrow", TwinWarning, stacklevel=3)  # fmt: skip
+            warnings.warn(
+                f"the posterior could not be calibrated on simulated records ({exc}); it is the sampler's "
+                "own, uncalibrated: its intervals may be too narrow",
+                TwinWarning,
+                stacklevel=3,
+            )
             last = self.history[-1]
             if last.interval is None:  # recorded for a calibration that did not come: E's interval of its own
                 self.history.pop()
                 self._record(last.action + " (not calibrated)", last.model, self.posterior)
 
     def update(
-        self, params: str | Sequence[str], *, method: str = "hmc", options: Any = None, estimate: str = "map",
-        bootstrap: int | None = None, priors: Any = "plausible", tasks: Any = None, **fields: Any,
-    ) -> xr.DataTree:  # fmt: skip
+        self,
+        params: str | Sequence[str],
+        *,
+        method: str = "hmc",
+        options: Any = None,
+        estimate: str = "map",
+        bootstrap: int | None = None,
+        priors: Any = "plausible",
+        tasks: Any = None,
+        **fields: Any,
+    ) -> xr.DataTree:
         """Bayesian update of ``params``, then the model at the posterior estimate.
 
         Parameters
@@ -248,10 +280,17 @@ class Twin:
         from twin.update.problem import select_parameters
 
         per_mode = [] if isinstance(params, str) else [n for n in params if is_per_mode_name(n)]
-        names = select_parameters(self.model, [n for n in ([params] if isinstance(params, str) else params)
-                                               if n not in per_mode]) + per_mode  # fmt: skip
-        label = params if isinstance(params, str) else (", ".join(params) if len(params) <= 4
-                                                         else f"{len(params)} parameters ({params[0]}, ...)")
+        names = (
+            select_parameters(
+                self.model, [n for n in ([params] if isinstance(params, str) else params) if n not in per_mode]
+            )
+            + per_mode
+        )
+        label = (
+            params
+            if isinstance(params, str)
+            else (", ".join(params) if len(params) <= 4 else f"{len(params)} parameters ({params[0]}, ...)")
+        )
         from twin.loop.bootstrap import records_for
 
         bootstrap = records_for(bootstrap, self.modes, method)
@@ -266,11 +305,13 @@ class Twin:
         if per_mode:  # the update's per-mode FSI covers every mode of the data
             every = [f"FSI.{k}_{int(m)}" for m in self.modes["mode"].values for k in ("added_mass", "added_damping")]
             if sorted(per_mode) != sorted(every):
-                raise ValueError("the update fits the per-mode FSI of every measured mode at once: give all of "
-                                 f"{', '.join(every)}")  # fmt: skip
+                raise ValueError(
+                    f"the update fits the per-mode FSI of every measured mode at once: give all of {', '.join(every)}"
+                )
         shared = [n for n in names if n not in per_mode]
-        tree = update(self.model, self.modes, shared, fsi=bool(per_mode), method=method, options=opts, priors=priors,
-                      tasks=tasks)  # fmt: skip
+        tree = update(
+            self.model, self.modes, shared, fsi=bool(per_mode), method=method, options=opts, priors=priors, tasks=tasks
+        )
         if method == "laplace":  # the fit's Gaussian, no spread of E over it in the history
             self._record(f"update {label} (Laplace)", apply_posterior(self.model, tree, "map"))
             self.posterior = tree
@@ -282,8 +323,9 @@ class Twin:
             self._calibrate_or_keep(bootstrap, estimate=estimate, seed=opts.seed, tasks=tasks, progress=opts.progress)
         return self.posterior
 
-    def calibrate(self, records: int, *, estimate: str = "map", seed: int | None = None, tasks: Any = None,
-                  progress: bool = False) -> xr.DataTree:  # fmt: skip
+    def calibrate(
+        self, records: int, *, estimate: str = "map", seed: int | None = None, tasks: Any = None, progress: bool = False
+    ) -> xr.DataTree:
         """Calibrate the last update's posterior on ``records`` records simulated at its estimate.
 
         The model after the update is simulated through its FMU ``records`` times, each record is extracted
@@ -305,13 +347,25 @@ class Twin:
         labels = posterior_labels(tree)
         undetermined = set(json.loads(tree.attrs.get("undetermined", "[]")))
         determined = [p for p in labels if p not in undetermined]
-        factors = bootstrap_factors(before, last.model, self.modes, tree,
-                                    {p: last.model.parameter(p).nominal for p in labels}, records=records,
-                                    seed=seed, pooled=determined, tasks=tasks, progress=progress)  # fmt: skip
+        factors = bootstrap_factors(
+            before,
+            last.model,
+            self.modes,
+            tree,
+            {p: last.model.parameter(p).nominal for p in labels},
+            records=records,
+            seed=seed,
+            pooled=determined,
+            tasks=tasks,
+            progress=progress,
+        )
         tree = calibrated(tree, factors, determined)
         self.history.pop()
-        self._record(f"{last.action}, calibrated on {factors.sizes['record']} simulated records",
-                     apply_posterior(before, tree, estimate), tree)  # fmt: skip
+        self._record(
+            f"{last.action}, calibrated on {factors.sizes['record']} simulated records",
+            apply_posterior(before, tree, estimate),
+            tree,
+        )
         self.posterior = tree
         return tree
 
@@ -323,10 +377,13 @@ class Twin:
 
     def history_table(self) -> xr.Dataset:
         """The error after each step: ``action``, ``error`` and ``chi2`` over dimension ``step``."""
-        table = history_dataset([s.action for s in self.history], [s.error for s in self.history],
-                                [float(s.table.attrs["chi2"]) for s in self.history],
-                                str(self.modes.attrs.get("title", "measured modes")),
-                                [s.interval for s in self.history])  # fmt: skip
+        table = history_dataset(
+            [s.action for s in self.history],
+            [s.error for s in self.history],
+            [float(s.table.attrs["chi2"]) for s in self.history],
+            str(self.modes.attrs.get("title", "measured modes")),
+            [s.interval for s in self.history],
+        )
         table.attrs["error_definition"] = self.history[0].table.attrs["error_definition"]
         return table
 

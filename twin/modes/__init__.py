@@ -9,7 +9,20 @@ from twin.modes.sensitivity import ModalSolution, solve_modes
 from twin.modes.shapes import mac, normalise_shapes
 
 __all__ = [
-    "Measured", "ModalSolution", "added_damping_ratio", "campbell", "frequency_ratio", "mac", "measured_modes",
-    "modal", "normalise_shapes", "pair_modes", "plot_campbell", "read_modes", "solve_modes", "state_matrix",
-    "whirl_direction", "write_modes",
-]  # fmt: skip
+    "Measured",
+    "ModalSolution",
+    "added_damping_ratio",
+    "campbell",
+    "frequency_ratio",
+    "mac",
+    "measured_modes",
+    "modal",
+    "normalise_shapes",
+    "pair_modes",
+    "plot_campbell",
+    "read_modes",
+    "solve_modes",
+    "state_matrix",
+    "whirl_direction",
+    "write_modes",
+]

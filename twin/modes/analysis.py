@@ -149,8 +149,10 @@ def modal(
     """
     speed_rpm = model.speed_rpm if speed_rpm is None else float(speed_rpm)
     if not (np.isfinite(speed_rpm) and speed_rpm >= 0):
-        raise ModelError(f"speed must be a finite, non-negative number of rpm, got {speed_rpm:g} (the model's "
-                         "spin direction is fixed by its gyroscopic matrix)")  # fmt: skip
+        raise ModelError(
+            f"speed must be a finite, non-negative number of rpm, got {speed_rpm:g} (the model's "
+            "spin direction is fixed by its gyroscopic matrix)"
+        )
     if n_modes is not None and n_modes < 1:
         raise ModelError(f"n_modes must be at least 1, got {n_modes}")
     mats = model.matrices(values)
@@ -161,8 +163,12 @@ def modal(
     oscillating = eigvals.imag > 0
     n_overdamped = int(np.sum(eigvals.imag == 0))
     if n_overdamped:
-        log.info("%s at %g rpm: %d real (over-damped) eigenvalues are not listed as modes",
-                 model.name, speed_rpm, n_overdamped)  # fmt: skip
+        log.info(
+            "%s at %g rpm: %d real (over-damped) eigenvalues are not listed as modes",
+            model.name,
+            speed_rpm,
+            n_overdamped,
+        )
     order = np.argsort(eigvals.imag[oscillating], kind="stable")
     poles = eigvals[oscillating][order]
     shapes = eigvecs[: model.n_dof, oscillating][:, order].T
@@ -190,14 +196,30 @@ def modes_dataset(
         data_vars={
             "pole": ("mode", poles, {"units": "1/s", "long_name": "complex pole (sigma + i omega_d)"}),
             "frequency": ("mode", poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "damped natural frequency"}),
-            "natural_frequency": ("mode", np.abs(poles) / (2 * np.pi), {"units": "Hz", "long_name": "undamped natural frequency |pole|/2pi"}),
+            "natural_frequency": (
+                "mode",
+                np.abs(poles) / (2 * np.pi),
+                {"units": "Hz", "long_name": "undamped natural frequency |pole|/2pi"},
+            ),
             "damping_ratio": ("mode", zeta, {"units": "1", "long_name": "damping ratio -Re(pole)/|pole|"}),
             "log_decrement": ("mode", log_dec, {"units": "1", "long_name": "logarithmic decrement"}),
             "whirl": ("mode", whirl, {"long_name": "whirl direction (forward, backward, mixed)"}),
-            "whirl_index": ("mode", whirl_index, {"units": "1", "long_name": "mean orbit index, +1 circular forward, -1 circular backward"}),
+            "whirl_index": (
+                "mode",
+                whirl_index,
+                {"units": "1", "long_name": "mean orbit index, +1 circular forward, -1 circular backward"},
+            ),
             "stable": ("mode", poles.real < 0, {"long_name": "Re(pole) < 0"}),
-            "shape": (("mode", "dof"), shapes, {"units": "1", "long_name": "complex mode shape on all DOFs (m and rad)"}),
-            "sensor_shape": (("mode", "channel"), sensor_shapes, {"units": "1", "long_name": "complex mode shape on the sensor channels"}),
+            "shape": (
+                ("mode", "dof"),
+                shapes,
+                {"units": "1", "long_name": "complex mode shape on all DOFs (m and rad)"},
+            ),
+            "sensor_shape": (
+                ("mode", "channel"),
+                sensor_shapes,
+                {"units": "1", "long_name": "complex mode shape on the sensor channels"},
+            ),
         },
         coords={
             "mode": ("mode", mode, {"long_name": "mode number, by damped frequency"}),
@@ -219,5 +241,38 @@ def modes_dataset(
             "n_overdamped": n_overdamped,
             "producer": f"twin {__version__} twin.modal",
         },
-    )  # fmt: skip
+    )
     return ds
+
+
+def modes_json(ds: xr.Dataset) -> dict:
+    """The ``twin modal --json`` layout of :func:`modal`'s modes: the model, its speed and one entry per mode.
+
+    Frequencies in Hz, poles in 1/s, the damping ratio as a fraction.
+
+    Examples
+    --------
+    >>> out = modes_json(modal(hydro_unit, n_modes=2))
+    >>> out["model"], [m["mode"] for m in out["modes"]], sorted(out["modes"][0])[:3]
+    ('hydro_unit', [1, 2], ['damping_ratio', 'frequency_hz', 'log_decrement'])
+    """
+    modes = [
+        {
+            "mode": int(ds.mode[i]),
+            "frequency_hz": float(ds.frequency[i]),
+            "natural_frequency_hz": float(ds.natural_frequency[i]),
+            "damping_ratio": float(ds.damping_ratio[i]),
+            "log_decrement": float(ds.log_decrement[i]),
+            "whirl": str(ds.whirl[i].values),
+            "stable": bool(ds.stable[i]),
+            "pole_real": float(ds.pole[i].real),
+            "pole_imag": float(ds.pole[i].imag),
+        }
+        for i in range(ds.sizes["mode"])
+    ]
+    return {
+        "model": ds.attrs["model"],
+        "n_dof": int(ds.attrs["n_dof"]),
+        "speed_rpm": ds.attrs["speed_rpm"],
+        "modes": modes,
+    }

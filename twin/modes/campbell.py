@@ -21,9 +21,7 @@ from twin.modes.pairing import pair_modes
 _TRACKED = ("frequency", "damping_ratio", "log_decrement", "whirl", "stable")
 
 
-def campbell(
-    model: RotorModel, speeds_rpm: Sequence[float], n_modes: int = 10, progress: bool = False
-) -> xr.Dataset:
+def campbell(model: RotorModel, speeds_rpm: Sequence[float], n_modes: int = 10, progress: bool = False) -> xr.Dataset:
     """Modal frequencies and damping of the lowest modes over a range of speeds.
 
     Parameters

@@ -31,6 +31,8 @@ from twin.modes.shapes import normalise_shapes
 TOLERANCE = 0.0
 #: Floor of the measured-pole uncertainty relative to ``|λ|``, for samples that do not scatter (exact synthetic data).
 SIGMA_FLOOR = 1e-9
+
+
 @dataclass(frozen=True)
 class Measured:
     """Measured modes reduced to what the comparison needs.
@@ -78,8 +80,9 @@ class Measured:
 
     def subset(self, keep: np.ndarray) -> Measured:
         """The measured modes at indices ``keep``."""
-        return dataclasses.replace(self, mode=self.mode[keep], pole=self.pole[keep], sigma=self.sigma[keep],
-                                   shape=self.shape[keep])  # fmt: skip
+        return dataclasses.replace(
+            self, mode=self.mode[keep], pole=self.pole[keep], sigma=self.sigma[keep], shape=self.shape[keep]
+        )
 
 
 def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
@@ -88,9 +91,8 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
     Examples
     --------
     >>> from twin.modes import measured_modes
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> meas = measured_modes(synthesize_modes(load_model(shipped_model("hydro_unit")), samples=20))
+    >>> meas = measured_modes(synthesize_modes(hydro_unit, samples=20))
     >>> meas.pole.shape, meas.shape.shape
     ((15,), (15, 8))
     """
@@ -100,10 +102,15 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
             raise CompareError(f"{source}: no variable '{name}' (a modes.nc file has pole and shape samples)")
     if modes.sizes.get("mode", 0) == 0:
         raise CompareError(f"{source}: {NO_MODES}")
-    pole, shape = modes["pole"].transpose("mode", "sample").values, modes["shape"].transpose("mode", "sample", "channel").values
+    pole, shape = (
+        modes["pole"].transpose("mode", "sample").values,
+        modes["shape"].transpose("mode", "sample", "channel").values,
+    )
     bad = ~np.isfinite(pole).all(axis=1) | ~np.isfinite(shape).all(axis=(1, 2))
     if bad.any():
-        raise CompareError(f"{source}: mode(s) {modes['mode'].values[bad].tolist()} have non-finite pole or shape samples")
+        raise CompareError(
+            f"{source}: mode(s) {modes['mode'].values[bad].tolist()} have non-finite pole or shape samples"
+        )
     J = pole.shape[1]
     if J < 2:
         raise CompareError(f"{source}: the uncertainty needs at least 2 samples per mode, got {J}")
@@ -114,9 +121,18 @@ def measured_modes(modes: xr.Dataset, tolerance: float = TOLERANCE) -> Measured:
     floor = SIGMA_FLOOR * np.abs(mean)[:, None]
     sigma = np.maximum(np.sqrt(se**2 + (tolerance * np.abs(mean))[:, None] ** 2), floor)
     band, duration, zeta_max = _record(modes)
-    return Measured(modes["mode"].values, mean, sigma, normalise_shapes(shape.mean(axis=1)),
-                    [str(c) for c in modes["channel"].values], source, band, duration, zeta_max,
-                    str(modes.attrs.get("target_observability", "")))  # fmt: skip
+    return Measured(
+        modes["mode"].values,
+        mean,
+        sigma,
+        normalise_shapes(shape.mean(axis=1)),
+        [str(c) for c in modes["channel"].values],
+        source,
+        band,
+        duration,
+        zeta_max,
+        str(modes.attrs.get("target_observability", "")),
+    )
 
 
 def _record(modes: xr.Dataset) -> tuple[tuple[float, float] | None, float | None, float | None]:
@@ -134,8 +150,10 @@ def channel_dofs(model: RotorModel, channels: list[str]) -> np.ndarray:
     dofs = dict(zip(model.channels, model.sensor_dofs))
     missing = [c for c in channels if c not in dofs]
     if missing:
-        raise CompareError(f"measured channel(s) {missing} are not sensors of model '{model.name}' "
-                           f"(its sensors: {', '.join(model.channels)})")  # fmt: skip
+        raise CompareError(
+            f"measured channel(s) {missing} are not sensors of model '{model.name}' "
+            f"(its sensors: {', '.join(model.channels)})"
+        )
     return np.array([dofs[c] for c in channels])
 
 
@@ -148,11 +166,10 @@ def pair_with_measured(sol: ModalSolution, meas: Measured, dofs: np.ndarray) -> 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.truthfile import Truth
     >>> from twin.modes import solve_modes
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> data = synthesize_modes(model, Truth(()), n_modes=6, samples=5, seed=1, pole_variance=(1e-8, 1e-8))
     >>> meas, sol = measured_modes(data), solve_modes(model)
     >>> _, cols = pair_with_measured(sol, meas, channel_dofs(model, meas.channels))

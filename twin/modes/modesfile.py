@@ -21,8 +21,10 @@ from twin.netcdf import load_netcdf, write_netcdf
 #: Complex variables of a modes Dataset, stored as <name>_real / <name>_imag.
 COMPLEX_VARIABLES = ("pole", "shape", "sensor_shape")
 #: What the stages that need modes say of a modes Dataset with none (an extraction that found no mode writes one).
-NO_MODES = ("it holds no mode (the extraction found none in its band): nothing to compare or update; look at its "
-            "stabilisation diagram (twin extract --plot) and try another band, more orders or a longer record")
+NO_MODES = (
+    "it holds no mode (the extraction found none in its band): nothing to compare or update; look at its "
+    "stabilisation diagram (twin extract --plot) and try another band, more orders or a longer record"
+)
 
 
 def split_complex(ds: xr.Dataset) -> xr.Dataset:

@@ -15,8 +15,9 @@ from twin.errors import TwinError
 from twin.modes.shapes import mac
 
 
-def pairing_cost(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray,
-                 shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def pairing_cost(
+    reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray, shapes: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``(cost, mac)``, both reference x other: ``|λ − λ_ref| / |λ_ref| + (1 − MAC)`` and the complex MAC.
 
     The shapes are on the same channels (or DOFs) in both sets. The pole
@@ -73,8 +74,9 @@ def assign(cost: np.ndarray, allowed: np.ndarray | None = None) -> np.ndarray:
     return out
 
 
-def partners(reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray,
-             shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def partners(
+    reference_poles: np.ndarray, reference_shapes: np.ndarray, poles: np.ndarray, shapes: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``(mac, cols)``: mode ``cols[r]`` of the other set is reference mode ``r``'s partner, for every ``r``.
 
     One-to-one where it can be, by the least total :func:`pairing_cost` (Hungarian algorithm); when the other
@@ -140,8 +142,8 @@ def pair_modes(
     Examples
     --------
     >>> from twin import pair_modes
-    >>> from twin import load_model, shipped_model, modal
-    >>> air = modal(load_model(shipped_model("hydro_unit")), n_modes=6)
+    >>> from twin import modal
+    >>> air = modal(hydro_unit, n_modes=6)
     >>> pairs = pair_modes(air, air)
     >>> bool((pairs.mac > 0.999).all()), float(pairs.frequency_ratio[0])
     (True, 1.0)
@@ -149,7 +151,9 @@ def pair_modes(
     a, b = _shapes(reference, shape_var), _shapes(other, shape_var)
     dim = [d for d in a.dims if d != "mode"]
     if len(dim) != 1 or b.dims != a.dims:
-        raise TwinError(f"'{shape_var}' must have dims ('mode', <one shape dim>) in both sets, got {a.dims} and {b.dims}")
+        raise TwinError(
+            f"'{shape_var}' must have dims ('mode', <one shape dim>) in both sets, got {a.dims} and {b.dims}"
+        )
     dim = dim[0]
     if dim in a.coords and dim in b.coords:
         missing = sorted(set(a[dim].values.tolist()) - set(b[dim].values.tolist()))
@@ -171,14 +175,18 @@ def pair_modes(
             "mac": ("pair", m[rows, cols], {"units": "1"}),
             "reference_frequency": ("pair", fa[rows], {"units": "Hz"}),
             "other_frequency": ("pair", fb[cols], {"units": "Hz"}),
-            "frequency_ratio": ("pair", fb[cols] / fa[rows], {"units": "1", "long_name": "other / reference frequency (FRR)"}),
+            "frequency_ratio": (
+                "pair",
+                fb[cols] / fa[rows],
+                {"units": "1", "long_name": "other / reference frequency (FRR)"},
+            ),
             "reference_damping_ratio": ("pair", za, {"units": "1"}),
             "other_damping_ratio": ("pair", zb, {"units": "1"}),
             "added_damping_ratio": ("pair", zb - za, {"units": "1", "long_name": "other - reference damping ratio"}),
         },
         coords={"pair": np.arange(1, len(rows) + 1)},
         attrs={"shape_var": shape_var, "min_mac": min_mac},
-    )  # fmt: skip
+    )
 
 
 def frequency_ratio(air: xr.Dataset, water: xr.Dataset, **kwargs) -> xr.DataArray:
@@ -187,8 +195,8 @@ def frequency_ratio(air: xr.Dataset, water: xr.Dataset, **kwargs) -> xr.DataArra
     Examples
     --------
     >>> from twin.modes import frequency_ratio
-    >>> from twin import load_model, shipped_model, modal
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> from twin import modal
+    >>> m = hydro_unit
     >>> air = modal(m, n_modes=4)
     >>> water = modal(m, n_modes=4, values={"runner.m": 1.3 * m.parameter("runner.m").nominal})
     >>> frequency_ratio(air, water).values.round(3)  # heavier runner: lower frequencies

@@ -66,15 +66,15 @@ def solve_modes(model: RotorModel, values: Mapping[str, float] | None = None) ->
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.modes import solve_modes
-    >>> sol = solve_modes(load_model(shipped_model("hydro_unit")))
+    >>> sol = solve_modes(hydro_unit)
     >>> sol.right.shape == sol.left.shape
     True
     """
     mats = model.matrices(values)
-    poles, right, left = state_modes(state_matrix(mats["M"], mats["C"], mats["G"], mats["K"],
-                                                  model.speed_rpm * RPM_TO_RAD_S))
+    poles, right, left = state_modes(
+        state_matrix(mats["M"], mats["C"], mats["G"], mats["K"], model.speed_rpm * RPM_TO_RAD_S)
+    )
     n = model.n_dof
     mass = mats["M"]
     u = sla.cho_solve(sla.cho_factor(mass), left[:, n:].T).T  # M is symmetric: (w2 M⁻¹)ᵀ = M⁻¹ w2ᵀ
@@ -108,8 +108,7 @@ def pole_jacobian(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> jac = pole_jacobian(m, solve_modes(m), ["runner.m"], modes=[0])
     >>> jac.shape
     (1, 1)
@@ -153,8 +152,7 @@ def follow_mode(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> sol = solve_modes(m)
     >>> near = follow_mode(m, {"runner.m": 9e4}, sol.poles[4], sol.right[4])
     >>> exact = solve_modes(m, {"runner.m": 9e4})

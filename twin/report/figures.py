@@ -41,8 +41,13 @@ def modal_spectrum(poles: np.ndarray, shapes: np.ndarray, frequency_hz: np.ndarr
     return (np.abs(np.asarray(shapes)) ** 2).T @ resp
 
 
-def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str | Path, prefix: str = "",
-                       labels: Sequence[str] | None = None, signals: xr.Dataset | None = None) -> list[Path]:  # fmt: skip
+def comparison_figures(
+    tables: xr.Dataset | Sequence[xr.Dataset],
+    directory: str | Path,
+    prefix: str = "",
+    labels: Sequence[str] | None = None,
+    signals: xr.Dataset | None = None,
+) -> list[Path]:
     """Write ``errors.png``, ``mac.png`` and ``spectra.png`` of one comparison or several side by side.
 
     Parameters
@@ -64,10 +69,9 @@ def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str
     Examples
     --------
     >>> import tempfile
-    >>> from twin import load_model, shipped_model
     >>> from twin.loop.compare import compare
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> table = compare(model, synthesize_modes(model, samples=10, seed=1))
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     [p.name for p in comparison_figures(table, tmp)]
@@ -77,10 +81,15 @@ def comparison_figures(tables: xr.Dataset | Sequence[xr.Dataset], directory: str
     if labels is None:
         labels = ["model"] if len(tables) == 1 else [f"model {k}" for k in range(1, len(tables) + 1)]
     out_dir = check_folder(directory, make=True)
-    return [error_figure(tables, labels, out_dir / f"{prefix}errors.png"),
-            mac_figure(tables, labels, out_dir / f"{prefix}mac.png"),
-            (spectra_figure(tables, labels, out_dir / f"{prefix}spectra.png") if signals is None else
-             psd_figure(signals, tables, labels, out_dir / f"{prefix}spectra.png"))]  # fmt: skip
+    return [
+        error_figure(tables, labels, out_dir / f"{prefix}errors.png"),
+        mac_figure(tables, labels, out_dir / f"{prefix}mac.png"),
+        (
+            spectra_figure(tables, labels, out_dir / f"{prefix}spectra.png")
+            if signals is None
+            else psd_figure(signals, tables, labels, out_dir / f"{prefix}spectra.png")
+        ),
+    ]
 
 
 def _mode_ticks(table: xr.Dataset) -> list[str]:
@@ -101,8 +110,16 @@ def error_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path
         ax_z.bar(x + dx, 100 * table["damping_error"].values, width, label=name, color=f"C{k}")
     for ax, sigma in ((ax_f, "frequency_sigma"), (ax_z, "damping_sigma")):
         if sigma in first:  # the measurement's own uncertainty, around zero
-            ax.errorbar(x, np.zeros_like(x, dtype=float), yerr=100 * first[sigma].values, fmt="none", ecolor="k",
-                        capsize=3, lw=1, label="±1 std of the measured value")  # fmt: skip
+            ax.errorbar(
+                x,
+                np.zeros_like(x, dtype=float),
+                yerr=100 * first[sigma].values,
+                fmt="none",
+                ecolor="k",
+                capsize=3,
+                lw=1,
+                label="±1 std of the measured value",
+            )
         ax.axhline(0, color="k", lw=0.5)
         ax.grid(True, axis="y", alpha=0.3)
     ax_f.set_ylabel("frequency error\nmodel / measured − 1 [%]")
@@ -128,8 +145,9 @@ def mac_columns(table: xr.Dataset) -> np.ndarray:
 def mac_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) -> Path:
     """MAC of each measured mode against the model modes near the measured band, the pairing boxed."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, len(tables), figsize=(4.6 * len(tables) + 1.6, 4.6), squeeze=False,
-                             layout="constrained")  # fmt: skip
+    fig, axes = plt.subplots(
+        1, len(tables), figsize=(4.6 * len(tables) + 1.6, 4.6), squeeze=False, layout="constrained"
+    )
     im = None
     for k, (ax, table, label) in enumerate(zip(axes[0], tables, labels)):
         f_model = table["model_mode_frequency"].values
@@ -141,7 +159,9 @@ def mac_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Path) 
         for r, c in enumerate(partner):
             ax.add_patch(plt.Rectangle((column[c] - 0.5, r - 0.5), 1, 1, fill=False, ec="red", lw=1.5))
         step = max(1, len(keep) // 24)
-        ax.set_xticks(np.arange(len(keep))[::step], [f"{f_model[c]:.3g}" for c in keep[::step]], rotation=90, fontsize=7)
+        ax.set_xticks(
+            np.arange(len(keep))[::step], [f"{f_model[c]:.3g}" for c in keep[::step]], rotation=90, fontsize=7
+        )
         ax.set_yticks(np.arange(table.sizes["mode"]), _mode_ticks(table) if k == 0 else [], fontsize=7)
         ax.set_xlabel("model mode frequency [Hz]")
         if k == 0:
@@ -169,13 +189,16 @@ def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Pa
         for j, (s, label) in enumerate(zip(s_mod, labels)):
             ax.semilogy(freq, s[k], label=label, lw=1, ls=("--", ":", "-.")[j % 3], color=f"C{j}")
         ax.set_title(str(c), fontsize=8)
-    for ax in axes.flat[len(channels):]:
+    for ax in axes.flat[len(channels) :]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
     fig.supxlabel("frequency [Hz]")
     fig.supylabel("Σ|ψ|² / |i2πf − λ|² [s²]")
-    fig.suptitle("modal spectra: each set of poles and unit-norm shapes with equal unit forcing\n"
-                 "(the measured curve is rebuilt from the identified modes, not the signals' spectrum)", fontsize=9)  # fmt: skip
+    fig.suptitle(
+        "modal spectra: each set of poles and unit-norm shapes with equal unit forcing\n"
+        "(the measured curve is rebuilt from the identified modes, not the signals' spectrum)",
+        fontsize=9,
+    )
     return save_figure(fig, path)
 
 
@@ -183,8 +206,9 @@ def spectra_figure(tables: Sequence[xr.Dataset], labels: Sequence[str], path: Pa
 PSD_SEGMENT_PERIODS = 40
 
 
-def record_psd(signals: xr.Dataset, channels: Sequence[str], slowest_hz: float
-               ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:  # fmt: skip
+def record_psd(
+    signals: xr.Dataset, channels: Sequence[str], slowest_hz: float
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """Welch's PSD of the record's ``channels`` (those it has) [µm²/Hz] over frequency [Hz].
 
     Hann segments of :data:`PSD_SEGMENT_PERIODS` periods of ``slowest_hz`` (a power of two of samples, at
@@ -238,16 +262,22 @@ def psd_figure(signals: xr.Dataset, tables: Sequence[xr.Dataset], labels: Sequen
             ax.axvline(f, color="k", lw=0.7, label="identified modes" if j == 0 else None)
         for i, (t, label) in enumerate(zip(tables, labels)):
             for j, f in enumerate(t["model_frequency"].values):
-                ax.axvline(f, color=f"C{i}", lw=1.0, ls=("--", ":", "-.")[i % 3], label=f"{label} modes" if j == 0 else None)
-        ax.set_title(c if quantities[c] == "displacement" else f"{c} ({quantities[c]}, {PSD_UNITS[quantities[c]]})",
-                     fontsize=8)  # fmt: skip
-    for ax in axes.flat[len(channels):]:
+                ax.axvline(
+                    f, color=f"C{i}", lw=1.0, ls=("--", ":", "-.")[i % 3], label=f"{label} modes" if j == 0 else None
+                )
+        ax.set_title(
+            c if quantities[c] == "displacement" else f"{c} ({quantities[c]}, {PSD_UNITS[quantities[c]]})", fontsize=8
+        )
+    for ax in axes.flat[len(channels) :]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
     fig.supxlabel("frequency [Hz] (log scale)")
     fig.supylabel("displacement PSD [µm²/Hz]")
-    fig.suptitle(f"power spectral density per channel (Welch, {freq[1]:.3g} Hz resolution)\n"
-                 "identified modes: black lines; the model's partner modes: dashed", fontsize=9)  # fmt: skip
+    fig.suptitle(
+        f"power spectral density per channel (Welch, {freq[1]:.3g} Hz resolution)\n"
+        "identified modes: black lines; the model's partner modes: dashed",
+        fontsize=9,
+    )
     return save_figure(fig, path)
 
 

@@ -56,9 +56,11 @@ def markdown_to_html(text: str, folder: str | Path, title: str) -> str:
 
     body = markdown.markdown(text, extensions=["tables", "fenced_code"], output_format="html")
     body = re.sub(r'(<img[^>]*?src=)"([^"]+)"', lambda m: _embed(m, Path(folder)), body)
-    return (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
-            f'<meta name="viewport" content="width=device-width, initial-scale=1">\n<style>{STYLE}</style>\n</head>\n'
-            f"<body>\n{body}\n</body>\n</html>\n")  # fmt: skip
+    return (
+        f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">\n<style>{STYLE}</style>\n</head>\n'
+        f"<body>\n{body}\n</body>\n</html>\n"
+    )
 
 
 def write_html_report(markdown_path: str | Path, title: str | None = None) -> Path:

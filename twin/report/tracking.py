@@ -28,8 +28,9 @@ from twin.netcdf import atomic_output
 log = logging.getLogger(__name__)
 
 
-def record_truth(folder: str | Path, names: list[str], model, records: list[str] | None = None
-                 ) -> dict[str, np.ndarray] | None:  # fmt: skip
+def record_truth(
+    folder: str | Path, names: list[str], model, records: list[str] | None = None
+) -> dict[str, np.ndarray] | None:
     """The hidden changes' values of parameters ``names`` per record of a simulated campaign, or None.
 
     Reads each record's ``truth`` attr (what ``twin campaign`` put there), for the file names ``records`` in
@@ -149,40 +150,68 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
     ``parameters.png`` (the last only when a change is followed)."""
     n = table.sizes["time"]
     lines = [
-        "# Tracking report", "",
-        (f"{n} records from {table.attrs.get('first_record', '')} over {float(table.day.values[-1]):.2f} days; "
-        f"baseline {float(table.attrs.get('baseline_days', 0)):g} days; {table.sizes['mode']} tracked modes; "
-        f"control limit {float(table.limit):.1f} for {float(table.attrs.get('false_alarms_per_year', np.nan)):g} "
-        "false alarms per year."), "",
-        "## Alarms", "",
-    ]  # fmt: skip
+        "# Tracking report",
+        "",
+        (
+            f"{n} records from {table.attrs.get('first_record', '')} over {float(table.day.values[-1]):.2f} days; "
+            f"baseline {float(table.attrs.get('baseline_days', 0)):g} days; {table.sizes['mode']} tracked modes; "
+            f"control limit {float(table.limit):.1f} for {float(table.attrs.get('false_alarms_per_year', np.nan)):g} "
+            "false alarms per year."
+        ),
+        "",
+        "## Alarms",
+        "",
+    ]
     if table.sizes.get("alarm", 0) == 0:
         lines.append("No alarm: what the operating conditions do not explain stayed within the control limit.")
     else:
-        lines += ["| time (UTC) | day | onset day | effect | named on day | verdict |",
-                  "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        lines += [
+            "| time (UTC) | day | onset day | effect | named on day | verdict |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
         named_day = table.get("alarm_named_day", xr.full_like(table.alarm_day, np.nan)).values
         for i in range(table.sizes["alarm"]):
             t = np.datetime_as_string(table.alarm_time.values[i], unit="s")
             effect = str(table.alarm_effect.values[i]) if bool(table.alarm_named.values[i]) else "(not named)"
             verdict = html.escape(str(table.alarm_verdict.values[i])).replace("|", "\\|")
             named = "not yet" if np.isnan(named_day[i]) else f"{named_day[i]:.2f}"
-            lines.append(f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
-                         f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {named} | {verdict} |")  # fmt: skip
-    lines += ["", f"## Trends, coloured by {colour_by}", "", '<img src="frequency.png">', "",
-              '<img src="damping.png">', "", "## What the operating conditions do not explain", "",
-              ("Frequency residuals after the learned laws and the followed changes, and the chart's statistic "
-               "(MEWMA) against its limit; alarms in red, from the estimated onset."), "", '<img src="chart.png">']
+            lines.append(
+                f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
+                f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {named} | {verdict} |"
+            )
+    lines += [
+        "",
+        f"## Trends, coloured by {colour_by}",
+        "",
+        '<img src="frequency.png">',
+        "",
+        '<img src="damping.png">',
+        "",
+        "## What the operating conditions do not explain",
+        "",
+        (
+            "Frequency residuals after the learned laws and the followed changes, and the chart's statistic "
+            "(MEWMA) against its limit; alarms in red, from the estimated onset."
+        ),
+        "",
+        '<img src="chart.png">',
+    ]
     if "tracked_parameter" in table.dims:
-        lines += ["", "## Followed changes", "",
-                  "Each named change, updated from the records since its onset and followed record by record "
-                  "(5-95% intervals)" + ("; the dashed line is the simulated campaign's truth." if truth else "."),
-                  "", '<img src="parameters.png">']  # fmt: skip
+        lines += [
+            "",
+            "## Followed changes",
+            "",
+            "Each named change, updated from the records since its onset and followed record by record "
+            "(5-95% intervals)" + ("; the dashed line is the simulated campaign's truth." if truth else "."),
+            "",
+            '<img src="parameters.png">',
+        ]
     return "\n".join(lines) + "\n"
 
 
-def write_report(table: xr.Dataset, out: str | Path, *, model=None, records: str | Path | None = None,
-                 colour_by: str | None = None) -> Path:  # fmt: skip
+def write_report(
+    table: xr.Dataset, out: str | Path, *, model=None, records: str | Path | None = None, colour_by: str | None = None
+) -> Path:
     """Write ``out/report.html`` of a tracking (``track.nc``'s dataset), atomically; returns its path.
 
     Parameters
@@ -202,8 +231,9 @@ def write_report(table: xr.Dataset, out: str | Path, *, model=None, records: str
     truth = None
     folder = records if records is not None else table.attrs.get("records")
     if model is not None and folder and "tracked_parameter" in table.dims:
-        truth = record_truth(folder, [str(n) for n in table.tracked_parameter.values], model,
-                             [str(r) for r in table.record.values])  # fmt: skip
+        truth = record_truth(
+            folder, [str(n) for n in table.tracked_parameter.values], model, [str(r) for r in table.record.values]
+        )
     target = Path(out) / "report.html"
     with tempfile.TemporaryDirectory() as tmp:
         figures = Path(tmp)

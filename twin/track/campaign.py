@@ -48,8 +48,9 @@ def record_seed(seed: int, index: int) -> int:
     return int((int(seed) * 100_003 + index) % SEED_LIMIT)
 
 
-def record_model(model: RotorModel, point: dict[str, float], schedule: Schedule, day: float
-                 ) -> tuple[RotorModel, Truth]:  # fmt: skip
+def record_model(
+    model: RotorModel, point: dict[str, float], schedule: Schedule, day: float
+) -> tuple[RotorModel, Truth]:
     """The unit of record ``day``: the model at its operating point with the changes in effect that day.
 
     Returns the model and the changes in effect (each at its size that day), as a :class:`Truth`.
@@ -111,9 +112,8 @@ def campaign(
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from twin import load_model, shipped_model
     >>> from twin.track.schedule import read_schedule
-    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> unit = hydro_unit
     >>> with tempfile.TemporaryDirectory() as d:  # doctest: +SKIP
     ...     p = pathlib.Path(d) / "s.toml"; _ = p.write_text("days = 1\\nrecords_per_day = 2\\nduration = 60.0\\n")
     ...     table = campaign(unit, read_schedule(p, unit), pathlib.Path(d) / "records", progress=False)
@@ -127,15 +127,25 @@ def campaign(
     ident = campaign_id(model, schedule, seed)
     days = np.array([schedule.record_day(i) for i in range(schedule.n_records)])
     start = schedule.start
-    year_day0 = (start - start.replace(month=1, day=1, hour=0, minute=0, second=0, microsecond=0)).total_seconds() / 86400.0
+    year_day0 = (
+        start - start.replace(month=1, day=1, hour=0, minute=0, second=0, microsecond=0)
+    ).total_seconds() / 86400.0
     points = operating_points(schedule.variations, op, days, year_day0, seed)
     todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident)]
     noise_std_m = _noise_std(model, schedule.fs_hz, noise_ratio)
     log.info("campaign %s: %d records, %d to simulate", ident, schedule.n_records, len(todo))
     mapper(tasks, progress=progress, desc="records")(
-        _simulate_record, todo, model=model, schedule=schedule, points=points, seed=seed, noise_std_m=noise_std_m,
-        out=str(out), ident=ident, command=command,
-    )  # fmt: skip
+        _simulate_record,
+        todo,
+        model=model,
+        schedule=schedule,
+        points=points,
+        seed=seed,
+        noise_std_m=noise_std_m,
+        out=str(out),
+        ident=ident,
+        command=command,
+    )
     return xr.Dataset(
         {
             "start_time": ("record", [iso(schedule.record_start(i)) for i in range(schedule.n_records)]),
@@ -144,10 +154,13 @@ def campaign(
             "file": ("record", [RECORD_NAME.format(i) for i in range(schedule.n_records)]),
             "made": ("record", np.isin(np.arange(schedule.n_records), todo)),
         },
-        coords={"record": np.arange(schedule.n_records), "condition": list(op.names),
-                "condition_units": ("condition", [op.condition(k).units for k in op.names])},
+        coords={
+            "record": np.arange(schedule.n_records),
+            "condition": list(op.names),
+            "condition_units": ("condition", [op.condition(k).units for k in op.names]),
+        },
         attrs={"campaign": ident, "folder": str(out)},
-    )  # fmt: skip
+    )
 
 
 def _kept(path: Path, ident: str) -> bool:
@@ -158,11 +171,14 @@ def _kept(path: Path, ident: str) -> bool:
         with xr.open_dataset(path) as ds:
             theirs = ds.attrs.get("campaign")
     except (OSError, ValueError) as exc:
-        raise TwinError(f"{path}: a record of the campaign folder cannot be read ({exc}): remove it to simulate it "
-                        "again") from None  # fmt: skip
+        raise TwinError(
+            f"{path}: a record of the campaign folder cannot be read ({exc}): remove it to simulate it again"
+        ) from None
     if theirs != ident:
-        raise TwinError(f"{path} is a record of another campaign (model, schedule or seed differ): give another "
-                        "folder, or remove its records to start this one")  # fmt: skip
+        raise TwinError(
+            f"{path} is a record of another campaign (model, schedule or seed differ): give another "
+            "folder, or remove its records to start this one"
+        )
     return True
 
 
@@ -179,24 +195,72 @@ def _noise_std(model: RotorModel, fs_hz: float, noise_ratio: float) -> float:
     return sensor_noise_std(ss, 1.0 / fs_hz, DEFAULT_TURBULENCE_ASD, ports, noise_ratio, None)
 
 
-def _simulate_record(index: int, *, model: RotorModel, schedule: Schedule, points: np.ndarray, seed: int,
-                     noise_std_m: float, out: str, ident: str, command: str) -> str:  # fmt: skip
+def _simulate_record(
+    index: int,
+    *,
+    model: RotorModel,
+    schedule: Schedule,
+    points: np.ndarray,
+    seed: int,
+    noise_std_m: float,
+    out: str,
+    ident: str,
+    command: str,
+) -> str:
     from twin.fmu.simulate import simulate
 
     op = model.operation
     day = schedule.record_day(index)
     point = dict(zip(op.names, (float(v) for v in points[index])))
     unit, truth = record_model(model, point, schedule, day)
-    ds = simulate(unit, duration_s=schedule.duration_s, fs_hz=schedule.fs_hz, seed=record_seed(seed, index),
-                  noise_std_m=noise_std_m, progress=False, command=command)  # fmt: skip
+    ds = simulate(
+        unit,
+        duration_s=schedule.duration_s,
+        fs_hz=schedule.fs_hz,
+        seed=record_seed(seed, index),
+        noise_std_m=noise_std_m,
+        progress=False,
+        command=command,
+    )
     ds = ds.assign(operating_point=("condition", points[index], {"long_name": "operating conditions of the record"}))
-    ds = ds.assign_coords(condition=("condition", list(op.names)),
-                          condition_units=("condition", [op.condition(k).units for k in op.names]))  # fmt: skip
-    ds.attrs.update({
-        "title": f"campaign record {index} of {model.name}", "start_time": iso(schedule.record_start(index)),
-        "day": day, "record": index, "campaign": ident, "campaign_seed": int(seed),
-        "schedule": schedule.to_json(), "truth": truth.to_json(),
-    })  # fmt: skip
+    ds = ds.assign_coords(
+        condition=("condition", list(op.names)),
+        condition_units=("condition", [op.condition(k).units for k in op.names]),
+    )
+    ds.attrs.update(
+        {
+            "title": f"campaign record {index} of {model.name}",
+            "start_time": iso(schedule.record_start(index)),
+            "day": day,
+            "record": index,
+            "campaign": ident,
+            "campaign_seed": int(seed),
+            "schedule": schedule.to_json(),
+            "truth": truth.to_json(),
+        }
+    )
     path = Path(out) / RECORD_NAME.format(index)
     write_netcdf(ds, path)
     return str(path)
+
+
+def campaign_json(table: xr.Dataset, folder: str | Path) -> dict:
+    """The ``twin campaign --json`` layout of :func:`campaign`'s table: how many records, made or found, and when.
+
+    Examples
+    --------
+    >>> import numpy as np, xarray as xr
+    >>> table = xr.Dataset({"made": ("record", [True, False]),
+    ...                     "start_time": ("record", np.array(["2026-01-01T00:00", "2026-01-01T06:00"], "M8[s]"))})
+    >>> campaign_json(table, "records")["kept"]
+    1
+    """
+    made = int(table.made.sum())
+    return {
+        "records": int(table.sizes["record"]),
+        "made": made,
+        "kept": int(table.sizes["record"]) - made,
+        "folder": str(Path(folder)),
+        "first": str(table.start_time.values[0]),
+        "last": str(table.start_time.values[-1]),
+    }

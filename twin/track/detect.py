@@ -101,8 +101,9 @@ def learn_baseline(residuals: np.ndarray, se: np.ndarray) -> Baseline:
     return Baseline(center, scale, (1 - shrink) * corr + shrink * np.eye(p), n)
 
 
-def threshold(n_outputs: int, n_baseline: int, records_per_year: float,
-              false_alarms_per_year: float = FALSE_ALARMS_PER_YEAR) -> float:
+def threshold(
+    n_outputs: int, n_baseline: int, records_per_year: float, false_alarms_per_year: float = FALSE_ALARMS_PER_YEAR
+) -> float:
     """The chart's limit for a false-alarm probability per record of ``false_alarms_per_year / records_per_year``.
 
     The scales and correlation come from ``n_baseline`` records, not from an infinite past, so the limit

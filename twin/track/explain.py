@@ -76,8 +76,9 @@ def candidates(model: RotorModel, tracked: Tracked) -> list[Linearised]:
         sol = solve_modes(m)
         jac = pole_jacobian(m, sol, names, modes=tracked_indices(m, sol, tracked))
         scales = cand.effect.plausible_scale(m)
-        out.append(Linearised(cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T,
-                              cand.where(ref)))  # fmt: skip
+        out.append(
+            Linearised(cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T, cand.where(ref))
+        )
     return out
 
 
@@ -111,12 +112,24 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
     (best_fit, best), (second_fit, second) = scored[0], scored[1]
     best_ev, second_ev = best_fit.log_bayes_factor, second_fit.log_bayes_factor
     mean, post = best_fit.values, best_fit.covariance
-    return Verdict(best.label, best.library, best.parameters, mean, post, best_ev, second.label, second_ev,
-                   best_fit.chi2, int(ok.sum()), _text(best, mean, post, best_ev, second.label, second_ev))  # fmt: skip
+    return Verdict(
+        best.label,
+        best.library,
+        best.parameters,
+        mean,
+        post,
+        best_ev,
+        second.label,
+        second_ev,
+        best_fit.chi2,
+        int(ok.sum()),
+        _text(best, mean, post, best_ev, second.label, second_ev),
+    )
 
 
-def changed_poles(model: RotorModel, tracked: Tracked, point: dict[str, float], changes: list,
-                  derive: Linearised | None = None) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+def changed_poles(
+    model: RotorModel, tracked: Tracked, point: dict[str, float], changes: list, derive: Linearised | None = None
+) -> tuple[np.ndarray, np.ndarray | None]:
     """The tracked poles at ``point`` with ``changes`` (candidate, values) on the model, and their derivatives
     by ``derive``'s parameters (pole parts, ``(2m, k)``) when it is given."""
     m = at_operating_point(model, point)
@@ -133,8 +146,13 @@ def changed_poles(model: RotorModel, tracked: Tracked, point: dict[str, float], 
 UPDATE_STEPS = 5
 
 
-def update(model: RotorModel, tracked: Tracked, cand: Linearised, observed: list[tuple[dict, np.ndarray, np.ndarray]],
-           others: list) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def update(
+    model: RotorModel,
+    tracked: Tracked,
+    cand: Linearised,
+    observed: list[tuple[dict, np.ndarray, np.ndarray]],
+    others: list,
+) -> tuple[np.ndarray, np.ndarray]:
     """The candidate's values after the records since the onset: the posterior mode and covariance under its
     prior (zero, its plausible scale), by Gauss-Newton on the full model at each record's operating point.
 
@@ -171,12 +189,16 @@ def _text(cand: Linearised, mean: np.ndarray, cov: np.ndarray, evidence: float, 
     if evidence < MIN_LOG_EVIDENCE:
         return f"no change the model can name stands out (best: {cand.label}, log evidence {evidence:.1f})"
     if evidence - second_ev < MIN_MARGIN:
-        return (f"{cand.label} or {second}: the records cannot yet tell them apart (log evidence {evidence:.1f} "
-                f"and {second_ev:.1f}); followed as {cand.label}: {values}")  # fmt: skip
+        return (
+            f"{cand.label} or {second}: the records cannot yet tell them apart (log evidence {evidence:.1f} "
+            f"and {second_ev:.1f}); followed as {cand.label}: {values}"
+        )
     if cand.library:
         return f"{cand.label} changed: {values} (log evidence {evidence:.1f}; next {second}, {second_ev:.1f})"
-    return (f"a change outside the library: {cand.where} ({cand.label}: {values}; log evidence {evidence:.1f}; "
-            f"next {second}, {second_ev:.1f})")  # fmt: skip
+    return (
+        f"a change outside the library: {cand.where} ({cand.label}: {values}; log evidence {evidence:.1f}; "
+        f"next {second}, {second_ev:.1f})"
+    )
 
 
 class Follower:
@@ -186,8 +208,16 @@ class Follower:
     quantiles as :meth:`keep` wrote them (NaN before the change was followed).
     """
 
-    def __init__(self, model: RotorModel, tracked: Tracked, cand: Linearised, mean: np.ndarray, cov: np.ndarray,
-                 day: float, n_records: int = 0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        model: RotorModel,
+        tracked: Tracked,
+        cand: Linearised,
+        mean: np.ndarray,
+        cov: np.ndarray,
+        day: float,
+        n_records: int = 0,
+    ) -> None:
         self.model, self.tracked, self.cand = model, tracked, cand
         self.mean, self.cov, self.day = np.array(mean, float), np.array(cov, float), day
         self.walk = np.diag((PROCESS_NOISE * cand.scale) ** 2)

@@ -58,8 +58,9 @@ def with_slopes(model: RotorModel, slopes: np.ndarray) -> RotorModel:
     """The model with its laws' slopes replaced (in :func:`slope_keys`' order)."""
     op = operation_of(model)
     values = iter(np.asarray(slopes, dtype=float))
-    laws = tuple(dataclasses.replace(law, slopes=tuple((k, float(next(values))) for k, _ in law.slopes))
-                 for law in op.laws)  # fmt: skip
+    laws = tuple(
+        dataclasses.replace(law, slopes=tuple((k, float(next(values))) for k, _ in law.slopes)) for law in op.laws
+    )
     return dataclasses.replace(model, operation=dataclasses.replace(op, laws=laws))
 
 
@@ -68,16 +69,16 @@ def _sensor_shapes(model: RotorModel, right: np.ndarray, channels: tuple[str, ..
     return right[:, [by_name[c] for c in channels]]
 
 
-def tracked_modes(model: RotorModel, channels: tuple[str, ...], fmax_hz: float,
-                  max_damping: float = MAX_TRACKED_DAMPING) -> Tracked:  # fmt: skip
+def tracked_modes(
+    model: RotorModel, channels: tuple[str, ...], fmax_hz: float, max_damping: float = MAX_TRACKED_DAMPING
+) -> Tracked:
     """The model's modes at the reference operating point that a tracker can follow on ``channels``.
 
     Forward and backward modes up to ``fmax_hz`` damped less than ``max_damping``.
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> unit = load_model(shipped_model("hydro_unit"))
+    >>> unit = hydro_unit
     >>> t = tracked_modes(unit, tuple(unit.channels), 60.0)
     >>> np.round(t.frequency_hz[:3], 2)
     array([ 1.11,  2.74, 10.13])
@@ -99,8 +100,9 @@ def laws_jacobian_columns(model: RotorModel, point: dict[str, float]) -> list[tu
     return [(p, point[k] - op.condition(k).reference) for p, k in slope_keys(model)]
 
 
-def predict(model: RotorModel, tracked: Tracked, point: dict[str, float],
-            with_jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+def predict(
+    model: RotorModel, tracked: Tracked, point: dict[str, float], with_jacobian: bool = True
+) -> tuple[np.ndarray, np.ndarray | None]:
     """The tracked poles [1/s] of ``model`` at ``point`` and their derivatives by the laws' slopes.
 
     Each tracked mode is continued to the point by pairing (pole distance and MAC on the channels,
@@ -146,8 +148,9 @@ class LawFit:
     declared: np.ndarray
 
 
-def fit_laws(model: RotorModel, tracked: Tracked, points: list[dict[str, float]], measured: np.ndarray,
-             sigma: np.ndarray) -> LawFit:  # fmt: skip
+def fit_laws(
+    model: RotorModel, tracked: Tracked, points: list[dict[str, float]], measured: np.ndarray, sigma: np.ndarray
+) -> LawFit:
     """Learn the laws' slopes and the pole offsets from baseline records.
 
     Parameters

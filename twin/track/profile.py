@@ -48,15 +48,36 @@ class Variation:
 #: (highest in late spring); the guide-bearing oil 0.04 degC warmer per MW of load (bearing losses) and
 #: with the cooling water's season (warmest in summer).
 DEFAULT_VARIATION: dict[str, dict] = {
-    "power": {"mean": 150.0, "daily_amplitude": 35.0, "peak_hour": 18.0, "dispatch_std": 25.0,
-              "dispatch_correlation": 0.3},
-    "reactive_power": {"mean": 25.0, "daily_amplitude": 15.0, "peak_hour": 18.0, "dispatch_std": 15.0,
-                       "dispatch_correlation": 0.3},
-    "head": {"mean": 140.0, "seasonal_amplitude": 5.0, "seasonal_peak_day": 150.0, "dispatch_std": 0.5,
-             "dispatch_correlation": 0.95},
-    "oil_temperature": {"mean": 45.0, "seasonal_amplitude": 3.0, "seasonal_peak_day": 200.0, "follows": {"power": 0.04},
-                        "dispatch_std": 0.7, "dispatch_correlation": 0.6},
-}  # fmt: skip
+    "power": {
+        "mean": 150.0,
+        "daily_amplitude": 35.0,
+        "peak_hour": 18.0,
+        "dispatch_std": 25.0,
+        "dispatch_correlation": 0.3,
+    },
+    "reactive_power": {
+        "mean": 25.0,
+        "daily_amplitude": 15.0,
+        "peak_hour": 18.0,
+        "dispatch_std": 15.0,
+        "dispatch_correlation": 0.3,
+    },
+    "head": {
+        "mean": 140.0,
+        "seasonal_amplitude": 5.0,
+        "seasonal_peak_day": 150.0,
+        "dispatch_std": 0.5,
+        "dispatch_correlation": 0.95,
+    },
+    "oil_temperature": {
+        "mean": 45.0,
+        "seasonal_amplitude": 3.0,
+        "seasonal_peak_day": 200.0,
+        "follows": {"power": 0.04},
+        "dispatch_std": 0.7,
+        "dispatch_correlation": 0.6,
+    },
+}
 
 
 def read_variations(table, operation) -> dict[str, Variation]:
@@ -86,9 +107,11 @@ def read_variations(table, operation) -> dict[str, Variation]:
                         raise t.error("follows", f"the slope on '{k}' must be a finite number, got {v!r}")
                 values["follows"] = {k: float(v) for k, v in follows.items()}
             else:
-                values[f.name] = t.number(f.name, getattr(base, f.name),
-                                          nonnegative=f.name in ("dispatch_std", "daily_amplitude",
-                                                                 "seasonal_amplitude"))  # fmt: skip
+                values[f.name] = t.number(
+                    f.name,
+                    getattr(base, f.name),
+                    nonnegative=f.name in ("dispatch_std", "daily_amplitude", "seasonal_amplitude"),
+                )
         if not 0 <= values["dispatch_correlation"] < 1:
             raise t.error("dispatch_correlation", f"must be in [0, 1), got {values['dispatch_correlation']:g}")
         t.finish()
@@ -118,8 +141,9 @@ def _order(variations: dict[str, Variation], table=None) -> list[str]:
     return done
 
 
-def operating_points(variations: dict[str, Variation], operation, days: np.ndarray, year_day0: float,
-                     seed: int) -> np.ndarray:  # fmt: skip
+def operating_points(
+    variations: dict[str, Variation], operation, days: np.ndarray, year_day0: float, seed: int
+) -> np.ndarray:
     """The conditions at each record's start, ``(record, condition)`` in the operation's order.
 
     Parameters
@@ -136,8 +160,7 @@ def operating_points(variations: dict[str, Variation], operation, days: np.ndarr
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> op = load_model(shipped_model("hydro_unit")).operation
+    >>> op = hydro_unit.operation
     >>> v = {k: Variation(mean=op.condition(k).reference) for k in op.names}
     >>> operating_points(v, op, np.arange(3) / 4, 0.0, seed=1)[:, 0]
     array([180., 180., 180.])
@@ -147,9 +170,12 @@ def operating_points(variations: dict[str, Variation], operation, days: np.ndarr
     out: dict[str, np.ndarray] = {}
     for i, name in enumerate(_order(variations)):
         v = variations[name]
-        value = (v.mean + v.daily_amplitude * np.cos(2 * np.pi * (hours - v.peak_hour) / 24.0)
-                 + v.seasonal_amplitude * np.cos(2 * np.pi * (year_day0 + days - v.seasonal_peak_day) / YEAR_DAYS)
-                 + v.drift_per_year * days / YEAR_DAYS)  # fmt: skip
+        value = (
+            v.mean
+            + v.daily_amplitude * np.cos(2 * np.pi * (hours - v.peak_hour) / 24.0)
+            + v.seasonal_amplitude * np.cos(2 * np.pi * (year_day0 + days - v.seasonal_peak_day) / YEAR_DAYS)
+            + v.drift_per_year * days / YEAR_DAYS
+        )
         for k, slope in v.follows.items():
             value = value + slope * (out[k] - variations[k].mean)
         rng = np.random.default_rng([int(seed), operation.names.index(name)])

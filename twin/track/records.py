@@ -56,7 +56,9 @@ def parse_time(text: str, where: str) -> dt.datetime:
     except ValueError:
         raise SignalError(f"{where}: start_time {text!r} is not an ISO 8601 time (e.g. 2027-01-01T06:00:00Z)") from None
     if value.tzinfo is None:
-        raise SignalError(f"{where}: start_time {text!r} has no time zone (records are compared in UTC: add Z or +01:00)")
+        raise SignalError(
+            f"{where}: start_time {text!r} has no time zone (records are compared in UTC: add Z or +01:00)"
+        )
     return value.astimezone(dt.UTC)
 
 
@@ -71,8 +73,11 @@ def record_info(path: Path, operation: Operation) -> RecordInfo:
             attrs = dict(ds.attrs)
             if "operating_point" in ds and "condition" in ds["operating_point"].dims:
                 names = [str(c) for c in ds["condition"].values]
-                units = ([str(u) for u in ds["condition_units"].values] if "condition_units" in ds.coords
-                         else [operation.units.get(n, "") for n in names])  # fmt: skip
+                units = (
+                    [str(u) for u in ds["condition_units"].values]
+                    if "condition_units" in ds.coords
+                    else [operation.units.get(n, "") for n in names]
+                )
                 given = {n: (float(v), u) for n, v, u in zip(names, ds["operating_point"].values, units)}
             else:
                 given = {n: (attrs[n], operation.condition(n).units) for n in operation.names if n in attrs}
@@ -84,15 +89,18 @@ def record_info(path: Path, operation: Operation) -> RecordInfo:
     point = {}
     for name in operation.names:
         if name not in given:
-            raise SignalError(f"{path}: no operating data for '{name}' (the model's conditions: "
-                              f"{', '.join(operation.names)}; give operating_point over condition)")  # fmt: skip
+            raise SignalError(
+                f"{path}: no operating data for '{name}' (the model's conditions: "
+                f"{', '.join(operation.names)}; give operating_point over condition)"
+            )
         value, units = given[name]
         want = operation.condition(name).units
         try:
             point[name] = float(value) if units in ("", want) else conversion(float(value), units, want)
         except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError) as exc:
-            raise SignalError(f"{path}: operating data '{name}' in {units!r} cannot be read as {want} "
-                              f"({type(exc).__name__})") from None  # fmt: skip
+            raise SignalError(
+                f"{path}: operating data '{name}' in {units!r} cannot be read as {want} ({type(exc).__name__})"
+            ) from None
     try:
         point = operation.check_point(point, str(path))
     except TwinError as exc:
@@ -155,8 +163,11 @@ def is_fresh(target: Path, record: Path, options: ExtractOptions | Mapping[str, 
 
 def provenance(record: Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> dict[str, str]:
     """What a cache file of ``record``'s modes records of its source (:func:`is_fresh` reads it back)."""
-    return {"record_stamp": stamp(record), "record_sha256": digest(record),
-            "extract_settings": ExtractOptions.of(options).key()}  # fmt: skip
+    return {
+        "record_stamp": stamp(record),
+        "record_sha256": digest(record),
+        "extract_settings": ExtractOptions.of(options).key(),
+    }
 
 
 def adopt(target: str | Path, record: str | Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> None:
@@ -189,9 +200,14 @@ def _extract_one(path: str, *, cache: str, options: ExtractOptions) -> str:
     return str(target)
 
 
-def extract_new(records: list[RecordInfo], cache: str | Path, *,
-                options: ExtractOptions | Mapping[str, Any] | None = None, tasks: Any = None,
-                progress: bool = True) -> list[Path]:  # fmt: skip
+def extract_new(
+    records: list[RecordInfo],
+    cache: str | Path,
+    *,
+    options: ExtractOptions | Mapping[str, Any] | None = None,
+    tasks: Any = None,
+    progress: bool = True,
+) -> list[Path]:
     """Extract the modes of the records not yet in ``cache``; the cache files of all records, in order.
 
     ``options`` are :func:`twin.extract.extract`'s (:class:`~twin.extract.options.ExtractOptions` or a mapping of

@@ -93,13 +93,21 @@ class Schedule:
 
     def to_json(self) -> str:
         """The schedule as JSON, for the records' attrs (the truth of each change included)."""
-        return json.dumps({
-            "days": self.days, "records_per_day": self.records_per_day, "duration_s": self.duration_s,
-            "fs_hz": self.fs_hz, "start": iso(self.start), "source": self.source,
-            "operation": {k: asdict(v) for k, v in self.variations.items()},
-            "changes": [{"start_day": c.start_day, "ramp_days": c.ramp_days, "truth": json.loads(c.truth.to_json())}
-                        for c in self.changes],
-        })  # fmt: skip
+        return json.dumps(
+            {
+                "days": self.days,
+                "records_per_day": self.records_per_day,
+                "duration_s": self.duration_s,
+                "fs_hz": self.fs_hz,
+                "start": iso(self.start),
+                "source": self.source,
+                "operation": {k: asdict(v) for k, v in self.variations.items()},
+                "changes": [
+                    {"start_day": c.start_day, "ramp_days": c.ramp_days, "truth": json.loads(c.truth.to_json())}
+                    for c in self.changes
+                ],
+            }
+        )
 
 
 def iso(time: dt.datetime) -> str:
@@ -113,11 +121,10 @@ def read_schedule(path: str | Path, model: RotorModel) -> Schedule:
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from twin import load_model, shipped_model
     >>> text = 'days = 2\\nrecords_per_day = 4\\nduration = 600.0\\n'
     >>> with tempfile.TemporaryDirectory() as d:
     ...     p = pathlib.Path(d) / "s.toml"; _ = p.write_text(text)
-    ...     s = read_schedule(p, load_model(shipped_model("hydro_unit")))
+    ...     s = read_schedule(p, hydro_unit)
     >>> s.n_records, iso(s.record_start(5))
     (8, '2027-01-02T06:00:00Z')
     """
@@ -147,8 +154,12 @@ def read_schedule(path: str | Path, model: RotorModel) -> Schedule:
         except ModelFileError as err:  # name the change the table belongs to
             raise ModelFileError(path, f"{t.where}: {err.table}", err.key, err.problem) from None
         if any(e.per_mode for e in truth.effects):
-            raise ModelFileError(path, f"{t.where}: [change.truth]", None, "a per-mode effect is no change of the "
-                                 "FEM: a campaign's change acts on the model's parameters")  # fmt: skip
+            raise ModelFileError(
+                path,
+                f"{t.where}: [change.truth]",
+                None,
+                "a per-mode effect is no change of the FEM: a campaign's change acts on the model's parameters",
+            )
         t.finish()
         changes.append(Change(truth, start_day, ramp))
     top.finish()

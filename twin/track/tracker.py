@@ -104,19 +104,22 @@ def _identify(meas, predicted: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarr
 PREDICTIONS_PER_TASK = 40
 
 
-def _predict_points(points: list[dict[str, float]], *, model: RotorModel, tracked: Tracked,
-                    with_jacobian: bool) -> list:  # fmt: skip
+def _predict_points(
+    points: list[dict[str, float]], *, model: RotorModel, tracked: Tracked, with_jacobian: bool
+) -> list:
     return [predict(model, tracked, p, with_jacobian=with_jacobian) for p in points]
 
 
-def _predictions(model: RotorModel, tracked: Tracked, records: list, tasks: Any, progress: bool, *,
-                 with_jacobian: bool) -> list:  # fmt: skip
+def _predictions(
+    model: RotorModel, tracked: Tracked, records: list, tasks: Any, progress: bool, *, with_jacobian: bool
+) -> list:
     """:func:`twin.track.physics.predict` at each record's operating point, in order: the records in
     batches of :data:`PREDICTIONS_PER_TASK`, as independent tasks (``tasks``, :func:`twin.tasks.mapper`)."""
     points = [r.point for r in records]
-    batches = [points[k:k + PREDICTIONS_PER_TASK] for k in range(0, len(points), PREDICTIONS_PER_TASK)]
-    done = mapper(tasks, progress=progress, desc="predict")(_predict_points, batches, model=model, tracked=tracked,
-                                                             with_jacobian=with_jacobian)  # fmt: skip
+    batches = [points[k : k + PREDICTIONS_PER_TASK] for k in range(0, len(points), PREDICTIONS_PER_TASK)]
+    done = mapper(tasks, progress=progress, desc="predict")(
+        _predict_points, batches, model=model, tracked=tracked, with_jacobian=with_jacobian
+    )
     return [p for batch in done for p in batch]
 
 
@@ -225,21 +228,40 @@ def track(
     watched = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
     records_per_year = 365.25 * len(records) / max(days[-1] - days[0], 1e-9) if len(records) > 1 else 365.25
     if int(base.sum()) <= m + 1:
-        raise TwinError(f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
-                        f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)")  # fmt: skip
+        raise TwinError(
+            f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
+            f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)"
+        )
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
     series = Series(records, days, y, sig, residual, drift)
-    done = Watch(learned, tracked, explain.candidates(learned, tracked), series,
-                 Chart(chart, watched, limit, laws)).run(int(base.sum()))  # fmt: skip
+    done = Watch(
+        learned, tracked, explain.candidates(learned, tracked), series, Chart(chart, watched, limit, laws)
+    ).run(int(base.sum()))
     values: dict[str, np.ndarray] = {}
     for f in done.followers:
         for j, name in enumerate(f.cand.parameters):
             values[name] = f.history[:, j, :]
-    table = _dataset(records, days, tracked, poles, predicted, done.current, done.statistic, limit, done.alarms,
-                     values, laws, op, baseline_days)  # fmt: skip
+    table = _dataset(
+        records,
+        days,
+        tracked,
+        poles,
+        predicted,
+        done.current,
+        done.statistic,
+        limit,
+        done.alarms,
+        values,
+        laws,
+        op,
+        baseline_days,
+    )
     table.attrs.update({"records": str(Path(folder).resolve()), "false_alarms_per_year": float(false_alarms_per_year)})
-    table["pole_se"] = (("time", "mode", "part"), np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
-                        {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"})
+    table["pole_se"] = (
+        ("time", "mode", "part"),
+        np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
+        {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"},
+    )
     write_netcdf(table, out / "track.nc")
     if report:
         with stage("write the report"):
@@ -247,8 +269,21 @@ def track(
     return table
 
 
-def _dataset(records, days, tracked, poles, predicted, residual, statistic, limit, alarms: list[Alarm], values,
-             laws, op, baseline_days) -> xr.Dataset:  # fmt: skip
+def _dataset(
+    records,
+    days,
+    tracked,
+    poles,
+    predicted,
+    residual,
+    statistic,
+    limit,
+    alarms: list[Alarm],
+    values,
+    laws,
+    op,
+    baseline_days,
+) -> xr.Dataset:
     m = len(tracked.poles)
     times = np.array([r.start.replace(tzinfo=None) for r in records], dtype="datetime64[ns]")
     freq = poles.imag / (2 * np.pi)
@@ -257,10 +292,16 @@ def _dataset(records, days, tracked, poles, predicted, residual, statistic, limi
         {
             "frequency": (("time", "mode"), freq, {"units": "Hz", "long_name": "measured damped frequency"}),
             "damping_ratio": (("time", "mode"), zeta, {"units": "1", "long_name": "measured damping ratio"}),
-            "predicted_frequency": (("time", "mode"), predicted.imag / (2 * np.pi),
-                                    {"units": "Hz", "long_name": "the model's at the record's operating point"}),
-            "residual": (("time", "mode", "part"), np.stack([residual[:, :m], residual[:, m:]], axis=2),
-                         {"units": "1/s", "long_name": "pole parts the operating conditions do not explain"}),
+            "predicted_frequency": (
+                ("time", "mode"),
+                predicted.imag / (2 * np.pi),
+                {"units": "Hz", "long_name": "the model's at the record's operating point"},
+            ),
+            "residual": (
+                ("time", "mode", "part"),
+                np.stack([residual[:, :m], residual[:, m:]], axis=2),
+                {"units": "1/s", "long_name": "pole parts the operating conditions do not explain"},
+            ),
             "statistic": ("time", statistic, {"units": "1", "long_name": "control chart statistic (MEWMA T2)"}),
             "limit": ((), limit, {"units": "1", "long_name": "control limit"}),
             "operating_point": (("time", "condition"), np.array([[r.point[k] for k in op.names] for r in records])),
@@ -272,21 +313,31 @@ def _dataset(records, days, tracked, poles, predicted, residual, statistic, limi
             "alarm_time": ("alarm", np.array([times[a.record] for a in alarms], dtype="datetime64[ns]")),
             "alarm_day": ("alarm", [float(days[a.record]) for a in alarms], {"units": "d"}),
             "alarm_onset_day": ("alarm", [float(days[a.onset]) for a in alarms], {"units": "d"}),
-            "alarm_named_day": ("alarm", [np.nan if a.named is None else float(days[a.named]) for a in alarms],
-                                {"units": "d", "long_name": "day the records told the change from the others"}),
+            "alarm_named_day": (
+                "alarm",
+                [np.nan if a.named is None else float(days[a.named]) for a in alarms],
+                {"units": "d", "long_name": "day the records told the change from the others"},
+            ),
             "alarm_effect": ("alarm", [a.verdict.label for a in alarms]),
             "alarm_named": ("alarm", [bool(a.verdict.log_evidence >= explain.MIN_LOG_EVIDENCE) for a in alarms]),
             "alarm_verdict": ("alarm", [a.verdict.text for a in alarms]),
         },
         coords={
-            "time": times, "mode": np.arange(1, m + 1), "part": ["real", "imag"],
+            "time": times,
+            "mode": np.arange(1, m + 1),
+            "part": ["real", "imag"],
             "model_frequency": ("mode", tracked.frequency_hz, {"units": "Hz"}),
-            "condition": list(op.names), "condition_units": ("condition", [op.condition(k).units for k in op.names]),
+            "condition": list(op.names),
+            "condition_units": ("condition", [op.condition(k).units for k in op.names]),
             "slope_key": [f"{p}/{c}" for p, c in laws.keys],
         },
-        attrs={"title": "tracking of a unit over its records", "producer": f"twin {__version__} twin.track",
-               "baseline_days": float(baseline_days), "first_record": records[0].start.isoformat()},
-    )  # fmt: skip
+        attrs={
+            "title": "tracking of a unit over its records",
+            "producer": f"twin {__version__} twin.track",
+            "baseline_days": float(baseline_days),
+            "first_record": records[0].start.isoformat(),
+        },
+    )
     if values:
         names = sorted(values)
         arr = np.stack([values[n] for n in names], axis=1)
@@ -304,8 +355,14 @@ def alarms_json(table: xr.Dataset) -> dict:
         time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
         effects = [str(table.alarm_effect.values[i])] if bool(table.alarm_named.values[i]) else []
         named = float(table.alarm_named_day.values[i])
-        out.append({"time": time, "day": round(float(table.alarm_day.values[i]), 4),
-                    "onset_day": round(float(table.alarm_onset_day.values[i]), 4),
-                    "named_day": None if np.isnan(named) else round(named, 4), "effects": effects,
-                    "verdict": str(table.alarm_verdict.values[i])})  # fmt: skip
+        out.append(
+            {
+                "time": time,
+                "day": round(float(table.alarm_day.values[i]), 4),
+                "onset_day": round(float(table.alarm_onset_day.values[i]), 4),
+                "named_day": None if np.isnan(named) else round(named, 4),
+                "effects": effects,
+                "verdict": str(table.alarm_verdict.values[i]),
+            }
+        )
     return {"records": int(table.sizes["time"]), "alarms": out}

@@ -126,7 +126,9 @@ class Watch:
         self.statistic = np.full(len(self.series.records), np.nan)
         self.current = self.series.residual.copy()
         drift = self.series.drift
-        self._smooth = detect.MEWMA(self.chart.watched, uncertain=self.chart.laws.covariance if drift.shape[2] else None)
+        self._smooth = detect.MEWMA(
+            self.chart.watched, uncertain=self.chart.laws.covariance if drift.shape[2] else None
+        )
 
     @property
     def m(self) -> int:
@@ -190,9 +192,11 @@ class Watch:
         s, m, start = self.series, self.m, self.start
         if self.reading is not None:
             self._settle(t, force=True)
-        k = start + detect.onset(detect.standardised(self.current[start:t + 1, m:], s.sig[start:t + 1, m:],
-                                                     self.chart.watched), self.chart.watched)  # fmt: skip
-        verdict = self.diagnosis(self.current[k:t + 1], s.sig[k:t + 1])
+        k = start + detect.onset(
+            detect.standardised(self.current[start : t + 1, m:], s.sig[start : t + 1, m:], self.chart.watched),
+            self.chart.watched,
+        )
+        verdict = self.diagnosis(self.current[k : t + 1], s.sig[k : t + 1])
         alarm = Alarm(t, k, verdict)
         self.alarms.append(alarm)
         if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
@@ -205,14 +209,20 @@ class Watch:
             alarm.named = t if clear else None
             if not clear:
                 self.reading = Reading(f, k, alarm, alarm.verdict, self.current.copy(), before)
-        log.info("alarm at %s (onset %s): %s", s.records[t].start.isoformat(), s.records[k].start.isoformat(),
-                 alarm.verdict.text)  # fmt: skip
+        log.info(
+            "alarm at %s (onset %s): %s",
+            s.records[t].start.isoformat(),
+            s.records[k].start.isoformat(),
+            alarm.verdict.text,
+        )
 
     def _observed(self, k: int, t: int) -> list:
         """``(point, observation, covariance)`` of the records ``k..t``."""
         s = self.series
-        return [(s.records[i].point, self.observation(i), detect.record_covariance(s.sig[i], self.chart.baseline))
-                for i in range(k, t + 1)]  # fmt: skip
+        return [
+            (s.records[i].point, self.observation(i), detect.record_covariance(s.sig[i], self.chart.baseline))
+            for i in range(k, t + 1)
+        ]
 
     def _follow(self, cand: explain.Linearised, k: int, t: int) -> explain.Follower:
         """The change ``cand`` updated on the records ``k..t``: a new follower, or, for a change already
@@ -231,7 +241,7 @@ class Watch:
     def _settle(self, t: int, force: bool) -> None:
         """Weigh the reading's records again; name the change when one stands out (or ``force``)."""
         reading, s = self.reading, self.series
-        verdict = self.diagnosis(reading.without[reading.onset:t + 1], s.sig[reading.onset:t + 1])
+        verdict = self.diagnosis(reading.without[reading.onset : t + 1], s.sig[reading.onset : t + 1])
         if verdict.log_evidence - verdict.runner_up_evidence < explain.MIN_MARGIN and not force:
             return
         if verdict.log_evidence < explain.MIN_LOG_EVIDENCE:
@@ -243,10 +253,17 @@ class Watch:
             else:  # a change followed before the alarm: back to what it was
                 f.mean, f.cov, f.day = reading.before
             f = self._follow(next(c for c in self.candidates if c.label == verdict.label), reading.onset, t)
-        note = "" if verdict.label == reading.verdict.label else \
-            f"first read as {reading.verdict.label} on day {s.days[reading.alarm.record]:.2f}"  # fmt: skip
+        note = (
+            ""
+            if verdict.label == reading.verdict.label
+            else f"first read as {reading.verdict.label} on day {s.days[reading.alarm.record]:.2f}"
+        )
         reading.alarm.verdict = explain.named(verdict, f.cand, f.mean, f.cov, note=note)
         reading.alarm.named = t
-        log.info("the change since %s named on %s: %s", s.records[reading.onset].start.isoformat(),
-                 s.records[t].start.isoformat(), reading.alarm.verdict.text)  # fmt: skip
+        log.info(
+            "the change since %s named on %s: %s",
+            s.records[reading.onset].start.isoformat(),
+            s.records[t].start.isoformat(),
+            reading.alarm.verdict.text,
+        )
         self.reading = None

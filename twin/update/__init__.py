@@ -21,7 +21,21 @@ from twin.update.problem import UpdateError
 from twin.update.samplers import SAMPLERS, GibbsOptions, HMCOptions, PaperOptions, SamplerOptions, sampler
 from twin.update.synthetic import synthesize_modes
 
-__all__ = ["DEFAULT_METHOD", "METHODS", "SAMPLERS", "GibbsOptions", "HMCOptions", "LaplaceOptions", "PaperOptions",
-           "SamplerOptions",
-           "UpdateError", "apply_posterior", "plausible_priors", "read_posterior", "sampler", "summary",
-           "synthesize_modes", "update"]
+__all__ = [
+    "DEFAULT_METHOD",
+    "METHODS",
+    "SAMPLERS",
+    "GibbsOptions",
+    "HMCOptions",
+    "LaplaceOptions",
+    "PaperOptions",
+    "SamplerOptions",
+    "UpdateError",
+    "apply_posterior",
+    "plausible_priors",
+    "read_posterior",
+    "sampler",
+    "summary",
+    "synthesize_modes",
+    "update",
+]

@@ -126,7 +126,6 @@ def residual_scatter(problem: Problem) -> np.ndarray:
     return np.maximum(var, np.finfo(float).tiny * np.maximum(var.max(axis=1, keepdims=True), 1.0))
 
 
-
 def weak_parameters(names: Sequence[str], P: np.ndarray) -> list[str]:
     """Names of the parameters a precision matrix ``P`` leaves undetermined.
 

@@ -112,8 +112,12 @@ def stack(chains: Sequence[Chain]) -> Chain:
     return Chain(*(np.stack([getattr(c, f.name) for c in chains]) for f in fields(Chain)))
 
 
-def build_prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | None, noise_model: str = "diagonal",
-                noise_shape: float = NOISE_PRIOR_SHAPE) -> Prior:  # fmt: skip
+def build_prior(
+    problem: Problem,
+    priors: Mapping[str, tuple[float, float]] | None,
+    noise_model: str = "diagonal",
+    noise_shape: float = NOISE_PRIOR_SHAPE,
+) -> Prior:
     """Gaussian priors ``{name: (mean, std)}`` in SI -> a :class:`Prior` on the scaled parameters; flat elsewhere.
 
     Names: shared parameter names, ``FSI.added_mass`` / ``FSI.added_damping``
@@ -123,10 +127,9 @@ def build_prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | No
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> problem = build_problem(m, synthesize_modes(m, samples=5, seed=0).isel(mode=[2, 3]), ["UGB.kxx"])
     >>> prior = build_prior(problem, {"UGB.kxx": (5e8, 1e8)}, noise_shape=0.0)
     >>> bool(prior.global_precision[0] > 0), float(prior.noise_shape)
@@ -149,6 +152,7 @@ def build_prior(problem: Problem, priors: Mapping[str, tuple[float, float]] | No
                     prior.mode_mean[i, q], prior.mode_precision[i, q] = mean / s, (s / std) ** 2
                     hit = True
         if not hit:
-            raise UpdateError(f"prior given for '{name}', which is not updated "
-                              f"(updated: {', '.join(problem.parameter_labels)})")  # fmt: skip
+            raise UpdateError(
+                f"prior given for '{name}', which is not updated (updated: {', '.join(problem.parameter_labels)})"
+            )
     return prior

@@ -154,8 +154,13 @@ def condense(
 
     Z_hat = _schur(fixed, s, r, poles, speed_rad_s)  # stage 1
     # basis matrices restricted to s (their footprints lie in p ⊂ s)
-    Zk = np.stack([dynamic_stiffness({k: b[k][np.ix_(s, s)] for k in "MCGK"}, poles, speed_rad_s) for b in bases],
-                  axis=1) if bases else np.zeros((len(poles), 0, len(s), len(s)), complex)  # fmt: skip
+    Zk = (
+        np.stack(
+            [dynamic_stiffness({k: b[k][np.ix_(s, s)] for k in "MCGK"}, poles, speed_rad_s) for b in bases], axis=1
+        )
+        if bases
+        else np.zeros((len(poles), 0, len(s), len(s)), complex)
+    )
     all_k = np.concatenate([Z_hat[:, None], Zk], axis=1)  # (J, 1+K, n_s, n_s)
 
     in_p = np.isin(s, p)
@@ -169,8 +174,11 @@ def condense(
         U, sv, Vh = np.linalg.svd(A)
         stage2 = bool(np.all(sv[:, -1] > RANK_TOLERANCE * sv[:, 0]))
     if not stage2:
-        log.info("PerCEM: %d unobserved parametrised DOFs, %d parameter-free observed rows: latent-shape fallback",
-                 n_q, len(prime))  # fmt: skip
+        log.info(
+            "PerCEM: %d unobserved parametrised DOFs, %d parameter-free observed rows: latent-shape fallback",
+            n_q,
+            len(prime),
+        )
         T = np.zeros_like(all_k)
         T[:, 0] = -np.eye(len(s))
         return Condensed(all_k, T, LATENT_SHAPE, tuple(int(d) for d in q))
@@ -199,8 +207,9 @@ def condense(
     return Condensed(np.concatenate([R_p, R_x], axis=2), np.concatenate([T_p, T_x], axis=2), STAGE_2, ())
 
 
-def _schur(fixed: Mapping[str, np.ndarray], s: np.ndarray, r: np.ndarray, poles: np.ndarray,
-           speed_rad_s: float) -> np.ndarray:
+def _schur(
+    fixed: Mapping[str, np.ndarray], s: np.ndarray, r: np.ndarray, poles: np.ndarray, speed_rad_s: float
+) -> np.ndarray:
     """Stage 1: the Schur complement ``Ẑ = Z_ss − Z_sr Z_rr⁻¹ Z_rs`` at each pole, ``(J, n_s, n_s)``."""
     Z = dynamic_stiffness(fixed, poles, speed_rad_s)
     Z_ss = Z[:, s[:, None], s]
@@ -214,7 +223,7 @@ def _complement(fixed, s, r, prime, q_pos, poles, centre, speed_rad_s) -> np.nda
     centre = np.mean(poles) if centre is None else centre
     Z_hat = _schur(fixed, s, r, np.array([centre]), speed_rad_s)[0]
     U = np.linalg.svd(Z_hat[np.ix_(prime, q_pos)])[0]
-    return U[:, len(q_pos):]
+    return U[:, len(q_pos) :]
 
 
 def _extra_rows(U2: np.ndarray, N0: np.ndarray) -> np.ndarray:

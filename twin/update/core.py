@@ -83,7 +83,7 @@ def update(
         (:mod:`~twin.update.samplers.gibbs`), or the reference paper's Gibbs sampler
         (:mod:`~twin.update.samplers.paper`); or ``"laplace"``, the Gaussian approximation of the fit of
         the model's poles to the mean measured poles (:mod:`twin.update.laplace`): seconds instead of
-        minutes, shapes unused, its own truncated priors (:func:`twin.update.laplace.prior_for`).
+        minutes, shapes unused, its own truncated priors (:func:`twin.update.priors.prior_for`).
     options : SamplerOptions, LaplaceOptions or mapping, optional
         The method's options (:class:`HMCOptions`, :class:`GibbsOptions`, :class:`PaperOptions`,
         :class:`~twin.update.laplace.LaplaceOptions`), or a mapping of their fields; the defaults where
@@ -108,9 +108,8 @@ def update(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes, update
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=20, seed=0, shape_cov=1e-4, pole_variance=(1e-6, 1e-6))
     >>> post = update(m, data.isel(mode=[2, 3, 9]), fsi=True, options={"draws": 50, "chains": 1, "seed": 1,
     ...                                                                 "progress": False})
@@ -126,8 +125,9 @@ def update(
     if isinstance(priors, str) and priors not in ("plausible", "flat"):
         raise UpdateError(f"priors must be 'plausible', 'flat' or a mapping {{name: (mean, std)}}, got {priors!r}")
     if chosen is None and not (isinstance(priors, str) and priors == "plausible"):
-        raise UpdateError("the Laplace update has its own priors (twin.update.laplace.prior_for): leave priors "
-                          "'plausible'")  # fmt: skip
+        raise UpdateError(
+            "the Laplace update has its own priors (twin.update.priors.prior_for): leave priors 'plausible'"
+        )
     if output is not None:
         check_writable(output)
     source_model = str(model) if not isinstance(model, RotorModel) else model.source
@@ -136,8 +136,9 @@ def update(
     modes = read_modes(modes) if not isinstance(modes, xr.Dataset) else modes
     names = select_parameters(model, params)
     if chosen is None:
-        return _laplace(model, modes, names, fsi, opts, output, started,
-                        {"model_source": source_model, "modes_source": source})  # fmt: skip
+        return _laplace(
+            model, modes, names, fsi, opts, output, started, {"model_source": source_model, "modes_source": source}
+        )
     pole_model = chosen.pole_model(opts)
     problem = build_problem(model, modes, names, fsi=fsi, eps_std=opts.eps_std, pole_model=pole_model, source=source)
     given = {} if isinstance(priors, str) else dict(priors)
@@ -151,8 +152,13 @@ def update(
         raise UpdateError(f"the data cannot determine these parameters (singular conditional): {', '.join(bad)}")
     result = stack(chosen.run(target, prior, opts, tasks))
     elapsed = time.perf_counter() - started
-    settings = {"method": chosen.name, "params": names, "fsi": fsi, **opts.settings(),
-                "priors": {k: list(v) for k, v in priors.items()} or "flat"}  # fmt: skip
+    settings = {
+        "method": chosen.name,
+        "params": names,
+        "fsi": fsi,
+        **opts.settings(),
+        "priors": {k: list(v) for k, v in priors.items()} or "flat",
+    }
     attrs = {
         "title": f"APerCEM posterior of {model.name}",
         "producer": f"twin {__version__}",
@@ -177,27 +183,53 @@ def update(
     _warn_diagnostics(table, undetermined)
     if output is not None:
         write_posterior(tree, output)
-    log.info("updated %d parameters in %.1f s (%s, %d chains x %d draws)", table.sizes["parameter"], elapsed,
-             chosen.name, opts.chains, opts.draws)  # fmt: skip
+    log.info(
+        "updated %d parameters in %.1f s (%s, %d chains x %d draws)",
+        table.sizes["parameter"],
+        elapsed,
+        chosen.name,
+        opts.chains,
+        opts.draws,
+    )
     return tree
 
 
-def _laplace(model: RotorModel, modes: xr.Dataset, names: list[str], fsi: bool, opts: LaplaceOptions,
-             output: str | Path | None, started: float, sources: dict) -> xr.DataTree:  # fmt: skip
+def _laplace(
+    model: RotorModel,
+    modes: xr.Dataset,
+    names: list[str],
+    fsi: bool,
+    opts: LaplaceOptions,
+    output: str | Path | None,
+    started: float,
+    sources: dict,
+) -> xr.DataTree:
     """:func:`update` by the Laplace approximation (:func:`twin.update.laplace.laplace_posterior`)."""
     if not names and not fsi:
         raise UpdateError("nothing to update: name parameters (params) or update the per-mode FSI (fsi=True)")
-    _, fitted, tree = laplace_posterior(model, modes, names, fsi=fsi, seed=opts.seed, draws=opts.draws,
-                                       tolerance=opts.tolerance)
+    _, fitted, tree = laplace_posterior(
+        model, modes, names, fsi=fsi, seed=opts.seed, draws=opts.draws, tolerance=opts.tolerance
+    )
     settings = {"method": LAPLACE, "params": names, "fsi": fsi, **opts.settings(), "priors": "plausible"}
-    tree.attrs.update({"producer": f"twin {__version__}", **sources, "settings": json.dumps(settings),
-                       "elapsed_s": time.perf_counter() - started})  # fmt: skip
+    tree.attrs.update(
+        {
+            "producer": f"twin {__version__}",
+            **sources,
+            "settings": json.dumps(settings),
+            "elapsed_s": time.perf_counter() - started,
+        }
+    )
     if "truth" in modes.attrs:
         tree.attrs["truth"] = modes.attrs["truth"]
     if output is not None:
         write_posterior(tree, output)
-    log.info("Laplace update of %d parameters in %.1f s: chi2 %.1f -> %.1f", fitted.sizes["parameter"],
-             time.perf_counter() - started, fitted.attrs["chi2_before"], fitted.attrs["chi2_after"])  # fmt: skip
+    log.info(
+        "Laplace update of %d parameters in %.1f s: chi2 %.1f -> %.1f",
+        fitted.sizes["parameter"],
+        time.perf_counter() - started,
+        fitted.attrs["chi2_before"],
+        fitted.attrs["chi2_after"],
+    )
     return tree
 
 
@@ -207,15 +239,19 @@ def _warn_margins(problem: Problem, frequency_hz: np.ndarray, n_samples: int, ma
     The spread is the pole samples' std for the Gibbs pole models, which evaluate the condensed model at
     (or linearise it over) the samples, and the mean pole's standard error for the marginal model.
     """
-    margin, unit = (problem.margin * np.sqrt(n_samples), "mean-pole standard errors") if marginal else \
-        (problem.margin, "pole-sample stds")  # fmt: skip
+    margin, unit = (
+        (problem.margin * np.sqrt(n_samples), "mean-pole standard errors")
+        if marginal
+        else (problem.margin, "pole-sample stds")
+    )
     for i in np.flatnonzero(margin < MIN_MARGIN):
         warnings.warn(
             f"mode {problem.modes[i]} ({frequency_hz[i]:.2f} Hz) lies {margin[i]:.1f} {unit} from "
             f"a resonance of the unobserved DOFs ({problem.resonance_hz[i]:.2f} Hz): the condensed model is "
             "ill-conditioned there and this mode's parameters are unreliable",
-            TwinWarning, stacklevel=3,
-        )  # fmt: skip
+            TwinWarning,
+            stacklevel=3,
+        )
 
 
 def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: dict) -> xr.DataTree:
@@ -224,38 +260,63 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
     coords = {"chain": np.arange(n_chain), "draw": np.arange(n_draw)}
     post = xr.Dataset(coords=coords)
     if problem.n_global:
-        post["theta"] = xr.DataArray(chains.t * problem.global_scale, dims=("chain", "draw", "parameter"),
-                                     coords={"parameter": problem.global_names},
-                                     attrs={"long_name": "updated model parameters (SI units of each parameter)"})  # fmt: skip
+        post["theta"] = xr.DataArray(
+            chains.t * problem.global_scale,
+            dims=("chain", "draw", "parameter"),
+            coords={"parameter": problem.global_names},
+            attrs={"long_name": "updated model parameters (SI units of each parameter)"},
+        )
     mode_coord = {"mode": problem.modes}
     units = {"added_mass": "kg", "added_damping": "N s/m"}
     for q, kind in enumerate(problem.mode_names):
-        post[kind] = xr.DataArray(chains.eta[..., q] * problem.mode_scale[:, q], dims=("chain", "draw", "mode"),
-                                  coords=mode_coord, attrs={"units": units[kind],
-                                  "long_name": f"per-mode FSI {kind.replace('_', ' ')} on the immersed DOFs"})  # fmt: skip
+        post[kind] = xr.DataArray(
+            chains.eta[..., q] * problem.mode_scale[:, q],
+            dims=("chain", "draw", "mode"),
+            coords=mode_coord,
+            attrs={"units": units[kind], "long_name": f"per-mode FSI {kind.replace('_', ' ')} on the immersed DOFs"},
+        )
     n_o = len(problem.channels)
     shape = chains.psi[..., :n_o] + 1j * chains.psi[..., n_o:]
-    post["shape"] = xr.DataArray(shape, dims=("chain", "draw", "mode", "channel"),
-                                 coords={**mode_coord, "channel": problem.channels},
-                                 attrs={"long_name": "observed mode shape (latent ψ)"})  # fmt: skip
+    post["shape"] = xr.DataArray(
+        shape,
+        dims=("chain", "draw", "mode", "channel"),
+        coords={**mode_coord, "channel": problem.channels},
+        attrs={"long_name": "observed mode shape (latent ψ)"},
+    )
     post = split_complex(post)
     stats = xr.Dataset(
         {
             "lp": (("chain", "draw"), chains.lp, {"long_name": "log joint density, up to a constant"}),
-            "noise_variance": (("chain", "draw", "mode"), chains.noise,
-                               {"long_name": "mean variance of a row of the condensed residual: Δ_i (Gibbs) or "
-                                             "V_i (marginal model) (relative units)"}),
-            "accepted": (("chain", "draw"), chains.accepted,
-                         {"long_name": "whether the collapsed Metropolis step (Gibbs) or the HMC trajectory "
-                                       "moved the parameters (all false when the sampler is plain Gibbs)"}),
-        },  # fmt: skip
+            "noise_variance": (
+                ("chain", "draw", "mode"),
+                chains.noise,
+                {
+                    "long_name": "mean variance of a row of the condensed residual: Δ_i (Gibbs) or "
+                    "V_i (marginal model) (relative units)"
+                },
+            ),
+            "accepted": (
+                ("chain", "draw"),
+                chains.accepted,
+                {
+                    "long_name": "whether the collapsed Metropolis step (Gibbs) or the HMC trajectory "
+                    "moved the parameters (all false when the sampler is plain Gibbs)"
+                },
+            ),
+        },
         coords={**coords, **mode_coord},
     )
     if np.any(chains.n_steps):  # HMC (the marginal model): ArviZ's names for its step statistics
-        stats["acceptance_rate"] = (("chain", "draw"), chains.acceptance_rate,
-                                    {"long_name": "Metropolis acceptance probability of the HMC trajectory"})
-        stats["step_size"] = (("chain", "draw"), chains.step_size,
-                              {"long_name": "leapfrog step, in the parameters whitened by the metric"})
+        stats["acceptance_rate"] = (
+            ("chain", "draw"),
+            chains.acceptance_rate,
+            {"long_name": "Metropolis acceptance probability of the HMC trajectory"},
+        )
+        stats["step_size"] = (
+            ("chain", "draw"),
+            chains.step_size,
+            {"long_name": "leapfrog step, in the parameters whitened by the metric"},
+        )
         stats["n_steps"] = (("chain", "draw"), chains.n_steps, {"long_name": "leapfrog steps of the trajectory"})
     observed = observed_data(modes)
     constant = xr.Dataset(
@@ -263,14 +324,22 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
             "nominal": ("parameter", problem.global_nominal, {"long_name": "value before the update (SI)"}),
             "scale": ("parameter", problem.global_scale, {"long_name": "scale of the sampled coordinate (SI)"}),
             "fsi_scale": (("mode", "fsi_parameter"), problem.mode_scale),
-            "condensation_margin": ("mode", problem.margin,
-                                    {"long_name": "pole-sample stds to the nearest resonance of the unobserved DOFs"}),
-        },  # fmt: skip
+            "condensation_margin": (
+                "mode",
+                problem.margin,
+                {"long_name": "pole-sample stds to the nearest resonance of the unobserved DOFs"},
+            ),
+        },
         coords={"parameter": problem.global_names, "fsi_parameter": problem.mode_names, **mode_coord},
     )
     return xr.DataTree.from_dict(
-        {"/": xr.Dataset(attrs=attrs), "posterior": post, "sample_stats": stats, "observed_data": observed,
-         "constant_data": constant}  # fmt: skip
+        {
+            "/": xr.Dataset(attrs=attrs),
+            "posterior": post,
+            "sample_stats": stats,
+            "observed_data": observed,
+            "constant_data": constant,
+        }
     )
 
 
@@ -292,11 +361,13 @@ def undetermined_parameters(table: xr.Dataset, problem: Problem) -> dict[str, fl
 def _warn_diagnostics(table: xr.Dataset, undetermined: Mapping[str, float]) -> None:
     names = [str(p) for p in table["parameter"].values]
     if "r_hat" in table:
-        high = [f"{n} ({r:.3f})" for n, r in zip(names, table["r_hat"].values)
-                if r > RHAT_LIMIT and n not in undetermined]  # fmt: skip
+        high = [
+            f"{n} ({r:.3f})" for n, r in zip(names, table["r_hat"].values) if r > RHAT_LIMIT and n not in undetermined
+        ]
         if high:
-            warnings.warn(f"R-hat above {RHAT_LIMIT} (chains disagree; run longer): {', '.join(high)}",
-                          TwinWarning, stacklevel=3)  # fmt: skip
+            warnings.warn(
+                f"R-hat above {RHAT_LIMIT} (chains disagree; run longer): {', '.join(high)}", TwinWarning, stacklevel=3
+            )
     if undetermined:
         parts = []
         for n, rel in undetermined.items():

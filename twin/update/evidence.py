@@ -89,5 +89,4 @@ def linear_fit(y: np.ndarray, jacobian: np.ndarray, scale: np.ndarray, cov: np.n
     u = np.linalg.solve(H, J.T @ y)
     e = y - J @ u
     s = np.asarray(scale, float)
-    return LinearFit(s * u, np.linalg.inv(H) * np.outer(s, s), float(e @ e),
-                     log_evidence(e, u, H) + 0.5 * float(y @ y))  # fmt: skip
+    return LinearFit(s * u, np.linalg.inv(H) * np.outer(s, s), float(e @ e), log_evidence(e, u, H) + 0.5 * float(y @ y))

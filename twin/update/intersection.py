@@ -58,11 +58,10 @@ def intersection_weights(marg: Marginal, theta: np.ndarray | None = None) -> np.
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.marginal import marginal_problem
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3])
     >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
     >>> w = intersection_weights(marg)
@@ -80,12 +79,13 @@ def intersection_weights(marg: Marginal, theta: np.ndarray | None = None) -> np.
         try:
             both = A @ np.linalg.solve(S + P, A.T)
             ridge = INFORMATION_RIDGE * max(float(np.trace(both)) / K, np.finfo(float).tiny) * np.eye(K)
-            kept = [np.linalg.slogdet(A @ np.linalg.solve(S / w + P / (1.0 - w), A.T) + ridge)[1]
-                    for w in WEIGHT_GRID]  # fmt: skip
+            kept = [np.linalg.slogdet(A @ np.linalg.solve(S / w + P / (1.0 - w), A.T) + ridge)[1] for w in WEIGHT_GRID]
         except np.linalg.LinAlgError:
-            raise UpdateError(f"the residual covariance of mode {int(marg.problem.modes[i])} is singular at the "
-                              "nominal parameters (no shape or pole scatter?): its pole and shapes cannot be "
-                              "combined") from None  # fmt: skip
+            raise UpdateError(
+                f"the residual covariance of mode {int(marg.problem.modes[i])} is singular at the "
+                "nominal parameters (no shape or pole scatter?): its pole and shapes cannot be "
+                "combined"
+            ) from None
         weights[i] = WEIGHT_GRID[int(np.argmax(kept))]
     return weights
 
@@ -98,11 +98,10 @@ def intersected(marg: Marginal, weights: np.ndarray | None = None) -> Marginal:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.marginal import marginal_problem
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2])
     >>> marg = marginal_problem(build_problem(m, data, ["LGB.kxx"], pole_model="marginal"), data["pole"].values)
     >>> both = intersected(marg, np.array([0.25]))

@@ -45,21 +45,18 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.stats
 import xarray as xr
 
 from twin.errors import ModelError, UpdateError
 from twin.fem.effects import (
-    CHANGE_FRACTION,
     FluidAddedMassPerMode,
     effect_label,
     free_names,
     is_per_mode_name,
     library_effects,
     per_mode_values,
-    plausible_scales,
     with_shared_fsi,
-)  # fmt: skip
+)
 from twin.fem.model import RotorModel
 from twin.modes.measured import (
     TOLERANCE,
@@ -79,6 +76,7 @@ from twin.modes.sensitivity import (
 from twin.modes.shapes import mac
 from twin.tasks import one_blas_thread
 from twin.update.evidence import log_evidence
+from twin.update.priors import BoundedPrior, prior_for
 
 log = logging.getLogger(__name__)
 
@@ -89,75 +87,6 @@ FOLLOW_MAC = 0.9
 #: Levenberg-Marquardt iterations at most, and the Newton decrement ``gᵀH⁻¹g / 2`` (a change of the log evidence) that counts as converged.
 MAX_ITERATIONS = 40
 DECREMENT_TOLERANCE = 1e-3
-
-
-@dataclass(frozen=True)
-class BoundedPrior:
-    """Truncated Gaussian priors ``θ = mean + scale u``, ``u ~ N(0, 1)`` inside ``[low, high]`` (SI).
-
-    Examples
-    --------
-    >>> p = BoundedPrior(["MAG.stiffness"], np.zeros(1), np.array([1e8]), np.array([-np.inf]), np.zeros(1))
-    >>> round(p.log_mass, 4)  # a sign constraint keeps half the prior
-    -0.6931
-    """
-
-    names: list[str]
-    mean: np.ndarray
-    scale: np.ndarray
-    low: np.ndarray
-    high: np.ndarray
-
-    @property
-    def u_low(self) -> np.ndarray:
-        """Lower bounds in prior units."""
-        return (self.low - self.mean) / self.scale
-
-    @property
-    def u_high(self) -> np.ndarray:
-        """Upper bounds in prior units."""
-        return (self.high - self.mean) / self.scale
-
-    @property
-    def log_mass(self) -> float:
-        """``Σ ln P_k``: the log prior mass inside the bounds."""
-        mass = scipy.stats.norm.cdf(self.u_high) - scipy.stats.norm.cdf(self.u_low)
-        return float(np.sum(np.log(mass)))
-
-    def values(self, u: np.ndarray) -> dict[str, float]:
-        """Parameter values [SI] at prior coordinates ``u``."""
-        return {n: float(m + s * x) for n, m, s, x in zip(self.names, self.mean, self.scale, u)}
-
-    def coordinates(self, values: Mapping[str, float]) -> np.ndarray:
-        """Prior coordinates ``u`` of values [SI], clipped into the bounds."""
-        u = (np.array([values[n] for n in self.names]) - self.mean) / self.scale
-        return np.clip(u, self.u_low, self.u_high)
-
-
-def prior_for(model: RotorModel, names: Sequence[str]) -> BoundedPrior:
-    """The priors of parameters ``names`` of ``model`` (see the module docstring).
-
-    Examples
-    --------
-    >>> from twin import load_model, shipped_model
-    >>> from twin.fem.effects import MagneticPull
-    >>> model = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull())
-    >>> p = prior_for(model, ["MAG.stiffness", "UGB.kxx"])
-    >>> float(p.mean[0]), bool(p.scale[1] == 0.5 * model.parameter("UGB.kxx").nominal), float(p.high[0]), float(p.low[1])
-    (0.0, True, 0.0, 0.0)
-    """
-    owned = plausible_scales(model)
-    mean, scale, low, high = [], [], [], []
-    for n in names:
-        p = model.parameter(n)  # names an unknown parameter clearly
-        if n in owned:
-            m, s = 0.0, owned[n]
-        else:
-            m, s = p.nominal, CHANGE_FRACTION * abs(p.nominal)
-        if not s > 0:
-            raise ModelError(f"parameter '{n}' has no prior scale (nominal {p.nominal:g}): give it through an effect")
-        mean.append(m), scale.append(float(s)), low.append(p.bounds[0]), high.append(p.bounds[1])
-    return BoundedPrior(list(names), np.array(mean), np.array(scale), np.array(low), np.array(high))
 
 
 @dataclass(frozen=True)
@@ -174,10 +103,9 @@ class PoleModel:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> at = PoleModel(model, measured_modes(synthesize_modes(model, samples=5, seed=1))).at({}, ["runner.m"])
     >>> at.poles.shape, at.jacobian.shape
     ((15,), (15, 1))
@@ -362,12 +290,11 @@ def fit(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> base = load_model(shipped_model("hydro_unit"))
+    >>> base = hydro_unit
     >>> data = synthesize_modes(base, Truth((MagneticPull(-2e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
     >>> f = fit(base.with_effects(MagneticPull()), measured_modes(data), ["MAG.stiffness"], "magnetic_pull")
@@ -425,9 +352,24 @@ def fit(
     on_bound = (np.isfinite(lo) & (u <= lo)) | (np.isfinite(hi) & (u >= hi))
     units = [model.parameter(n).unit for n in names]
     values = np.array([prior.values(u)[n] for n in names])
-    return Fit(label, names, units, values, std, cov, prior.scale, poles_before, at.poles.copy(), at.mac.copy(),
-               float(r0 @ r0), float(r @ r), ln_z, ln_z - ref, converged,
-               [n for n, b in zip(names, on_bound) if b])  # fmt: skip
+    return Fit(
+        label,
+        names,
+        units,
+        values,
+        std,
+        cov,
+        prior.scale,
+        poles_before,
+        at.poles.copy(),
+        at.mac.copy(),
+        float(r0 @ r0),
+        float(r @ r),
+        ln_z,
+        ln_z - ref,
+        converged,
+        [n for n, b in zip(names, on_bound) if b],
+    )
 
 
 def _best_start(pm: PoleModel, prior: BoundedPrior, u0: np.ndarray, meas: Measured) -> np.ndarray:
@@ -467,13 +409,12 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.loop.candidates import add_effects
     >>> from twin.modes.measured import measured_modes
     >>> from twin.update import synthesize_modes
-    >>> base = load_model(shipped_model("hydro_unit"))
+    >>> base = hydro_unit
     >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
     >>> model = add_effects(base, ["magnetic_pull"])
@@ -495,27 +436,38 @@ def laplace_update(model: RotorModel, meas: Measured, names: Sequence[str]) -> t
             "unit": ("parameter", f.units),
         },
         coords={"parameter": names, "parameter_2": names},
-        attrs={"method": "Laplace approximation of the pole-fit posterior (twin.update.laplace.laplace_update)",
-               "chi2_before": f.chi2_before, "chi2_after": f.chi2_after,
-               "log_bayes_factor": f.log_bayes_factor, "converged": int(f.converged),
-               "at_bound": ", ".join(f.at_bound)},
-    )  # fmt: skip
+        attrs={
+            "method": "Laplace approximation of the pole-fit posterior (twin.update.laplace.laplace_update)",
+            "chi2_before": f.chi2_before,
+            "chi2_after": f.chi2_after,
+            "log_bayes_factor": f.log_bayes_factor,
+            "converged": int(f.converged),
+            "at_bound": ", ".join(f.at_bound),
+        },
+    )
     if not f.converged:
         log.warning("Laplace update of %s did not converge in %d iterations", names, MAX_ITERATIONS)
     return model.with_values(values), post
 
 
-def laplace_file(post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: int | None = 0,
-                 command: str = "", draws: int = 1000) -> xr.DataTree:  # fmt: skip
+def laplace_file(
+    post: xr.Dataset, model: RotorModel, modes: xr.Dataset, seed: int | None = 0, command: str = "", draws: int = 1000
+) -> xr.DataTree:
     """A Laplace posterior of :func:`laplace_update` of ``model`` in the ``posterior.nc`` layout
     (:func:`twin.update.posterior.laplace_tree`), with the model, its effects and the fit's chi2 in the attrs."""
     from twin.update.posterior import laplace_tree
 
-    attrs = {"title": f"Laplace posterior of {model.name}", "command": command, "model": model.name,
-             "method": post.attrs["method"], "effects": json.dumps([effect_label(e) for e in model.effects]),
-             "chi2_before": post.attrs["chi2_before"], "chi2_after": post.attrs["chi2_after"],
-             "at_bound": post.attrs["at_bound"],
-             "units": json.dumps({str(n): str(u) for n, u in zip(post["parameter"].values, post["unit"].values)})}  # fmt: skip
+    attrs = {
+        "title": f"Laplace posterior of {model.name}",
+        "command": command,
+        "model": model.name,
+        "method": post.attrs["method"],
+        "effects": json.dumps([effect_label(e) for e in model.effects]),
+        "chi2_before": post.attrs["chi2_before"],
+        "chi2_after": post.attrs["chi2_after"],
+        "at_bound": post.attrs["at_bound"],
+        "units": json.dumps({str(n): str(u) for n, u in zip(post["parameter"].values, post["unit"].values)}),
+    }
     return laplace_tree(post, modes, attrs, draws=draws, seed=seed)
 
 
@@ -524,8 +476,7 @@ def with_per_mode_fsi(model: RotorModel, labels: Sequence[int]) -> RotorModel:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> with_per_mode_fsi(load_model(shipped_model("hydro_unit")), [2, 5]).per_mode_effect.n_modes
+    >>> with_per_mode_fsi(hydro_unit, [2, 5]).per_mode_effect.n_modes
     5
     """
     if model.per_mode_effect is not None:
@@ -536,9 +487,16 @@ def with_per_mode_fsi(model: RotorModel, labels: Sequence[int]) -> RotorModel:
     return model.with_effects(FluidAddedMassPerMode((0.0,) * n, (0.0,) * n))
 
 
-def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str], *, fsi: bool = False,
-                      seed: int | None = 0, draws: int = 1000, tolerance: float = TOLERANCE
-                      ) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:  # fmt: skip
+def laplace_posterior(
+    model: RotorModel,
+    modes: xr.Dataset,
+    names: Sequence[str],
+    *,
+    fsi: bool = False,
+    seed: int | None = 0,
+    draws: int = 1000,
+    tolerance: float = TOLERANCE,
+) -> tuple[RotorModel, xr.Dataset, xr.DataTree]:
     """The Laplace update of ``names`` (and with ``fsi`` each measured mode's added mass and damping) from the
     measured poles of ``modes`` (with ``tolerance`` the relative pole uncertainty accepted as model-form
     error, :func:`twin.modes.measured_modes`): the model at the MAP, the fit's Dataset
@@ -548,11 +506,10 @@ def laplace_posterior(model: RotorModel, modes: xr.Dataset, names: Sequence[str]
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
     >>> from twin.fem.truthfile import Truth
     >>> from twin.update import synthesize_modes
-    >>> base = load_model(shipped_model("hydro_unit"))
+    >>> base = hydro_unit
     >>> data = synthesize_modes(base, Truth((MagneticPull(-1e8),)), n_modes=8, samples=50, seed=1,
     ...                         pole_variance=(0.01, 0.01))
     >>> updated, fitted, tree = laplace_posterior(base.with_effects(MagneticPull()), data, ["MAG.stiffness"])

@@ -127,8 +127,12 @@ class Marginal:
         return p.n_global + p.n_modes * p.n_per_mode
 
 
-def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str = SHAPE_COVARIANCES[0],
-                     order_cov: np.ndarray | None = None) -> Marginal:  # fmt: skip
+def marginal_problem(
+    problem: Problem,
+    poles: np.ndarray,
+    shape_covariance: str = SHAPE_COVARIANCES[0],
+    order_cov: np.ndarray | None = None,
+) -> Marginal:
     """The marginal model of a problem built with ``pole_model="marginal"``, and the pole samples ``(I, J)``.
 
     ``shape_covariance`` is one of :data:`SHAPE_COVARIANCES`: the mean shape's covariance from the samples
@@ -138,10 +142,9 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3])
     >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
     >>> marg.pole_cov.shape, marg.size
@@ -152,8 +155,10 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
         raise UpdateError("the marginal model needs a problem built with pole_model='marginal'")
     latent = np.setdiff1d(np.arange(n_z), np.concatenate([problem.data_index, problem.eps_index]))
     if latent.size:
-        raise UpdateError("the marginal pole model needs the stage-2 condensation, but this sensor layout leaves "
-                          "unobserved parametrised DOFs as latent shape entries; use pole_model='linear'")  # fmt: skip
+        raise UpdateError(
+            "the marginal pole model needs the stage-2 condensation, but this sensor layout leaves "
+            "unobserved parametrised DOFs as latent shape entries; use pole_model='linear'"
+        )
     poles = np.asarray(poles, dtype=complex)
     J = poles.shape[1]
     d = np.stack([poles.real, poles.imag], axis=-1)
@@ -174,8 +179,7 @@ def marginal_problem(problem: Problem, poles: np.ndarray, shape_covariance: str 
         for a, k in enumerate(b.columns):
             bases[:, k][:, b.rows] = b.H[:, a, 0]
     columns = design(problem, mean_z).reshape(I, 1 + K, 3, n_r)
-    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance,
-                    order_cov=order_cov)
+    return Marginal(problem, pole_cov, mean_z, cov_z, columns, bases, shape_covariance, order_cov=order_cov)
 
 
 def check_shape_covariance(name: str) -> None:
@@ -196,10 +200,9 @@ def shape_covariance_of(problem: Problem, method: str = SHAPE_COVARIANCES[0]) ->
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=30, seed=0).isel(mode=[2])
     >>> p = build_problem(m, data, ["LGB.kxx"], pole_model="marginal")
     >>> own, shrunk = shape_covariance_of(p, "sample"), shape_covariance_of(p)
@@ -219,10 +222,12 @@ def shape_covariance_of(problem: Problem, method: str = SHAPE_COVARIANCES[0]) ->
         if rank < n:
             short.append(f"{int(m)} (rank {rank} of {n})")
     if short:
-        raise UpdateError("shape_covariance='sample' needs shape samples spanning every entry that scatters; "
-                          f"mode(s) {', '.join(short)} do not: take more samples of more blocks "
-                          "(twin extract --delete-half --samples J --blocks B, B above the entries) or the "
-                          "shrunk covariance")  # fmt: skip
+        raise UpdateError(
+            "shape_covariance='sample' needs shape samples spanning every entry that scatters; "
+            f"mode(s) {', '.join(short)} do not: take more samples of more blocks "
+            "(twin extract --delete-half --samples J --blocks B, B above the entries) or the "
+            "shrunk covariance"
+        )
     return shrunk_covariance(problem.psi_hat, problem.psi_var, intensity=0.0)
 
 
@@ -297,9 +302,14 @@ def tail_kernel(q: np.ndarray, n_r: int, nu: float = STUDENT_DOF) -> tuple[np.nd
     return kernel, np.where(far, (nu + n_r) / (nu + q), 1.0)
 
 
-def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
-                prior_precision: np.ndarray | None = None, nu: float = STUDENT_DOF,
-                curvature: bool = True) -> Density:  # fmt: skip
+def log_density(
+    marg: Marginal,
+    theta: np.ndarray,
+    prior_mean: np.ndarray | None = None,
+    prior_precision: np.ndarray | None = None,
+    nu: float = STUDENT_DOF,
+    curvature: bool = True,
+) -> Density:
     """Log marginal posterior of the scaled parameters ``θ = [t, η_1, ..., η_I]``, its gradient and GN precision.
 
     ``nu`` is each mode's Student t degrees of freedom (``inf``: Gaussian); ``curvature=False`` skips the
@@ -310,10 +320,9 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     --------
     The density is highest near the truth of paper-style data (modes 3, 4 and 10, their FSI):
 
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3, 9])
     >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
     >>> truth = np.array([7.80e4, 9.99e5, 6.09e4, 7.92e6, 4.87e4, 1.64e7]) / marg.problem.mode_scale.ravel()
@@ -331,9 +340,11 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
     log_p = float(np.sum(kernel))
     A = marg.columns[:, 1:, 0]  # (I, K, n_r): ∂m/∂c_k
     dB = np.swapaxes(marg.columns[:, 1:, 1:], 2, 3)  # (I, K, n_r, 2): ∂B/∂c_k
-    quadratic = (-np.einsum("ikr,ir->ik", A, y)
-                 + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
-                 + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y)))  # fmt: skip
+    quadratic = (
+        -np.einsum("ikr,ir->ik", A, y)
+        + np.einsum("ikrz,ir,iz->ik", marg.bases, y, np.einsum("izr,ir->iz", LH, y))
+        + np.einsum("ikra,ir,ia->ik", dB, y, np.einsum("iab,ira,ir->ib", marg.pole_cov, B, y))
+    )
     grad_blocks = weight[:, None] * quadratic
     gradient = joint_vector(p, grad_blocks)
     residual_variance = np.mean(np.diagonal(V, axis1=1, axis2=2), axis=1)
@@ -352,12 +363,18 @@ def log_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None
 
 def nominal(problem: Problem) -> np.ndarray:
     """The model's values of the parameters, scaled: ``[t, η_1, ..., η_I]``."""
-    return np.concatenate([problem.global_nominal / problem.global_scale,
-                           (problem.mode_nominal / problem.mode_scale).ravel()])  # fmt: skip
+    return np.concatenate(
+        [problem.global_nominal / problem.global_scale, (problem.mode_nominal / problem.mode_scale).ravel()]
+    )
 
 
-def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.ndarray,
-                   nu: float = STUDENT_DOF, start: np.ndarray | None = None) -> tuple[np.ndarray, Density]:  # fmt: skip
+def posterior_mode(
+    marg: Marginal,
+    prior_mean: np.ndarray,
+    prior_precision: np.ndarray,
+    nu: float = STUDENT_DOF,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, Density]:
     """The posterior mode of the scaled parameters, from ``start`` (default their nominal values); and the density there.
 
     First Gauss-Newton steps that hold each ``V_i`` at the current ``θ``
@@ -371,8 +388,10 @@ def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.n
     try:
         here = log_density(marg, theta, prior_mean, prior_precision, nu)
     except np.linalg.LinAlgError:
-        raise UpdateError("the residual covariance of the marginal model is singular at the nominal "
-                          "parameters (a mode without shape or pole scatter?)") from None  # fmt: skip
+        raise UpdateError(
+            "the residual covariance of the marginal model is singular at the nominal "
+            "parameters (a mode without shape or pole scatter?)"
+        ) from None
     for exact in (False, True) if start is None else (True,):  # from a given start: already near the mode
         for _ in range(NEWTON_STEPS):
             step = np.linalg.solve(here.precision, here.gradient) if exact else here.newton_step
@@ -388,8 +407,15 @@ def posterior_mode(marg: Marginal, prior_mean: np.ndarray, prior_precision: np.n
     return theta, here
 
 
-def _line_search(marg: Marginal, theta: np.ndarray, here: Density, step: np.ndarray, prior_mean: np.ndarray,
-                 prior_precision: np.ndarray, nu: float) -> tuple[np.ndarray, Density] | None:  # fmt: skip
+def _line_search(
+    marg: Marginal,
+    theta: np.ndarray,
+    here: Density,
+    step: np.ndarray,
+    prior_mean: np.ndarray,
+    prior_precision: np.ndarray,
+    nu: float,
+) -> tuple[np.ndarray, Density] | None:
     """``θ + step``, halved up to 30 times until the density does not fall; None if it always does."""
     for _ in range(30):
         try:
@@ -418,9 +444,13 @@ def shape_draw(marg: Marginal, theta: np.ndarray, rng: np.random.Generator) -> n
     return mean + np.einsum("ipq,iq->ip", U, xi)
 
 
-def mode_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | None = None,
-                 prior_precision: np.ndarray | None = None,
-                 nu: float = STUDENT_DOF) -> Callable[[np.ndarray], np.ndarray]:  # fmt: skip
+def mode_density(
+    marg: Marginal,
+    theta: np.ndarray,
+    prior_mean: np.ndarray | None = None,
+    prior_precision: np.ndarray | None = None,
+    nu: float = STUDENT_DOF,
+) -> Callable[[np.ndarray], np.ndarray]:
     """Each mode's log density in its own parameters ``η_i`` with the shared ``t`` held at ``θ``'s.
 
     Returns ``f``: ``(I, Km) -> (I,)``, mode ``i``'s term of
@@ -431,10 +461,9 @@ def mode_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | Non
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3])
     >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
     >>> theta = np.array([7.80e4, 9.99e5, 6.09e4, 7.92e6]) / marg.problem.mode_scale.ravel()
@@ -448,12 +477,14 @@ def mode_density(marg: Marginal, theta: np.ndarray, prior_mean: np.ndarray | Non
     c = _coefficients(p, theta)[:, : 1 + Kg]  # 1 and t
     held = p.H0[:, 0] + np.einsum("ik,ikrz->irz", c[:, 1:], marg.bases[:, :Kg])
     H = np.concatenate([held[:, None], marg.bases[:, Kg:]], axis=1)  # (I, 1 + Km, n_r, n_z): held part, then per η
-    cols = np.concatenate([np.einsum("ik,ikjr->ijr", c, marg.columns[:, : 1 + Kg])[:, None],
-                           marg.columns[:, 1 + Kg:]], axis=1)  # fmt: skip
+    cols = np.concatenate(
+        [np.einsum("ik,ikjr->ijr", c, marg.columns[:, : 1 + Kg])[:, None], marg.columns[:, 1 + Kg :]], axis=1
+    )
     m = cols[:, :, 0]  # (I, 1 + Km, n_r)
     B = np.swapaxes(cols[:, :, 1:], 2, 3)  # (I, 1 + Km, n_r, 2)
-    V = (np.einsum("iarz,izw,ibsw->iabrs", H, marg.cov_z, H, optimize=True)
-         + np.einsum("iarx,ixy,ibsy->iabrs", B, marg.pole_cov, B, optimize=True))  # fmt: skip
+    V = np.einsum("iarz,izw,ibsw->iabrs", H, marg.cov_z, H, optimize=True) + np.einsum(
+        "iarx,ixy,ibsy->iabrs", B, marg.pole_cov, B, optimize=True
+    )
     V = V.reshape(I, (1 + Km) ** 2, n_r * n_r)  # V_i = Σ_ab e_a e_b V_iab with e = (1, η_i)
     if prior_precision is None:
         mean, prec = np.zeros((I, Km)), np.zeros((I, Km))
@@ -485,5 +516,7 @@ def marginal_precision(marg: Marginal) -> np.ndarray:
     try:
         return log_density(marg, nominal(marg.problem)).precision
     except np.linalg.LinAlgError:
-        raise UpdateError("the residual covariance of the marginal model is singular at the nominal "
-                          "parameters (a mode without shape or pole scatter?)") from None  # fmt: skip
+        raise UpdateError(
+            "the residual covariance of the marginal model is singular at the nominal "
+            "parameters (a mode without shape or pole scatter?)"
+        ) from None

@@ -69,8 +69,9 @@ def parameter_draws(posterior: xr.Dataset) -> xr.DataArray:
             parts.append(da.rename(mode="parameter").assign_coords(parameter=labels))
     if not parts:
         raise TwinError("the posterior holds no parameter (no 'theta', 'added_mass' or 'added_damping')")
-    return xr.concat([p.drop_vars([c for c in p.coords if c not in ("chain", "draw", "parameter")]) for p in parts],
-                     dim="parameter")  # fmt: skip
+    return xr.concat(
+        [p.drop_vars([c for c in p.coords if c not in ("chain", "draw", "parameter")]) for p in parts], dim="parameter"
+    )
 
 
 def posterior_mode(draws: np.ndarray) -> float:
@@ -183,8 +184,7 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
     >>> import xarray as xr
     >>> from twin.update import apply_posterior
     >>> import numpy as np, xarray as xr
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> post = xr.Dataset({"theta": (("chain", "draw", "parameter"), np.full((1, 3, 1), 7e8))},
     ...                   coords={"parameter": ["UGB.kxx"]})
     >>> apply_posterior(m, post, "mean").parameter("UGB.kxx").nominal
@@ -217,16 +217,23 @@ def apply_posterior(model: RotorModel, posterior: xr.Dataset | xr.DataTree, esti
 def _within_bounds(name: str, value: float, bounds: tuple[float, float]) -> float:
     low, high = bounds
     if value in (low, high):  # a fit pushed there: the data ask for more than physics allows
-        warnings.warn(f"the posterior estimate of {name} is on its physical bound, {value:.4g} "
-                      f"(bounds [{low:.4g}, {high:.4g}]): the data push it beyond, which usually means an effect "
-                      "the model lacks (twin diagnose) rather than that value", TwinWarning, stacklevel=3)  # fmt: skip
+        warnings.warn(
+            f"the posterior estimate of {name} is on its physical bound, {value:.4g} "
+            f"(bounds [{low:.4g}, {high:.4g}]): the data push it beyond, which usually means an effect "
+            "the model lacks (twin diagnose) rather than that value",
+            TwinWarning,
+            stacklevel=3,
+        )
         return value
     if low <= value <= high:
         return value
     bound = low if value < low else high
-    warnings.warn(f"the posterior estimate of {name}, {value:.4g}, lies outside its physical bounds "
-                  f"[{low:.4g}, {high:.4g}] (the data hardly determine it): {bound:.4g} is used", TwinWarning,
-                  stacklevel=3)  # fmt: skip
+    warnings.warn(
+        f"the posterior estimate of {name}, {value:.4g}, lies outside its physical bounds "
+        f"[{low:.4g}, {high:.4g}] (the data hardly determine it): {bound:.4g} is used",
+        TwinWarning,
+        stacklevel=3,
+    )
     return float(bound)
 
 
@@ -247,7 +254,9 @@ def observed_data(modes: xr.Dataset) -> xr.Dataset:
     return split_complex(sub.drop_vars([c for c in sub.coords if c not in ("mode", "sample", "channel")]))
 
 
-def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0) -> xr.DataTree:
+def laplace_tree(
+    post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0
+) -> xr.DataTree:
     """A Laplace posterior (:func:`twin.update.laplace.laplace_update`) in the ``posterior.nc`` layout.
 
     ``posterior`` holds ``draws`` draws of the Gaussian (MAP, covariance)
@@ -274,27 +283,42 @@ def laplace_tree(post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 
     out = xr.Dataset(coords=coords, attrs={"laplace_map": json.dumps(dict(zip(names, map(float, mean))))})
     if shared:
         idx = [names.index(n) for n in shared]
-        out["theta"] = xr.DataArray(x[None, :, idx], dims=("chain", "draw", "parameter"), coords={"parameter": shared},
-                                    attrs={"long_name": "updated model parameters (SI units of each parameter)"})  # fmt: skip
+        out["theta"] = xr.DataArray(
+            x[None, :, idx],
+            dims=("chain", "draw", "parameter"),
+            coords={"parameter": shared},
+            attrs={"long_name": "updated model parameters (SI units of each parameter)"},
+        )
     labels = sorted({int(n.rsplit("_", 1)[1]) for n in per_mode})
     for kind, unit in (("added_mass", "kg"), ("added_damping", "N s/m")):
         cols = [names.index(f"FSI.{kind}_{m}") for m in labels if f"FSI.{kind}_{m}" in names]
         if cols and len(cols) == len(labels):
-            out[kind] = xr.DataArray(x[None, :, cols], dims=("chain", "draw", "mode"), coords={"mode": labels},
-                                     attrs={"units": unit, "long_name": f"per-mode FSI {kind.replace('_', ' ')}"})  # fmt: skip
-    stats = xr.Dataset({"lp": (("chain", "draw"), np.zeros((1, draws)), {"long_name": "not recorded (Laplace)"})},
-                       coords=coords)  # fmt: skip
+            out[kind] = xr.DataArray(
+                x[None, :, cols],
+                dims=("chain", "draw", "mode"),
+                coords={"mode": labels},
+                attrs={"units": unit, "long_name": f"per-mode FSI {kind.replace('_', ' ')}"},
+            )
+    stats = xr.Dataset(
+        {"lp": (("chain", "draw"), np.zeros((1, draws)), {"long_name": "not recorded (Laplace)"})}, coords=coords
+    )
     observed = observed_data(modes)
     constant = post[["map", "std", "prior_scale", "low", "high"]].drop_vars("unit", errors="ignore")
-    return xr.DataTree.from_dict({"/": xr.Dataset(attrs=attrs), "posterior": out, "sample_stats": stats,
-                                  "observed_data": observed, "constant_data": constant})  # fmt: skip
+    return xr.DataTree.from_dict(
+        {
+            "/": xr.Dataset(attrs=attrs),
+            "posterior": out,
+            "sample_stats": stats,
+            "observed_data": observed,
+            "constant_data": constant,
+        }
+    )
 
 
 def diagnostics_json(table: xr.Dataset) -> str:
     """R-hat and ESS per parameter as JSON (for file attrs)."""
     keys = [k for k in ("r_hat", "ess_bulk", "ess_tail") if k in table]
-    return json.dumps({str(p): {k: float(table[k].sel(parameter=p)) for k in keys}
-                       for p in table["parameter"].values})  # fmt: skip
+    return json.dumps({str(p): {k: float(table[k].sel(parameter=p)) for k in keys} for p in table["parameter"].values})
 
 
 def stretch(draws: np.ndarray, factors: np.ndarray) -> np.ndarray:

@@ -172,8 +172,7 @@ def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> li
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> select_parameters(m, "LGB.c*")
     ['LGB.cxx', 'LGB.cxy', 'LGB.cyx', 'LGB.cyy']
     >>> len(select_parameters(m, "bearings,thrust.k_tilt"))
@@ -194,8 +193,9 @@ def select_parameters(model: RotorModel, spec: str | Sequence[str] | None) -> li
                 raise ModelError(f"'{item}' is a per-mode parameter: update it with --fsi")
             found = [item]
         if not found:
-            raise ModelError(f"'{item}' matches no parameter of model '{model.name}' "
-                             f"(groups: {', '.join(PARAMETER_GROUPS)})")  # fmt: skip
+            raise ModelError(
+                f"'{item}' matches no parameter of model '{model.name}' (groups: {', '.join(PARAMETER_GROUPS)})"
+            )
         out += [n for n in found if n not in out]
     return out
 
@@ -241,8 +241,9 @@ def _observed_dofs(model: RotorModel, modes: xr.Dataset, source: str) -> np.ndar
     channels = [str(c) for c in modes["channel"].values]
     unknown = [c for c in channels if c not in sensors]
     if unknown:
-        raise UpdateError(f"{source}: channel(s) {unknown} are not sensors of model '{model.name}' "
-                          f"(sensors: {sorted(sensors)})")  # fmt: skip
+        raise UpdateError(
+            f"{source}: channel(s) {unknown} are not sensors of model '{model.name}' (sensors: {sorted(sensors)})"
+        )
     dofs = np.array([sensors[c] for c in channels])
     if len(set(dofs)) < len(dofs):
         raise UpdateError(f"{source}: two channels observe the same DOF")
@@ -277,14 +278,21 @@ def check_modes(modes: xr.Dataset, source: str) -> None:
     # marginal reads the mode through that mean and its covariance, which then weigh it little.
     for mode, below in zip(modes["mode"].values, np.sum(poles.imag <= 0, axis=1)):
         if below:
-            log.warning("%s: mode %s has %d of %d pole samples with Im <= 0: its frequency is hardly determined",
-                        source, mode, below, poles.shape[1])
+            log.warning(
+                "%s: mode %s has %d of %d pole samples with Im <= 0: its frequency is hardly determined",
+                source,
+                mode,
+                below,
+                poles.shape[1],
+            )
     still = np.all(poles == poles[:, :1], axis=1)
     if still.any():
-        raise UpdateError(f"{source}: mode(s) {modes['mode'].values[still].tolist()} have {poles.shape[1]} equal pole "
-                          "samples; the updater learns the noise of the condensed eigen-equation from their scatter, "
-                          "so it needs pole samples that differ (jackknife samples of an extraction, or synthetic "
-                          "samples with a pole variance)")  # fmt: skip
+        raise UpdateError(
+            f"{source}: mode(s) {modes['mode'].values[still].tolist()} have {poles.shape[1]} equal pole "
+            "samples; the updater learns the noise of the condensed eigen-equation from their scatter, "
+            "so it needs pole samples that differ (jackknife samples of an extraction, or synthetic "
+            "samples with a pole variance)"
+        )
 
 
 def build_problem(
@@ -349,20 +357,24 @@ def build_problem(
     for k in np.flatnonzero(global_scale == 0):
         global_scale[k] = np.median([_zero_nominal_scale(nominal_mats, bases[k], pm, speed) for pm in poles])
     # per-mode FSI has no nominal value in the model: its scale is always the dynamic-stiffness one
-    mode_scale = np.array([[_zero_nominal_scale(nominal_mats, b, pm, speed) for b in fsi_bases]
-                           for pm in poles]).reshape(mode_nominal.shape)  # fmt: skip
+    mode_scale = np.array(
+        [[_zero_nominal_scale(nominal_mats, b, pm, speed) for b in fsi_bases] for pm in poles]
+    ).reshape(mode_nominal.shape)
 
     margin, resonance = _condensation_margins(fixed, bases + fsi_bases, observed, poles, speed)
-    condensed = [condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model)
-                 for pm in poles]  # fmt: skip
+    condensed = [condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model) for pm in poles]
     methods = {c.method for c in condensed}
     if len(methods) > 1:  # one structure for all modes
-        condensed = [condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model,
-                                      force_latent=True) for pm in poles]  # fmt: skip
+        condensed = [
+            condense_samples(fixed, bases + fsi_bases, observed, pm, speed, pole_model=pole_model, force_latent=True)
+            for pm in poles
+        ]
     method = condensed[0].method
     if method == LATENT_SHAPE:
-        log.warning("too few parameter-free observed rows for stage 2: unobserved DOFs %s are sampled as latent "
-                    "shape entries", list(condensed[0].latent_dofs))  # fmt: skip
+        log.warning(
+            "too few parameter-free observed rows for stage 2: unobserved DOFs %s are sampled as latent shape entries",
+            list(condensed[0].latent_dofs),
+        )
     H = []
     for i, c in enumerate(condensed):
         scale = np.concatenate([[1.0], global_scale, mode_scale[i]])
@@ -387,14 +399,32 @@ def build_problem(
     psi_hat = np.concatenate([shapes.real, shapes.imag], axis=-1)
     var = np.var(psi_hat, axis=1, ddof=1)
     floor = VARIANCE_FLOOR * np.mean(var, axis=1, keepdims=True)
-    log.info("updating %d shared and %d per-mode parameters from %d modes x %d samples (%s, %d rows)",
-             len(params), len(fsi_bases), H.shape[0], poles.shape[1], method, H.shape[3])  # fmt: skip
+    log.info(
+        "updating %d shared and %d per-mode parameters from %d modes x %d samples (%s, %d rows)",
+        len(params),
+        len(fsi_bases),
+        H.shape[0],
+        poles.shape[1],
+        method,
+        H.shape[3],
+    )
     return Problem(
-        H0=np.ascontiguousarray(H[:, 0]), blocks=blocks, data_index=data_index, eps_index=eps_index, psi_hat=psi_hat, psi_var=np.maximum(var, floor),
-        global_names=params, global_scale=global_scale, global_nominal=global_nominal,
-        mode_names=[k for k, _, _ in FSI_PARAMETERS] if fsi else [], mode_scale=mode_scale,
-        mode_nominal=mode_nominal, modes=modes["mode"].values.astype(int),
-        channels=[str(c) for c in modes["channel"].values], method=method, eps_std=float(eps_std),
-        margin=margin, resonance_hz=resonance,
-    )  # fmt: skip
-
+        H0=np.ascontiguousarray(H[:, 0]),
+        blocks=blocks,
+        data_index=data_index,
+        eps_index=eps_index,
+        psi_hat=psi_hat,
+        psi_var=np.maximum(var, floor),
+        global_names=params,
+        global_scale=global_scale,
+        global_nominal=global_nominal,
+        mode_names=[k for k, _, _ in FSI_PARAMETERS] if fsi else [],
+        mode_scale=mode_scale,
+        mode_nominal=mode_nominal,
+        modes=modes["mode"].values.astype(int),
+        channels=[str(c) for c in modes["channel"].values],
+        method=method,
+        eps_std=float(eps_std),
+        margin=margin,
+        resonance_hz=resonance,
+    )

@@ -51,8 +51,9 @@ def _standardised(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.divide(x, sd, out=np.zeros_like(x), where=scatters(sd)), sd
 
 
-def shrunk_covariance(samples: np.ndarray, variance: np.ndarray,
-                      intensity: float | np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+def shrunk_covariance(
+    samples: np.ndarray, variance: np.ndarray, intensity: float | np.ndarray | None = None
+) -> np.ndarray:
     """Covariance of the samples' entries with their correlations shrunk toward zero.
 
     The shape samples of a mode are strongly correlated across channels (one
@@ -101,8 +102,13 @@ def shrunk_covariance(samples: np.ndarray, variance: np.ndarray,
     if intensity is None:
         var_r = J / (J - 1) ** 3 * np.sum((w - w_bar[..., None, :, :]) ** 2, axis=-3)
         total = np.sum(np.where(off, r**2, 0.0), axis=(-2, -1))
-        lam = np.clip(np.divide(np.sum(np.where(off, var_r, 0.0), axis=(-2, -1)), total,
-                                out=np.ones_like(total), where=total > 0), 0.0, 1.0)  # fmt: skip
+        lam = np.clip(
+            np.divide(
+                np.sum(np.where(off, var_r, 0.0), axis=(-2, -1)), total, out=np.ones_like(total), where=total > 0
+            ),
+            0.0,
+            1.0,
+        )
     else:
         lam = np.broadcast_to(np.asarray(intensity, dtype=float), r.shape[:-2])
     corr = np.where(off, (1.0 - lam[..., None, None]) * r, 1.0)

@@ -28,7 +28,6 @@ from twin.modes.shapes import normalise_shapes
 from twin.update.problem import UpdateError
 
 
-
 def synthesize_modes(
     model: RotorModel,
     truth: Truth | None = None,
@@ -69,8 +68,7 @@ def synthesize_modes(
     Examples
     --------
     >>> from twin.update import synthesize_modes
-    >>> from twin import load_model, shipped_model
-    >>> ds = synthesize_modes(load_model(shipped_model("hydro_unit")), samples=10, seed=1)
+    >>> ds = synthesize_modes(hydro_unit, samples=10, seed=1)
     >>> dict(ds.sizes)
     {'mode': 15, 'sample': 10, 'channel': 8}
     """
@@ -86,8 +84,7 @@ def synthesize_modes(
     rng = np.random.default_rng(seed)
     n, J = len(tm.poles), samples
     noise = rng.standard_normal((2, n, J))
-    pole_samples = (tm.poles[:, None] + np.sqrt(pole_variance[0]) * noise[0]
-                    + 1j * np.sqrt(pole_variance[1]) * noise[1])  # fmt: skip
+    pole_samples = tm.poles[:, None] + np.sqrt(pole_variance[0]) * noise[0] + 1j * np.sqrt(pole_variance[1]) * noise[1]
     e = shape_cov * rng.standard_normal((2, n, J, shapes.shape[1]))
     shape_samples = shapes.real[:, None] * (1 + e[0]) + 1j * shapes.imag[:, None] * (1 + e[1])
     truth_poles = [{"real": float(p.real), "imag": float(p.imag)} for p in tm.poles]
@@ -101,21 +98,27 @@ def synthesize_modes(
         "truth_poles": json.dumps(truth_poles),
         "target_modes": json.dumps([int(k) + 1 for k in tm.targets]),
         "samples_method": f"Gaussian noise: shape CoV {shape_cov:g} per real entry, pole variance "
-                          f"{pole_variance[0]:g} (real) and {pole_variance[1]:g} (imag) rad^2/s^2",
+        f"{pole_variance[0]:g} (real) and {pole_variance[1]:g} (imag) rad^2/s^2",
         "seed": seed,
-    }  # fmt: skip
+    }
     sensors = {s.name: s for s in model.sensors}
     return xr.Dataset(
         {
             "pole": (("mode", "sample"), pole_samples, {"units": "1/s", "long_name": "pole samples"}),
-            "shape": (("mode", "sample", "channel"), shape_samples,
-                      {"units": "1", "long_name": "mode shape samples (unit norm, largest entry real positive)"}),
+            "shape": (
+                ("mode", "sample", "channel"),
+                shape_samples,
+                {"units": "1", "long_name": "mode shape samples (unit norm, largest entry real positive)"},
+            ),
             "frequency": ("mode", tm.poles.imag / (2 * np.pi), {"units": "Hz", "long_name": "true damped frequency"}),
-            "natural_frequency": ("mode", np.abs(tm.poles) / (2 * np.pi),
-                                  {"units": "Hz", "long_name": "true undamped natural frequency"}),
+            "natural_frequency": (
+                "mode",
+                np.abs(tm.poles) / (2 * np.pi),
+                {"units": "Hz", "long_name": "true undamped natural frequency"},
+            ),
             "damping_ratio": ("mode", damping_ratio(tm.poles), {"units": "1", "long_name": "true damping ratio"}),
             "sensor_shape": (("mode", "channel"), shapes, {"units": "1", "long_name": "true mode shape"}),
-        },  # fmt: skip
+        },
         coords={
             "mode": ("mode", np.arange(1, n + 1)),
             "sample": ("sample", np.arange(J)),
@@ -126,4 +129,3 @@ def synthesize_modes(
         },
         attrs=attrs,
     )
-

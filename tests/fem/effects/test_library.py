@@ -19,7 +19,11 @@ def _conservative(model):
     """The unit at rest with symmetric, undamped bearings: Rayleigh's theorem holds exactly."""
     import dataclasses
 
-    values = {p.name: 0.0 for p in model.parameters if p.name.split(".")[1] in ("kxy", "kyx", "cxx", "cxy", "cyx", "cyy", "c_tilt")}
+    values = {
+        p.name: 0.0
+        for p in model.parameters
+        if p.name.split(".")[1] in ("kxy", "kyx", "cxx", "cxy", "cyx", "cyy", "c_tilt")
+    }
     return dataclasses.replace(model, values=values, rayleigh=(0.0, 0.0), speed_rpm=0.0)
 
 
@@ -48,8 +52,11 @@ def test_per_mode_fsi_parameters(hydro_unit):
     effect = FluidAddedMassPerMode(added_mass=(1e5, 9e4), added_damping=(7e7, 1e7))
     params = effect.parameters(hydro_unit)
     assert [p.name for p in params] == [
-        "FSI.added_mass_1", "FSI.added_damping_1", "FSI.added_mass_2", "FSI.added_damping_2",
-    ]  # fmt: skip
+        "FSI.added_mass_1",
+        "FSI.added_damping_1",
+        "FSI.added_mass_2",
+        "FSI.added_damping_2",
+    ]
     assert all(p.per_mode for p in params)
     # per-mode parameters are not part of the single FEM
     model = _with(hydro_unit, effect)

@@ -11,7 +11,9 @@ from twin.fem.effects import DiskInertiaChange, DiskMassChange, ShaftStiffnessCh
 def test_shaft_stiffness_change_equals_weakening_the_material(hydro_unit):
     """Young's and shear moduli at half: the element's stiffness (and its Rayleigh damping share) halves exactly."""
     el = hydro_unit.shaft[18]
-    weak = dataclasses.replace(el, material=dataclasses.replace(el.material, E=0.5 * el.material.E, G=0.5 * el.material.G))
+    weak = dataclasses.replace(
+        el, material=dataclasses.replace(el.material, E=0.5 * el.material.E, G=0.5 * el.material.G)
+    )
     by_material = dataclasses.replace(hydro_unit, shaft=tuple(weak if e.n == 18 else e for e in hydro_unit.shaft))
     by_change = hydro_unit.with_effects(ShaftStiffnessChange(18, -0.5))
     a, b = by_material.matrices(), by_change.matrices()

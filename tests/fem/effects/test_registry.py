@@ -29,7 +29,7 @@ from twin.fem.effects import (
     registry,
 )
 
-PLUGIN = '''
+PLUGIN = """
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -54,7 +54,7 @@ class HousingMass(Effect):
 
     def plausible_scale(self, model):
         return {"HOUSING.mass": 1e4}
-'''
+"""
 
 
 @pytest.fixture
@@ -90,11 +90,20 @@ def test_labels_with_a_wrong_element_are_named():
 def test_library_and_local_changes_are_told_apart(hydro_unit):
     library, local = effect_classes(local=False), effect_classes(local=True)
     assert not set(library) & set(local) and set(library) | set(local) == set(effect_classes())
-    assert list(library)[:6] == ["fsi", "fsi_per_mode", "magnetic_pull", "seal_cross_coupling", "bearing_change",
-                                 "thrust_tilt"]  # fmt: skip
+    assert list(library)[:6] == [
+        "fsi",
+        "fsi_per_mode",
+        "magnetic_pull",
+        "seal_cross_coupling",
+        "bearing_change",
+        "thrust_tilt",
+    ]
     assert list(local) == ["shaft_stiffness", "disk_mass", "disk_inertia"]
     assert [effect_label(e) for e in library_effects(hydro_unit)][4:7] == [
-        "bearing_change:UGB", "bearing_change:LGB", "thrust_tilt:thrust"]
+        "bearing_change:UGB",
+        "bearing_change:LGB",
+        "thrust_tilt:thrust",
+    ]
     assert len(local_changes(hydro_unit)) == len(hydro_unit.shaft) + 2 * len(hydro_unit.disks)
 
 
@@ -128,13 +137,17 @@ def test_register_refuses_what_is_not_an_effect_and_a_second_key(fresh_registry)
 
 
 def test_a_plugin_through_an_entry_point_reaches_model_files_and_the_diagnosis(
-        fresh_registry, monkeypatch, tmp_path, hydro_unit):  # fmt: skip
+    fresh_registry, monkeypatch, tmp_path, hydro_unit
+):
     (tmp_path / "twin_test_plugin.py").write_text(PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.delitem(sys.modules, "twin_test_plugin", raising=False)
     entry = importlib.metadata.EntryPoint("housing", "twin_test_plugin", registry.ENTRY_POINT_GROUP)
-    monkeypatch.setattr(registry.importlib.metadata, "entry_points",
-                        lambda group: [entry] if group == registry.ENTRY_POINT_GROUP else [])  # fmt: skip
+    monkeypatch.setattr(
+        registry.importlib.metadata,
+        "entry_points",
+        lambda group: [entry] if group == registry.ENTRY_POINT_GROUP else [],
+    )
 
     assert "housing_mass_test" in effect_classes(local=False)
     assert "housing_mass_test" in [effect_label(e) for e in library_effects(hydro_unit)]

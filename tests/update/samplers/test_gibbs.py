@@ -6,9 +6,17 @@ from scipy.integrate import trapezoid
 from scipy.stats import invwishart
 
 from twin.update.chain import Prior, State
-from twin.update.samplers.conditionals import (conditional_noise, conditional_own, conditional_shape,
-                                               conditional_shared, gaussian_draw, initial_state, log_density, sweep,
-                                               wishart_draw)  # fmt: skip
+from twin.update.samplers.conditionals import (
+    conditional_noise,
+    conditional_own,
+    conditional_shape,
+    conditional_shared,
+    gaussian_draw,
+    initial_state,
+    log_density,
+    sweep,
+    wishart_draw,
+)
 from twin.update.samplers.gibbs import run_chain, run_chains
 from twin.update.problem import Problem, UpdateError, sparse_blocks
 
@@ -67,6 +75,7 @@ def test_own_parameter_conditional_matches_numerical_integration(toy, full):
     state = _full(state) if full else state
     P, b = conditional_own(problem, state, Prior.flat(problem))
     for i in range(I):
+
         def logp(e, i=i):
             eta = state.eta.copy()
             eta[i, 0] = e
@@ -92,6 +101,7 @@ def test_shape_conditional_matches_the_brute_force_quadratic_form(toy, full):
     P, b = conditional_shape(problem, state)
     c = np.stack([np.ones(I), np.full(I, state.t[0]), state.eta[:, 0]], axis=1)
     for i in range(I):
+
         def logp(z, i=i):
             zz = state.z.copy()
             zz[i] = z
@@ -100,8 +110,21 @@ def test_shape_conditional_matches_the_brute_force_quadratic_form(toy, full):
 
         # the log density is quadratic: its Hessian (central differences) is -P, its gradient at 0 is b
         h, e = 1e-3, np.eye(N_Z)
-        hess = np.array([[(logp(h * (e[a] + e[d])) - logp(h * (e[a] - e[d])) - logp(h * (e[d] - e[a]))
-                           + logp(-h * (e[a] + e[d]))) / (4 * h * h) for d in range(N_Z)] for a in range(N_Z)])  # fmt: skip
+        hess = np.array(
+            [
+                [
+                    (
+                        logp(h * (e[a] + e[d]))
+                        - logp(h * (e[a] - e[d]))
+                        - logp(h * (e[d] - e[a]))
+                        + logp(-h * (e[a] + e[d]))
+                    )
+                    / (4 * h * h)
+                    for d in range(N_Z)
+                ]
+                for a in range(N_Z)
+            ]
+        )
         grad = np.array([(logp(h * e[a]) - logp(-h * e[a])) / (2 * h) for a in range(N_Z)])
         np.testing.assert_allclose(-hess, P[i], rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(grad, b[i], rtol=1e-5, atol=1e-6)

@@ -85,7 +85,13 @@ def test_zero_noise_limit_is_the_exact_answer(hydro_unit):
     data = synthesize_modes(hydro_unit, samples=10, seed=3, shape_cov=1e-8, pole_variance=(1e-12, 1e-12))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TwinWarning)
-        tree = update(hydro_unit, data, 'bearings', fsi=True, options={'draws': 30, 'chains': 1, 'seed': 0, 'eps_std': 1e-09, 'progress': False})  # fmt: skip
+        tree = update(
+            hydro_unit,
+            data,
+            "bearings",
+            fsi=True,
+            options={"draws": 30, "chains": 1, "seed": 0, "eps_std": 1e-09, "progress": False},
+        )
     truth = {n: hydro_unit.parameter(n).nominal for n in select_parameters(hydro_unit, "bearings")}
     for i, (m, c) in enumerate(zip(PAPER_TABLE2.added_mass, PAPER_TABLE2.added_damping), start=1):
         truth[f"FSI.added_mass_{i}"], truth[f"FSI.added_damping_{i}"] = m, c

@@ -96,8 +96,7 @@ def element_names(model, kind: str) -> list:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> element_names(load_model(shipped_model("hydro_unit")), "bearing")
+    >>> element_names(hydro_unit, "bearing")
     ['UGB', 'LGB']
     """
     if kind not in ELEMENT_KINDS:
@@ -188,8 +187,10 @@ def _field_kind(cls: type, field: dataclasses.Field) -> type:
     elif typing.get_origin(kind) is tuple:
         kind = tuple
     if kind not in (float, int, str, tuple):
-        raise TypeError(f"effect {cls.__name__}: field '{field.name}' is {field.type!r}; an effect's fields are "
-                        f"float, int, str or tuple[float, ...]")  # fmt: skip
+        raise TypeError(
+            f"effect {cls.__name__}: field '{field.name}' is {field.type!r}; an effect's fields are "
+            f"float, int, str or tuple[float, ...]"
+        )
     return kind
 
 
@@ -217,9 +218,8 @@ def plausible_scales(model) -> dict[str, float]:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
-    >>> m = load_model(shipped_model("hydro_unit")).with_effects(MagneticPull())
+    >>> m = hydro_unit.with_effects(MagneticPull())
     >>> {k: round(v / 1e6, 1) for k, v in plausible_scales(m).items()}
     {'MAG.stiffness': 89.1}
     """
@@ -235,9 +235,8 @@ def free_names(model, effect: Effect, labels: Sequence[int]) -> list[str]:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import FluidAddedMassPerMode
-    >>> free_names(load_model(shipped_model("hydro_unit")), FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
+    >>> free_names(hydro_unit, FluidAddedMassPerMode((0.0,) * 3, (0.0,) * 3), [1, 3])
     ['FSI.added_mass_1', 'FSI.added_damping_1', 'FSI.added_mass_3', 'FSI.added_damping_3']
     """
     names = [p.name for p in effect.parameters(model)]

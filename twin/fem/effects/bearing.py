@@ -41,16 +41,30 @@ class BearingChange(Effect):
         k = min(element_value(model, b.name, key, b.coefficients[key]) for key in ("kxx", "kyy"))
         c = min(element_value(model, b.name, key, b.coefficients[key]) for key in ("cxx", "cyy"))
         return [
-            Parameter(f"{b.name}.stiffness_change", self.stiffness_change, "N/m", (Term("K", dofs, np.eye(2)),),
-                      f"change of {b.name}'s direct stiffness kxx and kyy", bounds=(-max(k, 0.0), np.inf)),
-            Parameter(f"{b.name}.damping_change", self.damping_change, "N s/m", (Term("C", dofs, np.eye(2)),),
-                      f"change of {b.name}'s direct damping cxx and cyy", bounds=(-max(c, 0.0), np.inf)),
-        ]  # fmt: skip
+            Parameter(
+                f"{b.name}.stiffness_change",
+                self.stiffness_change,
+                "N/m",
+                (Term("K", dofs, np.eye(2)),),
+                f"change of {b.name}'s direct stiffness kxx and kyy",
+                bounds=(-max(k, 0.0), np.inf),
+            ),
+            Parameter(
+                f"{b.name}.damping_change",
+                self.damping_change,
+                "N s/m",
+                (Term("C", dofs, np.eye(2)),),
+                f"change of {b.name}'s direct damping cxx and cyy",
+                bounds=(-max(c, 0.0), np.inf),
+            ),
+        ]
 
     def plausible_scale(self, model) -> dict[str, float]:
         """Half the bearing's mean direct stiffness and damping."""
         b = model_element(model, "bearing", self.bearing)
         k = np.mean([abs(model.parameter(f"{b.name}.{c}").nominal) for c in ("kxx", "kyy")])
         c = np.mean([abs(model.parameter(f"{b.name}.{c}").nominal) for c in ("cxx", "cyy")])
-        return {f"{b.name}.stiffness_change": CHANGE_FRACTION * float(k),
-                f"{b.name}.damping_change": CHANGE_FRACTION * float(c)}  # fmt: skip
+        return {
+            f"{b.name}.stiffness_change": CHANGE_FRACTION * float(k),
+            f"{b.name}.damping_change": CHANGE_FRACTION * float(c),
+        }

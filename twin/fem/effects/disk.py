@@ -44,8 +44,7 @@ class DiskMassChange(_DiskChange):
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> heavier = model.with_effects(DiskMassChange("generator", 0.1))
     >>> float(np.trace(heavier.matrices()["M"] - model.matrices()["M"])) / 2  # kg on x and on y
     60000.0
@@ -60,8 +59,16 @@ class DiskMassChange(_DiskChange):
         d = model_element(model, "disk", self.disk)
         x, y = node_dofs(d.node)[:2]
         m = _disk_value(model, d, "m")
-        return [Parameter(f"{d.name}.mass_change", self.change, "1", (Term("M", (x, y), m * np.eye(2)),),
-                          f"relative mass change of disk {d.name} (node {d.node})", bounds=RELATIVE_BOUNDS)]  # fmt: skip
+        return [
+            Parameter(
+                f"{d.name}.mass_change",
+                self.change,
+                "1",
+                (Term("M", (x, y), m * np.eye(2)),),
+                f"relative mass change of disk {d.name} (node {d.node})",
+                bounds=RELATIVE_BOUNDS,
+            )
+        ]
 
 
 @register
@@ -71,8 +78,7 @@ class DiskInertiaChange(_DiskChange):
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> [p.name for p in DiskInertiaChange("runner", 0.2).parameters(model)]
     ['runner.inertia_change']
     """
@@ -87,6 +93,13 @@ class DiskInertiaChange(_DiskChange):
         a, b = node_dofs(d.node)[2:]
         Id, Ip = _disk_value(model, d, "Id"), _disk_value(model, d, "Ip")
         terms = (Term("M", (a, b), Id * np.eye(2)), Term("G", (a, b), Ip * np.array([[0.0, 1.0], [-1.0, 0.0]])))
-        return [Parameter(f"{d.name}.inertia_change", self.change, "1", terms,
-                          f"relative change of the moments of inertia of disk {d.name} (node {d.node})",
-                          bounds=RELATIVE_BOUNDS)]  # fmt: skip
+        return [
+            Parameter(
+                f"{d.name}.inertia_change",
+                self.change,
+                "1",
+                terms,
+                f"relative change of the moments of inertia of disk {d.name} (node {d.node})",
+                bounds=RELATIVE_BOUNDS,
+            )
+        ]

@@ -39,11 +39,23 @@ class FluidAddedMass(Effect):
         """``FSI.added_mass`` and ``FSI.added_damping`` on the immersed DOFs."""
         dofs = model.region_dofs(self.region)
         return [
-            Parameter("FSI.added_mass", self.added_mass, "kg", shared_over("M", dofs),
-                      "added mass of the water, shared over the immersed DOFs", bounds=POSITIVE),
-            Parameter("FSI.added_damping", self.added_damping, "N s/m", shared_over("C", dofs),
-                      "added damping of the water, shared over the immersed DOFs", bounds=POSITIVE),
-        ]  # fmt: skip
+            Parameter(
+                "FSI.added_mass",
+                self.added_mass,
+                "kg",
+                shared_over("M", dofs),
+                "added mass of the water, shared over the immersed DOFs",
+                bounds=POSITIVE,
+            ),
+            Parameter(
+                "FSI.added_damping",
+                self.added_damping,
+                "N s/m",
+                shared_over("C", dofs),
+                "added damping of the water, shared over the immersed DOFs",
+                bounds=POSITIVE,
+            ),
+        ]
 
     def plausible_scale(self, model) -> dict[str, float]:
         """Twice the immersed disks' mass [kg]; that times 1000 1/s for the damping [N s/m]."""
@@ -66,9 +78,7 @@ class FluidAddedMassPerMode(Effect):
     region: ClassVar[str | None] = "immersed"
     per_mode: ClassVar[bool] = True
     replaces: ClassVar[frozenset[str]] = frozenset({"fsi"})
-    explanation: ClassVar[str] = (
-        "the water around the runner adds a different mass and damping to each mode"
-    )
+    explanation: ClassVar[str] = "the water around the runner adds a different mass and damping to each mode"
     #: Names of its parameters for any number of modes (``FSI.added_mass_3``); every per-mode effect has one.
     name_pattern: ClassVar[re.Pattern] = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
     per_mode_text: ClassVar[str] = "FSI.added_mass_<i> [kg] and FSI.added_damping_<i> [N s/m] per mode i: >= 0"
@@ -98,11 +108,29 @@ class FluidAddedMassPerMode(Effect):
         dofs = model.region_dofs(self.region)
         out = []
         for i, (m, c) in enumerate(zip(self.added_mass, self.added_damping), start=1):
-            out.append(Parameter(f"FSI.added_mass_{i}", m, "kg", shared_over("M", dofs),
-                                 f"added mass of the water in mode {i}", per_mode=True, bounds=POSITIVE))
-            out.append(Parameter(f"FSI.added_damping_{i}", c, "N s/m", shared_over("C", dofs),
-                                 f"added damping of the water in mode {i}", per_mode=True, bounds=POSITIVE))
-        return out  # fmt: skip
+            out.append(
+                Parameter(
+                    f"FSI.added_mass_{i}",
+                    m,
+                    "kg",
+                    shared_over("M", dofs),
+                    f"added mass of the water in mode {i}",
+                    per_mode=True,
+                    bounds=POSITIVE,
+                )
+            )
+            out.append(
+                Parameter(
+                    f"FSI.added_damping_{i}",
+                    c,
+                    "N s/m",
+                    shared_over("C", dofs),
+                    f"added damping of the water in mode {i}",
+                    per_mode=True,
+                    bounds=POSITIVE,
+                )
+            )
+        return out
 
     def plausible_scale(self, model) -> dict[str, float]:
         """Per mode, the scales of :meth:`FluidAddedMass.plausible_scale`."""
@@ -138,5 +166,7 @@ def per_mode_values(model, base, label: int, values: Mapping[str, float]) -> dic
     def own(name: str) -> float:
         return values.get(name, model.parameter(name).nominal if name in names else 0.0)
 
-    return {"FSI.added_mass": shared_m + own(f"FSI.added_mass_{label}"),
-            "FSI.added_damping": shared_c + own(f"FSI.added_damping_{label}")}  # fmt: skip
+    return {
+        "FSI.added_mass": shared_m + own(f"FSI.added_mass_{label}"),
+        "FSI.added_damping": shared_c + own(f"FSI.added_damping_{label}"),
+    }

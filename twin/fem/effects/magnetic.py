@@ -30,8 +30,16 @@ class MagneticPull(Effect):
         # each direction carries the full stiffness: share over nodes, not over x and y
         n_nodes = len(model.regions[self.region])
         terms = (Term("K", dofs, np.eye(len(dofs)) / n_nodes),)
-        return [Parameter("MAG.stiffness", self.stiffness, "N/m", terms,
-                          "radial magnetic stiffness at the air gap (negative: pull)", bounds=(-np.inf, 0.0))]  # fmt: skip
+        return [
+            Parameter(
+                "MAG.stiffness",
+                self.stiffness,
+                "N/m",
+                terms,
+                "radial magnetic stiffness at the air gap (negative: pull)",
+                bounds=(-np.inf, 0.0),
+            )
+        ]
 
     def plausible_scale(self, model) -> dict[str, float]:
         """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""

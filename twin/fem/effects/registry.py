@@ -65,17 +65,21 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise TypeError(f"{cls!r} is not an Effect class (derive it from twin.fem.effects.Effect)")
     if not cls.key or ":" in cls.key or "@" in cls.key or "+" in cls.key:
-        raise ValueError(f"{cls.__name__}: an effect's key is a non-empty name without ':', '@' or '+', "
-                         f"got {cls.key!r}")  # fmt: skip
+        raise ValueError(
+            f"{cls.__name__}: an effect's key is a non-empty name without ':', '@' or '+', got {cls.key!r}"
+        )
     if cls.element is not None and (cls.element_kind or cls.element) not in ELEMENT_KINDS:
-        raise ValueError(f"{cls.__name__}: element kind {cls.element_kind or cls.element!r} is none of "
-                         f"{', '.join(ELEMENT_KINDS)}")  # fmt: skip
+        raise ValueError(
+            f"{cls.__name__}: element kind {cls.element_kind or cls.element!r} is none of {', '.join(ELEMENT_KINDS)}"
+        )
     if cls.per_mode and cls.name_pattern is None:
         raise ValueError(f"{cls.__name__}: a per-mode effect declares name_pattern, the names of its parameters")
     other = _REGISTRY.get(cls.key)
     if other is not None and other is not cls and other.__qualname__ != cls.__qualname__:
-        raise ValueError(f"two effects with the key '{cls.key}': {other.__module__}.{other.__qualname__} and "
-                         f"{cls.__module__}.{cls.__qualname__}")  # fmt: skip
+        raise ValueError(
+            f"two effects with the key '{cls.key}': {other.__module__}.{other.__qualname__} and "
+            f"{cls.__module__}.{cls.__qualname__}"
+        )
     global _ORDERED
     _REGISTRY[cls.key] = cls
     _ORDERED = None
@@ -128,7 +132,7 @@ def _ordered() -> dict[str, type[Effect]]:
 
         def rank(key: str) -> tuple[int, int, int]:
             module = _REGISTRY[key].__module__
-            name = module[len(package):] if module.startswith(package) else None
+            name = module[len(package) :] if module.startswith(package) else None
             if name in BUILTIN:
                 return (0, BUILTIN.index(name), order[key])
             return (1 if name is not None else 2, 0, order[key])
@@ -193,8 +197,10 @@ def from_label(label: str, **values) -> Effect:
     cls = effect_class(key)
     if cls.element is None:
         if element is not None:
-            raise ModelError(f"effect '{key}' acts on {'region ' + repr(cls.region) if cls.region else 'the machine'}"
-                             f", not on a named element: call it '{key}'")  # fmt: skip
+            raise ModelError(
+                f"effect '{key}' acts on {'region ' + repr(cls.region) if cls.region else 'the machine'}"
+                f", not on a named element: call it '{key}'"
+            )
         return cls(**values)
     if not element:
         raise ModelError(f"effect '{key}' names its {cls.element_kind or cls.element}: '{key}:<name>'")
@@ -202,8 +208,9 @@ def from_label(label: str, **values) -> Effect:
         try:
             element = int(element)
         except ValueError:
-            raise ModelError(f"'{label}': a {cls.element_kind or cls.element} element is a number, "
-                             f"e.g. {key}:0") from None
+            raise ModelError(
+                f"'{label}': a {cls.element_kind or cls.element} element is a number, e.g. {key}:0"
+            ) from None
     return cls(**{cls.element: element}, **values)
 
 
@@ -212,8 +219,7 @@ def library_effects(model) -> list[Effect]:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> [effect_label(e) for e in library_effects(load_model(shipped_model("hydro_unit")))][:3]
+    >>> [effect_label(e) for e in library_effects(hydro_unit)][:3]
     ['fsi', 'fsi_per_mode', 'magnetic_pull']
     """
     return [e for cls in effect_classes(local=False).values() for e in cls.instances(model)]
@@ -225,8 +231,7 @@ def local_changes(model) -> list[Effect]:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> changes = local_changes(load_model(shipped_model("hydro_unit")))
+    >>> changes = local_changes(hydro_unit)
     >>> len(changes), changes[-1]
     (36, DiskInertiaChange(disk='runner', change=0.0))
     """
@@ -249,8 +254,7 @@ def effect_providing(model, name: str) -> str | None:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> effect_providing(model, "MAG.stiffness"), effect_providing(model, "FSI.added_mass_3")
     ('magnetic_pull', 'fsi_per_mode')
     """
@@ -296,9 +300,8 @@ def describe(effect: Effect, model) -> str:
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.fem.effects import MagneticPull
-    >>> print(describe(MagneticPull(), load_model(shipped_model("hydro_unit"))))  # doctest: +NORMALIZE_WHITESPACE
+    >>> print(describe(MagneticPull(), hydro_unit))  # doctest: +NORMALIZE_WHITESPACE
     magnetic_pull: an off-centre generator rotor is pulled further off centre by the magnetic field: a negative
     stiffness. MAG.stiffness [N/m]: <= 0, plausible scale 8.91e+07.
     """

@@ -25,8 +25,16 @@ class SealCrossCoupling(Effect):
 
     def parameters(self, model) -> list[Parameter]:
         """``SEAL.kxy`` on the seal region (``K[x,y] = +k``, ``K[y,x] = -k``)."""
-        return [Parameter("SEAL.kxy", self.kxy, "N/m", cross_coupled(model, self.region),
-                          "cross-coupled seal stiffness (positive destabilises forward whirl)", bounds=UNBOUNDED)]  # fmt: skip
+        return [
+            Parameter(
+                "SEAL.kxy",
+                self.kxy,
+                "N/m",
+                cross_coupled(model, self.region),
+                "cross-coupled seal stiffness (positive destabilises forward whirl)",
+                bounds=UNBOUNDED,
+            )
+        ]
 
     def plausible_scale(self, model) -> dict[str, float]:
         """30% of the guide bearings' direct stiffness (geometric mean) [N/m]."""

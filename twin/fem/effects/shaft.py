@@ -32,8 +32,7 @@ class ShaftStiffnessChange(RelativeChange):
     Examples
     --------
     >>> import numpy as np
-    >>> from twin import load_model, shipped_model
-    >>> model = load_model(shipped_model("hydro_unit"))
+    >>> model = hydro_unit
     >>> weak = model.with_effects(ShaftStiffnessChange(18, -0.5))
     >>> dK = weak.matrices()["K"] - model.matrices()["K"]
     >>> bool(np.allclose(dK, -0.5 * model.shaft[18].terms()[2].to_dense(model.n_dof)))
@@ -50,17 +49,26 @@ class ShaftStiffnessChange(RelativeChange):
     def parameters(self, model) -> list[Parameter]:
         """``shaft<e>.stiffness_change`` on the element's stiffness (and stiffness-proportional damping)."""
         if not 0 <= self.index < len(model.shaft):
-            raise ModelError(f"model '{model.name}' has no shaft element {self.index} "
-                             f"(elements 0 to {len(model.shaft) - 1})")  # fmt: skip
+            raise ModelError(
+                f"model '{model.name}' has no shaft element {self.index} (elements 0 to {len(model.shaft) - 1})"
+            )
         el = model.shaft[self.index]
         K = next(t for t in el.terms() if t.kind == "K")
         terms = [K]
         if model.rayleigh[1]:
             terms.append(Term("C", K.dofs, model.rayleigh[1] * K.value))
         z = model.node_z
-        return [Parameter(f"shaft{self.index}.stiffness_change", self.change, "1", tuple(terms),
-                          f"relative bending-stiffness change of shaft element {self.index} (nodes {el.n}-{el.n + 1}, "
-                          f"z = {z[el.n]:.2f} to {z[el.n + 1]:.2f} m)", bounds=RELATIVE_BOUNDS)]  # fmt: skip
+        return [
+            Parameter(
+                f"shaft{self.index}.stiffness_change",
+                self.change,
+                "1",
+                tuple(terms),
+                f"relative bending-stiffness change of shaft element {self.index} (nodes {el.n}-{el.n + 1}, "
+                f"z = {z[el.n]:.2f} to {z[el.n + 1]:.2f} m)",
+                bounds=RELATIVE_BOUNDS,
+            )
+        ]
 
     def where(self, model) -> str:
         """The place in words."""

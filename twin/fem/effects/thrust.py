@@ -30,9 +30,16 @@ class ThrustTilt(Effect):
         """``<thrust>.k_tilt_change`` on the thrust node's alpha, beta."""
         t = model_element(model, "thrust", self.thrust)
         k = element_value(model, t.name, "k_tilt", t.k_tilt)
-        return [Parameter(f"{t.name}.k_tilt_change", self.k_tilt_change, "N m/rad",
-                          (Term("K", node_dofs(t.node)[2:], np.eye(2)),),
-                          f"change of {t.name}'s tilt stiffness", bounds=(-max(k, 0.0), np.inf))]  # fmt: skip
+        return [
+            Parameter(
+                f"{t.name}.k_tilt_change",
+                self.k_tilt_change,
+                "N m/rad",
+                (Term("K", node_dofs(t.node)[2:], np.eye(2)),),
+                f"change of {t.name}'s tilt stiffness",
+                bounds=(-max(k, 0.0), np.inf),
+            )
+        ]
 
     def plausible_scale(self, model) -> dict[str, float]:
         """Half the thrust's tilt stiffness."""

@@ -38,5 +38,15 @@ def sampler(name: str) -> Sampler:
         raise UpdateError(f"unknown sampler {name!r}; choose one of {', '.join(SAMPLERS)}") from None
 
 
-__all__ = ["SAMPLERS", "Gibbs", "GibbsOptions", "HMC", "HMCOptions", "PaperGibbs", "PaperOptions", "Sampler",
-           "SamplerOptions", "sampler"]
+__all__ = [
+    "SAMPLERS",
+    "Gibbs",
+    "GibbsOptions",
+    "HMC",
+    "HMCOptions",
+    "PaperGibbs",
+    "PaperOptions",
+    "Sampler",
+    "SamplerOptions",
+    "sampler",
+]

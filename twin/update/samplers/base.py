@@ -155,6 +155,7 @@ def make_options(name: str, options_type: type, options: Any, fields: Mapping[st
     known = {f.name for f in dataclasses.fields(options_type)}
     unknown = sorted(set(given) - known)
     if unknown:
-        raise UpdateError(f"the {name!r} {what} has no option {', '.join(unknown)} "
-                          f"(its options: {', '.join(sorted(known))})")  # fmt: skip
+        raise UpdateError(
+            f"the {name!r} {what} has no option {', '.join(unknown)} (its options: {', '.join(sorted(known))})"
+        )
     return options_type(**given)

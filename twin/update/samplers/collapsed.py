@@ -79,8 +79,10 @@ def approximate(problem: Problem, state: State, prior: Prior) -> Approximation:
     precision = prior.parameter_precision
     S[np.diag_indices_from(S)] += precision
     g -= precision * (_flat(problem, state) - prior.parameter_mean)
-    log_marginal += float(-0.5 * np.sum(prior.global_precision * (state.t - prior.global_mean) ** 2)
-                          - 0.5 * np.sum(prior.mode_precision * (state.eta - prior.mode_mean) ** 2))  # fmt: skip
+    log_marginal += float(
+        -0.5 * np.sum(prior.global_precision * (state.t - prior.global_mean) ** 2)
+        - 0.5 * np.sum(prior.mode_precision * (state.eta - prior.mode_mean) ** 2)
+    )
     L = np.linalg.cholesky(S)
     step = np.linalg.solve(L.T, np.linalg.solve(L, g))
     return Approximation(float(log_marginal), S, L, step, Hc, P, b)

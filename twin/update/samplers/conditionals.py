@@ -54,7 +54,6 @@ scatter the pole samples alone put into the residual), and
 the data. The density is then bounded and the chains stay off ``z = 0``.
 """
 
-
 from __future__ import annotations
 
 import logging
@@ -252,15 +251,18 @@ def log_density(problem: Problem, state: State, rate: np.ndarray | None = None, 
     a0 = 0.0 if prior is None else prior.noise_shape
     rate = conditional_noise(problem, state, prior=prior)[1] if rate is None else rate
     psi = state.z[:, problem.data_index]
-    data = (-0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
-            - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2)  # fmt: skip
+    data = (
+        -0.5 * np.sum((problem.psi_hat - psi[:, None]) ** 2 / problem.psi_var[:, None])
+        - 0.5 * np.sum(state.z[:, problem.eps_index] ** 2) / problem.eps_std**2
+    )
     if prior is not None and prior.full:
         n_r = state.w.shape[1]
         nu0 = _prior_df(a0, n_r)
         logdet = np.linalg.slogdet(state.w)[1]
         return float(0.5 * (J + nu0 + n_r + 1) * np.sum(logdet) - 0.5 * np.sum(state.w * rate) + data)
-    return float((0.5 * J + a0) * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w))
-                 + data)  # fmt: skip
+    return float(
+        (0.5 * J + a0) * np.sum(np.log(state.w)) - np.sum(state.w * rate) - np.sum(np.log(1.0 / state.w)) + data
+    )
 
 
 def sweep(problem: Problem, state: State, prior: Prior, rng: np.random.Generator, collapsed: bool = False) -> float:

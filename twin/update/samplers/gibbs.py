@@ -28,9 +28,8 @@ can stay unmixed (the paper's Case B).
 
 Examples
 --------
->>> from twin import load_model, shipped_model
 >>> from twin.update import GibbsOptions, synthesize_modes, update
->>> m = load_model(shipped_model("hydro_unit"))
+>>> m = hydro_unit
 >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3])
 >>> post = update(m, data, fsi=True, method="gibbs", options=GibbsOptions(draws=20, chains=1, seed=1, progress=False))
 >>> post.attrs["method"], post["posterior"].sizes["draw"]
@@ -93,8 +92,10 @@ class GibbsOptions(SamplerOptions):
         check_noise_model(self.noise_model)
         check_pole_model(self.pole_model)
         if self.pole_model not in GIBBS_POLE_MODELS:
-            raise UpdateError(f"the Gibbs sampler's pole_model must be one of {', '.join(GIBBS_POLE_MODELS)}, got "
-                              f"{self.pole_model!r} (the marginal model is the HMC sampler's: method='hmc')")  # fmt: skip
+            raise UpdateError(
+                f"the Gibbs sampler's pole_model must be one of {', '.join(GIBBS_POLE_MODELS)}, got "
+                f"{self.pole_model!r} (the marginal model is the HMC sampler's: method='hmc')"
+            )
         if not self.noise_prior_shape > 0:
             raise UpdateError(f"noise_prior_shape must be positive, got {self.noise_prior_shape!r}")
 
@@ -126,15 +127,25 @@ class Gibbs(Sampler):
 
     def run(self, target: Problem, prior: Prior, options: SamplerOptions, tasks: Any = None) -> list[Chain]:
         options = self.gibbs_options(options)
-        return run_chains(target, options.draws, options.chains, burn_in=options.warmup, prior=prior,
-                          seed=options.seed, progress=options.progress, tasks=tasks,
-                          collapsed=options.collapsed)  # fmt: skip
+        return run_chains(
+            target,
+            options.draws,
+            options.chains,
+            burn_in=options.warmup,
+            prior=prior,
+            seed=options.seed,
+            progress=options.progress,
+            tasks=tasks,
+            collapsed=options.collapsed,
+        )
 
     def describe(self, options: SamplerOptions) -> str:
         options = self.gibbs_options(options)
         collapsed = "Metropolis (t, eta) | Delta with (psi, eps) integrated out, " if options.collapsed else ""
-        return (f"Gibbs ({options.noise_model} Delta, {options.pole_model} pole model): t | rest, eta_i | rest, "
-                f"{collapsed}(psi_i, eps_i) | rest, Delta_i | rest (closed form)")
+        return (
+            f"Gibbs ({options.noise_model} Delta, {options.pole_model} pole model): t | rest, eta_i | rest, "
+            f"{collapsed}(psi_i, eps_i) | rest, Delta_i | rest (closed form)"
+        )
 
 
 def _mean_variance(w: np.ndarray) -> np.ndarray:
@@ -210,13 +221,34 @@ def run_chains(
     jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
     local = tasks is None
     return mapper(tasks, progress=progress, desc="chains")(
-        _chain_task, jobs, problem=problem, draws=draws, burn_in=burn_in, prior=prior, progress=progress and local,
+        _chain_task,
+        jobs,
+        problem=problem,
+        draws=draws,
+        burn_in=burn_in,
+        prior=prior,
+        progress=progress and local,
         collapsed=collapsed,
     )
 
 
-def _chain_task(job: tuple[np.random.SeedSequence, str], problem: Problem, draws: int, burn_in: int,
-                prior: Prior | None, progress: bool, collapsed: bool) -> Chain:  # fmt: skip
+def _chain_task(
+    job: tuple[np.random.SeedSequence, str],
+    problem: Problem,
+    draws: int,
+    burn_in: int,
+    prior: Prior | None,
+    progress: bool,
+    collapsed: bool,
+) -> Chain:
     seed, label = job
-    return run_chain(problem, draws, burn_in=burn_in, prior=prior, rng=np.random.default_rng(seed),
-                     progress=progress, label=label, collapsed=collapsed)  # fmt: skip
+    return run_chain(
+        problem,
+        draws,
+        burn_in=burn_in,
+        prior=prior,
+        rng=np.random.default_rng(seed),
+        progress=progress,
+        label=label,
+        collapsed=collapsed,
+    )

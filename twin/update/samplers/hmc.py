@@ -27,9 +27,8 @@ layout leaves latent shape entries, use the Gibbs sampler.
 
 Examples
 --------
->>> from twin import load_model, shipped_model
 >>> from twin.update import HMCOptions, synthesize_modes, update
->>> m = load_model(shipped_model("hydro_unit"))
+>>> m = hydro_unit
 >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3, 9])
 >>> post = update(m, data, fsi=True, options=HMCOptions(draws=50, chains=1, seed=1, progress=False))
 >>> post.attrs["method"]
@@ -56,9 +55,19 @@ from twin.tasks import mapper, one_blas_thread
 from twin.update.algebra import weak_parameters
 from twin.update.chain import Chain, Prior, build_prior
 from twin.update.intersection import COMBINATIONS, check_combination, intersected
-from twin.update.marginal import (SHAPE_COVARIANCES, STUDENT_DOF, Density, Marginal, check_shape_covariance,
-                                  log_density, marginal_precision, marginal_problem, mode_density, posterior_mode,
-                                  shape_draw)  # fmt: skip
+from twin.update.marginal import (
+    SHAPE_COVARIANCES,
+    STUDENT_DOF,
+    Density,
+    Marginal,
+    check_shape_covariance,
+    log_density,
+    marginal_precision,
+    marginal_problem,
+    mode_density,
+    posterior_mode,
+    shape_draw,
+)
 from twin.update.poles import POLE_ERRORS, order_covariance
 from twin.update.problem import Problem, UpdateError, build_problem
 from twin.update.samplers.base import Sampler, SamplerOptions
@@ -139,20 +148,34 @@ class HMC(Sampler):
         return weak_parameters(target.problem.parameter_labels, marginal_precision(target))
 
     def run(self, target: Marginal, prior: Prior, options: HMCOptions, tasks: Any = None) -> list[Chain]:
-        return run_chains(target, options.draws, options.chains, warmup=options.warmup, prior=prior,
-                          seed=options.seed, progress=options.progress, tasks=tasks, nu=options.student_dof,
-                          per_mode_slice=options.per_mode_slice)  # fmt: skip
+        return run_chains(
+            target,
+            options.draws,
+            options.chains,
+            warmup=options.warmup,
+            prior=prior,
+            seed=options.seed,
+            progress=options.progress,
+            tasks=tasks,
+            nu=options.student_dof,
+            per_mode_slice=options.per_mode_slice,
+        )
 
     def describe(self, options: HMCOptions) -> str:
         slice_step = ", each trajectory followed by a slice step of every eta_i | t" if options.per_mode_slice else ""
-        return ("HMC on the marginal of (t, eta), with (psi, eps) and the pole deviations integrated out "
-                f"(errors-in-variables PerCEM, Student t tail per mode){slice_step}; then psi | t, eta (closed form)")
+        return (
+            "HMC on the marginal of (t, eta), with (psi, eps) and the pole deviations integrated out "
+            f"(errors-in-variables PerCEM, Student t tail per mode){slice_step}; then psi | t, eta (closed form)"
+        )
 
     def attrs(self, target: Marginal) -> dict[str, str]:
         if target.weights is None:
             return {}
-        return {"intersection_weights": json.dumps({str(int(m)): round(float(w), 4)
-                                                    for m, w in zip(target.problem.modes, target.weights)})}  # fmt: skip
+        return {
+            "intersection_weights": json.dumps(
+                {str(int(m)): round(float(w), 4) for m, w in zip(target.problem.modes, target.weights)}
+            )
+        }
 
 
 def marginal_of(problem: Problem, modes: xr.Dataset, options: HMCOptions | None = None) -> Marginal:
@@ -163,8 +186,9 @@ def marginal_of(problem: Problem, modes: xr.Dataset, options: HMCOptions | None 
     """
     options = options or HMCOptions()
     order_cov = order_covariance(modes) if options.pole_error == "samples+orders" else None
-    marg = marginal_problem(problem, modes["pole"].transpose("mode", "sample").values, options.shape_covariance,
-                            order_cov=order_cov)  # fmt: skip
+    marg = marginal_problem(
+        problem, modes["pole"].transpose("mode", "sample").values, options.shape_covariance, order_cov=order_cov
+    )
     return intersected(marg) if options.combine == "intersection" else marg
 
 
@@ -177,9 +201,8 @@ def marginal_setup(model: RotorModel, modes: xr.Dataset, settings: Mapping[str, 
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3, 9])
     >>> marg, prior = marginal_setup(m, data, {"method": "hmc", "params": ["UGB.kxx"],
     ...                                        "priors": {"UGB.kxx": [5e8, 1e8]}})
@@ -187,12 +210,20 @@ def marginal_setup(model: RotorModel, modes: xr.Dataset, settings: Mapping[str, 
     (['UGB.kxx'], True)
     """
     if settings.get("method", "hmc") != "hmc":
-        raise UpdateError(f"the posterior's sampler is {settings['method']!r}: only the HMC sampler's density "
-                          "can be repeated (method='hmc')")  # fmt: skip
+        raise UpdateError(
+            f"the posterior's sampler is {settings['method']!r}: only the HMC sampler's density "
+            "can be repeated (method='hmc')"
+        )
     fields = {k: settings[k] for k in HMCOptions.__dataclass_fields__ if k in settings}
     options = HMCOptions(**fields)
-    problem = build_problem(model, modes, list(settings["params"]), fsi=bool(settings.get("fsi", False)),
-                            eps_std=options.eps_std, pole_model="marginal")  # fmt: skip
+    problem = build_problem(
+        model,
+        modes,
+        list(settings["params"]),
+        fsi=bool(settings.get("fsi", False)),
+        eps_std=options.eps_std,
+        pole_model="marginal",
+    )
     priors = settings.get("priors", "flat")
     priors = {} if priors == "flat" else {k: (float(v[0]), float(v[1])) for k, v in priors.items()}
     labels = set(problem.parameter_labels)
@@ -255,10 +286,9 @@ def run_chain(
 
     Examples
     --------
-    >>> from twin import load_model, shipped_model
     >>> from twin.update import synthesize_modes
     >>> from twin.update.problem import build_problem
-    >>> m = load_model(shipped_model("hydro_unit"))
+    >>> m = hydro_unit
     >>> data = synthesize_modes(m, samples=50, seed=0).isel(mode=[2, 3])
     >>> marg = marginal_problem(build_problem(m, data, fsi=True, pole_model="marginal"), data["pole"].values)
     >>> chain = run_chain(marg, 100, rng=np.random.default_rng(0))
@@ -324,7 +354,7 @@ def run_chain(
         if slicing:
             if f is None or not np.array_equal(theta[: p.n_global], held):  # its coefficients depend on t only
                 f, held = mode_density(marg, theta, prior_mean, prior_precision, nu), theta[: p.n_global].copy()
-            eta = slice_blocks(f, theta[p.n_global:].reshape(p.n_modes, -1), axes, widths, rng)[0]
+            eta = slice_blocks(f, theta[p.n_global :].reshape(p.n_modes, -1), axes, widths, rng)[0]
             theta = np.concatenate([theta[: p.n_global], eta.ravel()])
             y = Lm.T @ theta
             here, _ = evaluate(y)
@@ -350,8 +380,17 @@ def run_chain(
         psi[j] = shape_draw(marg, theta, rng)
     log.debug("%s: step size %.3g after the warm-up, accepted %.0f%%", label, eps, 100 * accepted.mean())
     Kg = p.n_global
-    return Chain(out[:, :Kg], out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode), psi, noise, lps, accepted,
-                 rates, step_sizes, n_steps)  # fmt: skip
+    return Chain(
+        out[:, :Kg],
+        out[:, Kg:].reshape(draws, p.n_modes, p.n_per_mode),
+        psi,
+        noise,
+        lps,
+        accepted,
+        rates,
+        step_sizes,
+        n_steps,
+    )
 
 
 def _mass_window(warm: int) -> tuple[int, int]:
@@ -411,17 +450,40 @@ def run_chains(
     seeds = np.random.SeedSequence(seed).spawn(chains)
     jobs = [(s, f"chain {c + 1}/{chains}") for c, s in enumerate(seeds)]
     return mapper(tasks, progress=progress, desc="chains")(
-        _chain_task, jobs, marg=marg, draws=draws, warmup=warmup, mean=mean, precision=precision,
-        progress=progress and tasks is None, nu=nu, per_mode_slice=per_mode_slice,
-    )  # fmt: skip
+        _chain_task,
+        jobs,
+        marg=marg,
+        draws=draws,
+        warmup=warmup,
+        mean=mean,
+        precision=precision,
+        progress=progress and tasks is None,
+        nu=nu,
+        per_mode_slice=per_mode_slice,
+    )
 
 
-def _chain_task(job: tuple[np.random.SeedSequence, str], marg: Marginal, draws: int, warmup: int,
-                mean: np.ndarray | None, precision: np.ndarray | None, progress: bool, nu: float,
-                per_mode_slice: bool) -> Chain:  # fmt: skip
+def _chain_task(
+    job: tuple[np.random.SeedSequence, str],
+    marg: Marginal,
+    draws: int,
+    warmup: int,
+    mean: np.ndarray | None,
+    precision: np.ndarray | None,
+    progress: bool,
+    nu: float,
+    per_mode_slice: bool,
+) -> Chain:
     seed, label = job
-    return run_chain(marg, draws, warmup=warmup, prior_mean=mean, prior_precision=precision,
-                     rng=np.random.default_rng(seed), progress=progress, label=label, nu=nu,
-                     per_mode_slice=per_mode_slice)  # fmt: skip
-
-
+    return run_chain(
+        marg,
+        draws,
+        warmup=warmup,
+        prior_mean=mean,
+        prior_precision=precision,
+        rng=np.random.default_rng(seed),
+        progress=progress,
+        label=label,
+        nu=nu,
+        per_mode_slice=per_mode_slice,
+    )

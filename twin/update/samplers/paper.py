@@ -13,9 +13,8 @@ rows; use the HMC sampler (the default) for anything else.
 
 Examples
 --------
->>> from twin import load_model, shipped_model
 >>> from twin.update import PaperOptions, synthesize_modes, update
->>> m = load_model(shipped_model("hydro_unit"))
+>>> m = hydro_unit
 >>> data = synthesize_modes(m, samples=20, seed=0).isel(mode=[2, 3])
 >>> post = update(m, data, fsi=True, method="paper", options=PaperOptions(draws=20, chains=1, seed=1, progress=False))
 >>> post.attrs["sampler"].startswith("Gibbs (diagonal Delta, samples pole model)")
@@ -43,9 +42,18 @@ class PaperOptions(SamplerOptions):
 
     def gibbs(self) -> GibbsOptions:
         """The same run as options of the Gibbs sampler in the paper's configuration."""
-        return GibbsOptions(draws=self.draws, chains=self.chains, warmup=self.warmup, seed=self.seed,
-                            eps_std=self.eps_std, progress=self.progress, noise_model="diagonal", collapsed=False,
-                            pole_model="samples", noise_prior_shape=NOISE_PRIOR_SHAPE)  # fmt: skip
+        return GibbsOptions(
+            draws=self.draws,
+            chains=self.chains,
+            warmup=self.warmup,
+            seed=self.seed,
+            eps_std=self.eps_std,
+            progress=self.progress,
+            noise_model="diagonal",
+            collapsed=False,
+            pole_model="samples",
+            noise_prior_shape=NOISE_PRIOR_SHAPE,
+        )
 
 
 class PaperGibbs(Gibbs):

@@ -29,8 +29,9 @@ SLICE_WIDTH = 2.0
 SLICE_STEPS = 50
 
 
-def block_axes(precision: np.ndarray, n_global: int, n_blocks: int, block_size: int,
-               width: float = SLICE_WIDTH) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def block_axes(
+    precision: np.ndarray, n_global: int, n_blocks: int, block_size: int, width: float = SLICE_WIDTH
+) -> tuple[np.ndarray, np.ndarray]:
     """Each block's principal axes in its conditional precision, and ``width`` conditional std along each.
 
     ``precision`` is over ``[t, η_1, ..., η_I]`` (``n_global`` then
@@ -51,9 +52,15 @@ def block_axes(precision: np.ndarray, n_global: int, n_blocks: int, block_size: 
     return U, width / np.sqrt(w)
 
 
-def slice_blocks(log_f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axes: np.ndarray, widths: np.ndarray,
-                 rng: np.random.Generator, f0: np.ndarray | None = None,
-                 max_steps: int = SLICE_STEPS) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def slice_blocks(
+    log_f: Callable[[np.ndarray], np.ndarray],
+    x: np.ndarray,
+    axes: np.ndarray,
+    widths: np.ndarray,
+    rng: np.random.Generator,
+    f0: np.ndarray | None = None,
+    max_steps: int = SLICE_STEPS,
+) -> tuple[np.ndarray, np.ndarray]:
     """One slice-sampling update of every independent block along each of its axes in turn.
 
     Parameters
@@ -93,8 +100,10 @@ def slice_blocks(log_f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axes:
     x = np.array(x, dtype=float)
     f0 = log_f(x) if f0 is None else np.array(f0, dtype=float)
     if not np.all(np.isfinite(f0)):
-        raise ValueError(f"slice_blocks: block(s) {np.flatnonzero(~np.isfinite(f0)).tolist()} start where their "
-                         "log density is not finite")  # fmt: skip
+        raise ValueError(
+            f"slice_blocks: block(s) {np.flatnonzero(~np.isfinite(f0)).tolist()} start where their "
+            "log density is not finite"
+        )
     for a in range(axes.shape[2]):
         step = axes[:, :, a] * widths[:, a, None]
         log_y = f0 - rng.exponential(size=I)
