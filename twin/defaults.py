@@ -41,6 +41,12 @@ SAMPLES = 15
 #: (docs/decisions/demo-calibration-records.md).
 DEMO_RECORDS = 4
 
+#: A simulated record by default: its length [s], its sampling rate [Hz] (the FMU's communication step is its
+#: inverse) and the sensor noise's std as a fraction of the median channel RMS.
+RECORD_DURATION_S = 1200.0
+SAMPLING_RATE_HZ = 256.0
+NOISE_RATIO = 0.05
+
 #: Default excitation of a simulated record: turbulence on the runner [N/sqrt(Hz)] ...
 DEFAULT_TURBULENCE_ASD = 3000.0
 #: ... and 1X unbalance at the generator [kg m], about balance grade G2.5 for the 600 t generator rotor at 134 rpm.
@@ -48,6 +54,14 @@ DEFAULT_UNBALANCE_ME = 100.0
 
 #: A mode of the extraction is the average of its poles at this many model orders (at most).
 ORDERS_PER_MODE = 8
+#: The largest model order an extraction's stabilisation diagram reaches.
+MAX_ORDER = 100
+
+#: Samples per mode of a synthetic modes file (``twin synth``, :func:`twin.update.synthesize_modes`).
+SYNTHETIC_SAMPLES = 100
+
+#: Rounds of diagnose, add, update that the loop runs at most.
+MAX_ROUNDS = 4
 
 #: Days from a tracker's first record over which it learns the laws and sets its chart; no alarm in them.
 BASELINE_DAYS = 14.0

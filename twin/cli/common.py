@@ -21,7 +21,10 @@ from twin.defaults import (
     HMC_WARMUP,
     MAX_BATCHES,
     METHODS,
+    NOISE_RATIO,
+    RECORD_DURATION_S,
     SAMPLES,
+    SAMPLING_RATE_HZ,
 )
 
 MODEL_HELP = (
@@ -214,7 +217,7 @@ def add_chain_options(p: argparse.ArgumentParser) -> None:
 def add_loop_settings(p: argparse.ArgumentParser, records: int | None = None) -> None:
     """The demo's record and model options, shared by ``demo`` and ``sweep``; ``records``: the default of
     ``--bootstrap`` (the loop's when None)."""
-    p.add_argument("--duration", type=POSITIVE, default=1200.0, help="record length [s]")
+    p.add_argument("--duration", type=POSITIVE, default=RECORD_DURATION_S, help="record length [s]")
     p.add_argument("--samples", type=COUNT, default=SAMPLES, help="jackknife samples per mode")
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
     add_method(p, "how each round updates the added effects")
@@ -226,8 +229,8 @@ def add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
     if duration_required:
         p.add_argument("--duration", type=POSITIVE, required=True, help="record length [s]")
     else:
-        p.add_argument("--duration", type=POSITIVE, default=1200.0, help="record length [s]")
-    p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate [Hz]")
+        p.add_argument("--duration", type=POSITIVE, default=RECORD_DURATION_S, help="record length [s]")
+    p.add_argument("--fs", type=POSITIVE, default=SAMPLING_RATE_HZ, help="sampling rate [Hz]")
     p.add_argument(
         "--turbulence",
         type=NONNEGATIVE,
@@ -237,7 +240,7 @@ def add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
     p.add_argument(
         "--noise",
         type=NONNEGATIVE,
-        default=0.05,
+        default=NOISE_RATIO,
         help="sensor noise std as a fraction of the median channel RMS (0.05: 5%% of the typical signal)",
     )
     p.add_argument(

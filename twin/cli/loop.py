@@ -26,6 +26,7 @@ from twin.cli.common import (
 )
 from twin.defaults import (
     DEMO_RECORDS,
+    MAX_ROUNDS,
     METHODS,  # noqa: F401 (what --method takes: twin.update.METHODS)
 )
 from twin.errors import TwinError
@@ -458,7 +459,7 @@ def add_commands(sub) -> None:
     p.add_argument("--out", default="twin-loop", help="folder of diagnosis.json, history.csv/.png and posterior.nc")
     add_method(p, "how each round updates the added effects")
     add_bootstrap(p)
-    p.add_argument("--rounds", type=COUNT, default=4, help="rounds at most")
+    p.add_argument("--rounds", type=COUNT, default=MAX_ROUNDS, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
     p.add_argument(
         "--effect",

@@ -20,7 +20,14 @@ from twin.cli.common import (
     model_with_effects,
     rows_or_auto,
 )
-from twin.defaults import DEFAULT_UNBALANCE_ME, ORDERS_PER_MODE, SAMPLES
+from twin.defaults import (
+    DEFAULT_UNBALANCE_ME,
+    MAX_ORDER,
+    ORDERS_PER_MODE,
+    SAMPLES,
+    SAMPLING_RATE_HZ,
+    SYNTHETIC_SAMPLES,
+)
 from twin.errors import TwinError
 
 
@@ -330,7 +337,7 @@ def add_commands(sub) -> None:
     )
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
-    p.add_argument("--fs", type=POSITIVE, default=256.0, help="sampling rate = 1 / communication step [Hz]")
+    p.add_argument("--fs", type=POSITIVE, default=SAMPLING_RATE_HZ, help="sampling rate = 1 / communication step [Hz]")
     p.add_argument(
         "--basis",
         choices=("full", "modal"),
@@ -482,7 +489,7 @@ def add_commands(sub) -> None:
         "the poles keeping their own samples, each used M / samples times (default: the shapes "
         "come with the poles)",
     )
-    p.add_argument("--max-order", type=COUNT, default=100, help="largest model order")
+    p.add_argument("--max-order", type=COUNT, default=MAX_ORDER, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")
     p.add_argument(
@@ -526,7 +533,7 @@ def add_commands(sub) -> None:
     p.add_argument("model", help=MODEL_HELP + ", the calibrated FEM")
     p.add_argument("-o", "--output", required=True, help="NetCDF file to write (modes.nc)")
     p.add_argument("--truth", default="paper", help=f"what the truth hides: {TRUTH_HELP}")
-    p.add_argument("--samples", type=COUNT, default=100, help="samples per mode J")
+    p.add_argument("--samples", type=COUNT, default=SYNTHETIC_SAMPLES, help="samples per mode J")
     p.add_argument("--seed", type=NATURAL, default=1, help="random seed")
     p.add_argument(
         "--modes",

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg as sla
 
+from twin.defaults import NOISE_RATIO, RECORD_DURATION_S, SAMPLING_RATE_HZ
 from twin.errors import ModelError
 from twin.fem.model import RotorModel
 from twin.fmu.export import default_turbulence_node
@@ -71,10 +72,10 @@ class Excitation:
     """
 
     turbulence_asd: float = DEFAULT_TURBULENCE_ASD
-    noise_ratio: float = 0.05
+    noise_ratio: float = NOISE_RATIO
     noise_std_m: float | None = None
-    duration_s: float = 1200.0
-    fs_hz: float = 256.0
+    duration_s: float = RECORD_DURATION_S
+    fs_hz: float = SAMPLING_RATE_HZ
 
     def check(self) -> None:
         """Raise :class:`ModelError` naming the first setting out of range."""

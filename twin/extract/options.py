@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.defaults import ORDERS_PER_MODE, SAMPLES
+from twin.defaults import MAX_ORDER, ORDERS_PER_MODE, SAMPLES
 from twin.errors import SignalError
 from twin.extract.samples import deleted_blocks
 from twin.extract.stabilisation import Criteria
@@ -50,7 +50,7 @@ class ExtractOptions:
     block_rows: int | None = None
     shape_block_rows: int | str = 0
     first_lag: int | None = None
-    max_order: int = 100
+    max_order: int = MAX_ORDER
     channels: tuple[str, ...] | None = None
     criteria: Criteria = field(default_factory=Criteria)
     delete_blocks: int | None = DELETE_BLOCKS

@@ -19,7 +19,12 @@ import scipy.linalg as sla
 import xarray as xr
 
 from twin import __version__
-from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME  # noqa: F401 (shared with the CLI)
+from twin.defaults import (  # noqa: F401 (shared with the CLI)
+    DEFAULT_TURBULENCE_ASD,
+    DEFAULT_UNBALANCE_ME,
+    NOISE_RATIO,
+    SAMPLING_RATE_HZ,
+)
 from twin.errors import ModelError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
@@ -107,13 +112,13 @@ def simulate(
     model: RotorModel,
     *,
     duration_s: float,
-    fs_hz: float = 256.0,
+    fs_hz: float = SAMPLING_RATE_HZ,
     seed: int = 1,
     truth: Truth | None = None,
     turbulence_asd: float = DEFAULT_TURBULENCE_ASD,
     unbalance_me: float = DEFAULT_UNBALANCE_ME,
     unbalance_phase_rad: float = 0.0,
-    noise_ratio: float = 0.05,
+    noise_ratio: float = NOISE_RATIO,
     noise_std_m: float | None = None,
     basis: str = "full",
     fmax_hz: float | None = None,

@@ -24,22 +24,27 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from twin.defaults import DEMO_RECORDS, SAMPLES  # noqa: F401 (shared with the CLI)
+from twin.defaults import (  # noqa: F401 (shared with the CLI)
+    DEMO_RECORDS,
+    RECORD_DURATION_S,
+    SAMPLES,
+    SAMPLING_RATE_HZ,
+)
 from twin.design.observe import judge_targets, target_lines
 from twin.errors import TwinError
 from twin.extract.harmonics import line_frequencies
 from twin.fem.effects import is_per_mode_name
 from twin.fem.model import RotorModel
+from twin.harness.scenarios import Scenario, parse_scenario
 from twin.loop.bootstrap import check_records
 from twin.loop.compare import ERROR_WEIGHTS, error_text
 from twin.loop.diagnose import LN_B_KEY, Diagnosis
 from twin.loop.history import HISTORY_KEY, INTERVAL_DRAWS, interval_text, write_history
-from twin.report.html import write_html_report
-from twin.harness.scenarios import Scenario, parse_scenario
 from twin.loop.twin import Twin
 from twin.modes.measured import Measured
 from twin.modes.modesfile import write_modes
 from twin.netcdf import atomic_output, check_folder
+from twin.report.html import write_html_report
 from twin.update.posterior import is_laplace
 
 log = logging.getLogger(__name__)
@@ -238,8 +243,8 @@ def run_demo(
     *,
     model: RotorModel | None = None,
     hidden: str = "magnetic_pull",
-    duration_s: float = 1200.0,
-    fs_hz: float = 256.0,
+    duration_s: float = RECORD_DURATION_S,
+    fs_hz: float = SAMPLING_RATE_HZ,
     samples: int = SAMPLES,
     fmax_hz: float = 60.0,
     seed: int = 1,
@@ -295,8 +300,8 @@ def run_demo(
     from twin.extract.plot import plot_stabilisation
     from twin.fmu import export_fmu
     from twin.fmu.simulate import simulate
-    from twin.report.figures import comparison_figures, pyplot
     from twin.progress import stage
+    from twin.report.figures import comparison_figures, pyplot
 
     model, scenario, out = check_demo(out, model, hidden, method, bootstrap)
     out.mkdir(parents=True, exist_ok=True)

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.defaults import RECORD_DURATION_S, SAMPLING_RATE_HZ
 from twin import __version__
 from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
@@ -58,8 +59,8 @@ MAX_Z = 3.0
 class Settings:
     """What every scenario of a sweep shares (see :func:`twin.harness.demo.run_demo`)."""
 
-    duration_s: float = 1200.0
-    fs_hz: float = 256.0
+    duration_s: float = RECORD_DURATION_S
+    fs_hz: float = SAMPLING_RATE_HZ
     samples: int = SAMPLES
     fmax_hz: float = 60.0
     method: str = "hmc"

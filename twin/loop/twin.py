@@ -19,6 +19,7 @@ from typing import Any
 
 import xarray as xr
 
+from twin.defaults import MAX_ROUNDS
 from twin.errors import TwinError, TwinWarning
 from twin.fem.effects import effect_label, free_names, holds, is_per_mode_name
 from twin.fem.model import RotorModel
@@ -30,9 +31,6 @@ from twin.modes.measured import TOLERANCE, Measured, measured_modes
 from twin.update.posterior import is_laplace
 
 log = logging.getLogger(__name__)
-
-#: Rounds of :meth:`Twin.run` at most.
-MAX_ROUNDS = 4
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from twin.defaults import NOISE_RATIO
 from twin.errors import TwinError
 from twin.fem.effects import scaled
 from twin.fem.model import RotorModel
@@ -78,7 +79,7 @@ def campaign(
     out: str | Path,
     *,
     seed: int = 1,
-    noise_ratio: float = 0.05,
+    noise_ratio: float = NOISE_RATIO,
     tasks: Any = None,
     progress: bool = True,
     command: str = "",

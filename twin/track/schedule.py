@@ -30,6 +30,7 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from twin.defaults import SAMPLING_RATE_HZ
 from twin.errors import ModelFileError
 from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
@@ -72,7 +73,7 @@ class Schedule:
     days: float
     records_per_day: int
     duration_s: float
-    fs_hz: float = 256.0
+    fs_hz: float = SAMPLING_RATE_HZ
     start: dt.datetime = DEFAULT_START
     variations: dict[str, Variation] = field(default_factory=dict)
     changes: tuple[Change, ...] = ()

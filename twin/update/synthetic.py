@@ -19,6 +19,7 @@ import json
 import numpy as np
 import xarray as xr
 
+from twin.defaults import SYNTHETIC_SAMPLES
 from twin import __version__
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import PAPER_POLE_VARIANCE, PAPER_SHAPE_COV, Truth, paper_truth
@@ -32,7 +33,7 @@ def synthesize_modes(
     model: RotorModel,
     truth: Truth | None = None,
     *,
-    samples: int = 100,
+    samples: int = SYNTHETIC_SAMPLES,
     seed: int = 0,
     n_modes: int | None = None,
     shape_cov: float = PAPER_SHAPE_COV,
