@@ -5,7 +5,7 @@ A *spec* is ``none`` or one or more terms joined by ``+``; a term is
 * a library effect at its reference size (:data:`REFERENCE_EFFECTS`), e.g.
   ``magnetic_pull`` or ``bearing_change:LGB``, or scaled with ``@``:
   ``magnetic_pull@2.5`` hides 2.5 times the reference values;
-* a local change outside the library (:mod:`twin.fem.local`), with ``@`` the
+* a local change outside the library (:mod:`twin.fem.effects.shaft`, :mod:`twin.fem.effects.disk`), with ``@`` the
   factor on the element's own value: ``shaft_stiffness:18@0.5`` (element 18
   at half its bending stiffness), ``disk_mass:generator@1.1`` (10% heavier),
   ``disk_inertia:runner@1.2``; without ``@``, :data:`DEFAULT_FACTORS`;

@@ -11,7 +11,7 @@
    approximation, priors at the effects' plausible scales inside their
    physical bounds). Stepwise, until nothing is missing: while the residuals
    are not consistent with the uncertainty, each round fits every remaining
-   library candidate (:func:`twin.loop.candidates.library`) *jointly* with the
+   library candidate (:func:`twin.loop.candidates.candidates`) *jointly* with the
    effects already chosen and with those the model has, and adds the one of
    the largest log Bayes factor if it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
    odds above 20:1 on the Kass-Raftery scale). A model that agrees with the
@@ -264,7 +264,7 @@ def diagnose(
     modes : xarray.Dataset or Measured
         Measured modes (``modes.nc`` layout).
     candidates : sequence of str, optional
-        Candidate labels (default: the whole library, see :func:`twin.loop.candidates.library`).
+        Candidate labels (default: the whole library, see :func:`twin.loop.candidates.candidates`).
     tolerance : float
         Relative pole uncertainty accepted as model-form error.
     max_effects : int
