@@ -12,8 +12,26 @@ def test_modal_table(capsys):
     assert main(["modal", "models/hydro_unit.toml"]) == 0
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if line.strip()[:1].isdigit()]
-    assert len(lines) == 20  # the first 20 of 112 by default
-    assert "116 DOF" in out and "134 rpm" in out and "the first 20 of 112 modes" in out
+    assert len(lines) == 20  # 20 of 112 by default
+    assert "116 DOF" in out and "134 rpm" in out and "112 modes; not listed: 92 more: --modes N" in out
+    zetas = [float(line.split()[3]) for line in lines]
+    light = [z < 20 for z in zetas]
+    assert light == sorted(light, reverse=True)  # the lightly damped modes first
+    assert main(["modal", "hydro_unit", "--modes", "112"]) == 0 and "damped 20% or more:" in capsys.readouterr().out
+    assert "8 over-damped eigenvalues, no modes" in out
+
+
+def test_modal_lists_no_overdamped_eigenvalue_as_a_mode(tmp_path, capsys):
+    """Stiffness-proportional damping on short elements: near-real eigenvalue pairs, counted but not listed."""
+    text = Path("models/ross_reference.toml").read_text().replace("speed_rpm = 134.0", "speed_rpm = 3000.0")
+    (tmp_path / "rotor.toml").write_text(text + "\n[damping]\nshaft_stiffness_proportional = 1e-3\n")
+    assert main(["modal", str(tmp_path / "rotor.toml"), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert all(m["damping_ratio"] < 0.9999 for m in data["modes"])
+    assert len(data["modes"]) + len(data["overdamped_rates_per_s"]) // 2 <= 28 and data["overdamped_rates_per_s"]
+    assert main(["modal", str(tmp_path / "rotor.toml")]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.strip()[:1].isdigit()]
+    assert float(lines[0].split()[3]) < 20  # a lightly damped mode first, not a 16 kHz element eigenvalue
 
 
 def test_modal_json(capsys):

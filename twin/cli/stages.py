@@ -31,31 +31,53 @@ from twin.defaults import (
 from twin.errors import TwinError
 
 
+#: The table of ``twin modal`` lists the modes damped less than this first: a damping ratio of 0.2 is an
+#: amplification factor of 2.5, below which API 684 counts a mode as critically damped, not a critical speed.
+LIGHT_DAMPING = 0.2
+
+
 def _modal(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from twin.fem import load_model
     from twin.modes import modal
     from twin.modes.analysis import modes_json
 
     model = load_model(args.model)
     every = modal(model, speed_rpm=args.speed)
-    ds = every.isel(mode=slice(0, args.modes))
-    out = modes_json(ds)
+    chosen = every if args.fmax is None else every.sel(mode=every.frequency.values <= args.fmax)
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json.dumps(modes_json(chosen.isel(mode=slice(0, args.modes))), indent=2))
         return 0
-    modes = out["modes"]
-    shown = "" if len(modes) == every.sizes["mode"] else f"the first {len(modes)} of "
+    listed = modes_json(chosen)["modes"]
+    light = [m for m in listed if m["damping_ratio"] < LIGHT_DAMPING]
+    heavy = [m for m in listed if m["damping_ratio"] >= LIGHT_DAMPING]
+    rows = MODAL_MODES if args.modes is None else args.modes
+    light, heavy = light[:rows], heavy[: max(rows - len(light), 0)]
+    hidden = []
+    if len(light) + len(heavy) < len(listed):
+        hidden.append(f"{len(listed) - len(light) - len(heavy)} more: --modes N")
+    if len(chosen.mode) < len(every.mode):
+        hidden.append(f"{len(every.mode) - len(chosen.mode)} above {args.fmax:g} Hz")
+    rates = np.atleast_1d(every.attrs["overdamped_rates"])
+    if len(rates):
+        hidden.append(
+            f"{len(rates)} over-damped eigenvalues, no modes (decay rates {rates.min():.3g} to {rates.max():.3g} 1/s)"
+        )
     print(
-        f"{model.name}: {model.n_dof} DOF, {ds.attrs['speed_rpm']:g} rpm, {shown}{every.sizes['mode']} modes"
-        f" ({ds.attrs['n_overdamped']} over-damped eigenvalues not listed" + ("; --modes N for more)" if shown else ")")
+        f"{model.name}: {model.n_dof} DOF, {every.attrs['speed_rpm']:g} rpm, {len(every.mode)} modes"
+        + (f"; not listed: {'; '.join(hidden)}" if hidden else "")
     )
     print(f"{'mode':>4}  {'f [Hz]':>10}  {'fn [Hz]':>10}  {'zeta [%]':>8}  {'log dec':>8}  {'whirl':<8}  stable")
-    for m in modes:
-        print(
-            f"{m['mode']:>4}  {m['frequency_hz']:>10.4f}  {m['natural_frequency_hz']:>10.4f}  "
-            f"{100 * m['damping_ratio']:>8.3f}  {m['log_decrement']:>8.4f}  {m['whirl']:<8}  "
-            f"{'yes' if m['stable'] else 'NO'}"
-        )
+    for group, title in ((light, None), (heavy, f"damped {100 * LIGHT_DAMPING:g}% or more:")):
+        if group and title:
+            print(title)
+        for m in group:
+            print(
+                f"{m['mode']:>4}  {m['frequency_hz']:>10.4f}  {m['natural_frequency_hz']:>10.4f}  "
+                f"{100 * m['damping_ratio']:>8.3f}  {m['log_decrement']:>8.4f}  {m['whirl']:<8}  "
+                f"{'yes' if m['stable'] else 'NO'}"
+            )
     return 0
 
 
@@ -280,15 +302,23 @@ def add_commands(sub) -> None:
         sub,
         "modal",
         "complex modes of a model at a speed",
-        "Frequency, damping ratio, log decrement and whirl of every under-damped mode (the state-space\n"
-        "eigenproblem of M, C + Omega G, K).",
+        "Frequency, damping ratio, log decrement and whirl of every mode (the oscillating eigenvalues of the\n"
+        "state-space eigenproblem of M, C + Omega G, K): the lightly damped ones first, lowest frequency first,\n"
+        "then those damped 20% or more (an amplification factor below API 684's 2.5); the over-damped\n"
+        "eigenvalues are counted, not listed.",
         ["twin modal hydro_unit", "twin modal models/ross_reference.toml --speed 0 --modes 4 --json"],
         _modal,
     )
     p.add_argument("model", help=MODEL_HELP)
     p.add_argument("--speed", type=NONNEGATIVE, default=None, help="speed [rpm] (default: the model's running speed)")
-    p.add_argument("--modes", type=COUNT, default=MODAL_MODES, help="number of modes, lowest first")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument(
+        "--modes",
+        type=COUNT,
+        default=None,
+        help=f"number of modes, lowest first (default: {MODAL_MODES} in the table, all in the JSON)",
+    )
+    p.add_argument("--fmax", type=POSITIVE, default=None, help="list only the modes up to this damped frequency [Hz]")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table (every mode unless limited)")
     p = command(
         sub,
         "campbell",

@@ -109,6 +109,13 @@ def whirl_direction(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return labels.astype("<U8"), index
 
 
+#: An eigenvalue whose imaginary part is below this fraction of its magnitude (a damping ratio above 0.99995)
+#: is over-damped, not a mode: it decays by a factor of about exp(-600) before one cycle is complete. Stiffness-
+#: proportional damping on short shaft elements gives many such eigenvalues; round-off turns pairs of them
+#: into complex pairs with a tiny imaginary part, which would otherwise be listed as modes at ζ = 100%.
+OSCILLATION_RATIO = 1e-2
+
+
 def modal(
     model: RotorModel,
     speed_rpm: float | None = None,
@@ -136,7 +143,10 @@ def modal(
         (forward/backward/mixed), ``whirl_index`` (-1..1), ``stable``,
         ``shape`` (complex, on all DOFs, unit norm, largest entry real
         positive) and ``sensor_shape`` (complex, on the sensor channels,
-        normalised the same way on the channels alone).
+        normalised the same way on the channels alone). The modes are the
+        oscillating eigenvalues, lowest damped frequency first; the
+        over-damped ones (:data:`OSCILLATION_RATIO`) are counted in the attrs
+        (``n_overdamped``) with their decay rates (``overdamped_rates``, 1/s).
 
     Examples
     --------
@@ -160,21 +170,27 @@ def modal(
     A = state_matrix(mats["M"], mats["C"], mats["G"], mats["K"], omega)
     eigvals, eigvecs = sla.eig(A)
 
-    oscillating = eigvals.imag > 0
-    n_overdamped = int(np.sum(eigvals.imag == 0))
+    still = np.abs(eigvals.imag) < OSCILLATION_RATIO * np.abs(eigvals)
+    oscillating = (eigvals.imag > 0) & ~still
+    rates = np.sort(-eigvals[still].real)
+    n_overdamped = len(rates)
     if n_overdamped:
         log.info(
-            "%s at %g rpm: %d real (over-damped) eigenvalues are not listed as modes",
+            "%s at %g rpm: %d over-damped eigenvalues (decay rates %.3g to %.3g 1/s) are not listed as modes",
             model.name,
             speed_rpm,
             n_overdamped,
+            rates[0],
+            rates[-1],
         )
     order = np.argsort(eigvals.imag[oscillating], kind="stable")
     poles = eigvals[oscillating][order]
     shapes = eigvecs[: model.n_dof, oscillating][:, order].T
     if n_modes is not None:
         poles, shapes = poles[:n_modes], shapes[:n_modes]
-    return modes_dataset(model, poles, shapes, speed_rpm, n_overdamped)
+    ds = modes_dataset(model, poles, shapes, speed_rpm, n_overdamped)
+    ds.attrs["overdamped_rates"] = rates
+    return ds
 
 
 def modes_dataset(
@@ -248,7 +264,8 @@ def modes_dataset(
 def modes_json(ds: xr.Dataset) -> dict:
     """The ``twin modal --json`` layout of :func:`modal`'s modes: the model, its speed and one entry per mode.
 
-    Frequencies in Hz, poles in 1/s, the damping ratio as a fraction.
+    Frequencies in Hz, poles in 1/s, the damping ratio as a fraction; beside the modes, the decay rates [1/s]
+    of the over-damped eigenvalues, which are no modes.
 
     Examples
     --------
@@ -275,4 +292,5 @@ def modes_json(ds: xr.Dataset) -> dict:
         "n_dof": int(ds.attrs["n_dof"]),
         "speed_rpm": ds.attrs["speed_rpm"],
         "modes": modes,
+        "overdamped_rates_per_s": [float(r) for r in np.atleast_1d(ds.attrs.get("overdamped_rates", []))],
     }
