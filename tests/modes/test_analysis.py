@@ -133,3 +133,19 @@ def test_bad_speed_and_mode_count(ross_model):
         modal(ross_model, speed_rpm=float("nan"))
     with pytest.raises(ModelError, match="n_modes"):
         modal(ross_model, n_modes=0)
+
+
+def test_overdamped_eigenvalues_are_no_modes_anywhere(ross_model):
+    """Stiffness-proportional damping on short elements gives near-real eigenvalue pairs: neither the modal table
+    nor the modes the loop and the tracker solve for count them, and both agree on the modes that remain."""
+    import dataclasses
+
+    from twin.modes.analysis import OSCILLATION_RATIO
+    from twin.modes.sensitivity import solve_modes
+
+    damped = dataclasses.replace(ross_model, rayleigh=(0.0, 1e-3), speed_rpm=3000.0)
+    ds = modal(damped)
+    poles = solve_modes(damped).poles
+    assert ds.attrs["n_overdamped"] > 10  # the element eigenvalues this damping makes
+    assert np.all(poles.imag >= OSCILLATION_RATIO * np.abs(poles))
+    np.testing.assert_allclose(np.sort_complex(poles), np.sort_complex(ds.pole.values), rtol=1e-9)

@@ -32,7 +32,7 @@ from twin.fmu.export import default_turbulence_node, default_unbalance_node, exp
 from twin.fmu.run import record_outputs
 from twin.fmu.statespace import StateSpace, check_stable, discretize
 from twin.fmu.truth import MAX_TARGET_DAMPING, hidden_effects, model_state_space, truth_state_space
-from twin.modes.analysis import damping_ratio
+from twin.modes.analysis import damping_ratio, oscillating
 from twin.netcdf import check_writable, write_netcdf
 from twin.progress import bar
 
@@ -189,7 +189,7 @@ def simulate(
     h = 1.0 / fs_hz
     ss = system_for(model, truth, basis, fmax_hz)
     check_stable(ss, model.name)  # before any work on a system that would diverge
-    poles = ss.poles[ss.poles.imag > 0]
+    poles = ss.poles[oscillating(ss.poles)]
     light = poles[damping_ratio(poles) < MAX_TARGET_DAMPING]
     f_interest = (
         fmax_hz if fmax_hz is not None else min(100.0, float(np.max(light.imag)) / (2 * np.pi)) if light.size else 0.0

@@ -27,8 +27,8 @@ from twin.fem.effects import effect_label, with_shared_fsi
 from twin.fem.model import RotorModel
 from twin.fem.truthfile import Truth
 from twin.fmu.statespace import StateSpace, full_state_space, modal_state_space, truncated_state_space
+from twin.modes.analysis import damping_ratio, oscillating
 from twin.modes.sensitivity import state_modes
-from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mac
 
 log = logging.getLogger(__name__)
@@ -113,7 +113,7 @@ def truth_state_space(model: RotorModel, truth: Truth, basis: str = "full", fmax
         ss = model_state_space(altered, basis, fmax_hz)  # the model's own per-mode FSI, if any, included
     else:
         ss = synthesize_per_mode_fsi(altered, per_mode.added_mass, per_mode.added_damping)
-    poles = ss.poles[ss.poles.imag > 0]
+    poles = ss.poles[oscillating(ss.poles)]
     poles = poles[np.argsort(poles.imag)]
     modes = [{"frequency_hz": float(p.imag / (2 * np.pi)), "damping_ratio": float(damping_ratio(p))} for p in poles]
     attrs = {**ss.attrs, "model": model.name, "truth": truth.to_json(), "truth_modes": json.dumps(modes)}
@@ -224,7 +224,7 @@ def _per_mode_fsi_modes(model: RotorModel, added_mass: tuple, added_damping: tup
             else:
                 cand, right, left = state_modes(ss.A)
                 vecs = right.T
-            osc = cand.imag > 0
+            osc = oscillating(cand)
             cand, vecs = cand[osc], vecs[:, osc]
             similarity = mac(vecs[:n_dof].T, shape)[:, 0] - 1e-3 * np.abs(np.log(np.abs(cand / lam)))
             j = int(np.argmax(similarity))

@@ -46,6 +46,7 @@ from twin.defaults import DEFAULT_RECORDS, MAX_BATCHES  # noqa: F401 (shared wit
 from twin.errors import TwinError, UpdateError
 from twin.fem.model import RotorModel
 from twin.loop.pooling import MIN_RECORDS, pooled_rms, predictive_widening
+from twin.modes.analysis import oscillating
 from twin.modes.pairing import assign
 from twin.tasks import mapper, one_blas_thread
 
@@ -177,7 +178,7 @@ def simulated_reference(poles: np.ndarray, modes: xr.Dataset, limit: float = PAI
     >>> {k: round(v, 2) for k, v in simulated_reference(poles, m).items()}
     {3: 3.81, 5: 11.64, 8: 30.0}
     """
-    system_hz = poles[poles.imag > 0].imag / (2 * np.pi)
+    system_hz = poles[oscillating(poles)].imag / (2 * np.pi)
     labels = [int(m) for m in modes["mode"].values]
     measured_hz = np.abs(modes["frequency"].values).astype(float)
     reference = dict(zip(labels, map(float, measured_hz)))

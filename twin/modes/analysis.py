@@ -116,6 +116,20 @@ def whirl_direction(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 OSCILLATION_RATIO = 1e-2
 
 
+def oscillating(poles: np.ndarray) -> np.ndarray:
+    """Which poles are modes: ``Im λ > 0`` and the damped frequency at least :data:`OSCILLATION_RATIO` of ``|λ|``.
+
+    Every place that takes a model's modes from its eigenvalues uses this one test.
+
+    Examples
+    --------
+    >>> oscillating(np.array([-1 + 10j, -1 - 10j, -5 + 1e-6j, -3 + 0j])).tolist()
+    [True, False, False, False]
+    """
+    poles = np.asarray(poles)
+    return (poles.imag > 0) & (poles.imag >= OSCILLATION_RATIO * np.abs(poles))
+
+
 def modal(
     model: RotorModel,
     speed_rpm: float | None = None,
@@ -170,8 +184,8 @@ def modal(
     A = state_matrix(mats["M"], mats["C"], mats["G"], mats["K"], omega)
     eigvals, eigvecs = sla.eig(A)
 
-    still = np.abs(eigvals.imag) < OSCILLATION_RATIO * np.abs(eigvals)
-    oscillating = (eigvals.imag > 0) & ~still
+    modes = oscillating(eigvals)
+    still = ~modes & ~oscillating(eigvals.conj())  # a real eigenvalue, or either member of a near-real pair
     rates = np.sort(-eigvals[still].real)
     n_overdamped = len(rates)
     if n_overdamped:
@@ -183,9 +197,9 @@ def modal(
             rates[0],
             rates[-1],
         )
-    order = np.argsort(eigvals.imag[oscillating], kind="stable")
-    poles = eigvals[oscillating][order]
-    shapes = eigvecs[: model.n_dof, oscillating][:, order].T
+    order = np.argsort(eigvals.imag[modes], kind="stable")
+    poles = eigvals[modes][order]
+    shapes = eigvecs[: model.n_dof, modes][:, order].T
     if n_modes is not None:
         poles, shapes = poles[:n_modes], shapes[:n_modes]
     ds = modes_dataset(model, poles, shapes, speed_rpm, n_overdamped)

@@ -22,7 +22,7 @@ import scipy.linalg as sla
 
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fem.parameters import Term
-from twin.modes.analysis import state_matrix
+from twin.modes.analysis import oscillating, state_matrix
 
 
 def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -31,7 +31,7 @@ def state_modes(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns ``(poles, right, left)`` with ``right`` and ``left`` of shape ``(r, n)``.
     """
     lam, vl, vr = sla.eig(A, left=True, right=True)
-    keep = lam.imag > 0
+    keep = oscillating(lam)
     order = np.argsort(lam.imag[keep], kind="stable")
     lam, vl, vr = lam[keep][order], vl[:, keep][:, order], vr[:, keep][:, order]
     left = vl.conj().T

@@ -18,7 +18,7 @@ import numpy as np
 from twin.errors import TwinError
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, operation_of
-from twin.modes.analysis import damping_ratio
+from twin.modes.analysis import damping_ratio, oscillating
 from twin.modes.pairing import partners
 from twin.modes.sensitivity import pole_jacobian, solve_modes
 
@@ -85,7 +85,7 @@ def tracked_modes(
     """
     ref = at_operating_point(model, {})
     sol = solve_modes(ref)
-    keep = (sol.poles.imag > 0) & (sol.poles.imag / (2 * np.pi) <= fmax_hz) & (damping_ratio(sol.poles) < max_damping)
+    keep = oscillating(sol.poles) & (sol.poles.imag / (2 * np.pi) <= fmax_hz) & (damping_ratio(sol.poles) < max_damping)
     idx = np.flatnonzero(keep)
     idx = idx[np.argsort(sol.poles.imag[idx])]
     if idx.size == 0:
@@ -125,7 +125,7 @@ def tracked_indices(model: RotorModel, sol, tracked: Tracked) -> np.ndarray:
     """Indices into ``sol.poles`` (a :func:`twin.modes.sensitivity.solve_modes` solution of ``model``) of the
     modes that continue the tracked ones: paired by pole distance and MAC on the channels
     (:func:`twin.modes.pairing.partners`)."""
-    up = np.flatnonzero(sol.poles.imag > 0)
+    up = np.flatnonzero(oscillating(sol.poles))
     shapes = _sensor_shapes(model, sol.right[up], tracked.channels)
     _, cols = partners(tracked.poles, tracked.shapes, sol.poles[up], shapes)
     return up[cols]

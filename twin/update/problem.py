@@ -29,7 +29,7 @@ from twin.errors import ModelError, UpdateError  # UpdateError: imported from he
 from twin.fem.effects import FluidAddedMass
 from twin.fem.model import RotorModel
 from twin.fem.parameters import MATRIX_KINDS, Parameter
-from twin.modes.analysis import state_matrix
+from twin.modes.analysis import oscillating, state_matrix
 from twin.modes.modesfile import NO_MODES
 from twin.update.condense import LATENT_SHAPE, dynamic_stiffness, parametrised_dofs, real_augment
 from twin.update.poles import check_pole_model, condense_samples
@@ -226,7 +226,7 @@ def _condensation_margins(fixed, bases, observed, poles: np.ndarray, speed: floa
         lam = np.linalg.eigvals(state_matrix(sub["M"], sub["C"], sub["G"], sub["K"], speed))
     except ModelError:  # massless unobserved DOFs: no dynamics of their own
         return np.full(len(poles), np.inf), np.full(len(poles), np.nan)
-    lam = lam[lam.imag > 0]
+    lam = lam[oscillating(lam)]
     mean = poles.mean(axis=1)
     spread = np.sqrt(np.var(poles.real, axis=1, ddof=1) + np.var(poles.imag, axis=1, ddof=1))
     dist = np.abs(lam[None, :] - mean[:, None])
