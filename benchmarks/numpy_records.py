@@ -35,14 +35,8 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     """
     from twin.fmu import discretize, simulate_reference
     from twin.fmu.excitation import excitation_forces
-    from twin.fmu.export import default_turbulence_node, default_unbalance_node
-    from twin.fmu.simulate import (
-        DEFAULT_TURBULENCE_ASD,
-        DEFAULT_UNBALANCE_ME,
-        default_warmup_s,
-        sensor_noise_std,
-        system_for,
-    )
+    from twin.fem.excitation import machine_excitation
+    from twin.fmu.simulate import default_warmup_s, sensor_noise_std, system_for
 
     h = 1.0 / fs_hz
     ss = system_for(model, truth, "full", None)
@@ -50,20 +44,21 @@ def numpy_signals(model, truth, duration_s: float, seed: int, fs_hz: float = 256
     n_rec = int(round(duration_s * fs_hz))
     total = n_warm + n_rec
     rng = np.random.default_rng(seed)
-    turbulence_node = default_turbulence_node(model)
+    machine = machine_excitation(model)
+    turbulence_node = machine.broadband_node
     t = (np.arange(total) - n_warm) * h
     forces = excitation_forces(
         ss,
         t,
-        default_unbalance_node(model),
-        DEFAULT_UNBALANCE_ME,
+        machine.unbalance_node,
+        machine.unbalance_me,
         turbulence_node,
-        DEFAULT_TURBULENCE_ASD / np.sqrt(2 * h) * rng.standard_normal((total, 2)),
+        machine.broadband_asd / np.sqrt(2 * h) * rng.standard_normal((total, 2)),
     )
     turbulence = ss.node_ports(turbulence_node)
     y = simulate_reference(discretize(ss, h), ss.C, foh=forces)[n_warm:]
     noise = rng.standard_normal((total, y.shape[1]))[n_warm:]  # drawn over the warm-up too, as the FMU's
-    y += sensor_noise_std(ss, h, DEFAULT_TURBULENCE_ASD, turbulence, 0.05) * noise
+    y += sensor_noise_std(ss, h, machine.broadband_asd, turbulence, 0.05) * noise
     attrs = {
         "title": f"simulated proximeter signals of {model.name} (numpy's random streams)",
         "sampling_rate": float(fs_hz),

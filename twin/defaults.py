@@ -47,11 +47,6 @@ RECORD_DURATION_S = 1200.0
 SAMPLING_RATE_HZ = 256.0
 NOISE_RATIO = 0.05
 
-#: Default excitation of a simulated record: turbulence on the runner [N/sqrt(Hz)] ...
-DEFAULT_TURBULENCE_ASD = 3000.0
-#: ... and 1X unbalance at the generator [kg m], about balance grade G2.5 for the 600 t generator rotor at 134 rpm.
-DEFAULT_UNBALANCE_ME = 100.0
-
 #: A mode of the extraction is the average of its poles at this many model orders (at most).
 ORDERS_PER_MODE = 8
 #: The largest model order an extraction's stabilisation diagram reaches.

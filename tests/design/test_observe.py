@@ -19,7 +19,7 @@ from twin.design.observe import (
 from twin.design.spectrum import Spectrum, spectrum
 from twin.errors import ModelError
 from twin.fmu.excitation import sensor_noise, turbulence_force
-from twin.fmu.export import default_turbulence_node
+from twin.fem.excitation import machine_excitation
 from twin.fmu.statespace import discretize, simulate_reference
 from twin.fmu.truth import model_state_space
 
@@ -40,10 +40,10 @@ def test_spectrum_matches_a_direct_simulation_at_the_modes(unit):
     ex = Excitation(duration_s=600.0)
     sp = spectrum(ss, unit, ex)
     fs, n = ex.fs_hz, int(600 * ex.fs_hz)
-    node = default_turbulence_node(unit)
-    ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
+    machine = machine_excitation(unit)
+    ports = ss.node_ports(machine.broadband_node)
     zoh = np.zeros((n, len(ss.ports)))
-    zoh[:, ports] = turbulence_force(n, ex.turbulence_asd, seed=5, h=1 / fs)
+    zoh[:, ports] = turbulence_force(n, machine.broadband_asd, seed=5, h=1 / fs)
     y = simulate_reference(discretize(ss, 1 / fs), ss.C, zoh=zoh)
     y += sensor_noise(n, y.shape[1], sp.noise_std_m, seed=6)
     f, pxx = ss_signal.welch(y, fs=fs, nperseg=8192, axis=0)

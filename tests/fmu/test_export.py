@@ -189,9 +189,11 @@ def test_resources_in_a_folder_with_spaces_and_percent_signs(unit_fmu, tmp_path)
 
 
 def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
-    """Without start values the FMU runs with twin's default unbalance and turbulence: the outputs move,
-    and equal the reference with those values."""
-    from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+    """Without start values the FMU runs with the machine's own unbalance and broad-band force (its model
+    file's [excitation]): the outputs move, and equal the reference with those values."""
+    from twin.fem.excitation import machine_excitation
+
+    machine = machine_excitation(hydro_unit)
 
     md = fmpy.read_model_description(str(unit_fmu))
     stop = float(md.defaultExperiment.stopTime)
@@ -202,9 +204,9 @@ def test_the_default_experiment_shows_the_unit_running(unit_fmu, hydro_unit):
     ref = fmu_reference(
         full_state_space(hydro_unit),
         n,
-        me=DEFAULT_UNBALANCE_ME,
-        asd=DEFAULT_TURBULENCE_ASD,
-        node=hydro_unit.regions["generator"][0],
+        me=machine.unbalance_me,
+        asd=machine.broadband_asd,
+        node=machine.unbalance_node,
         steady=True,
     )
     y = np.column_stack([res[c] for c in hydro_unit.channels])

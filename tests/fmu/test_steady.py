@@ -5,7 +5,7 @@ import numpy as np
 
 from twin.fem.model import RPM_TO_RAD_S
 from twin.fmu import discretize, export_fmu, full_state_space, truncated_state_space
-from twin.fmu.export import default_turbulence_node
+from twin.fem.excitation import machine_excitation
 from twin.fmu.steady import steady_start
 
 H = 1.0 / 256.0
@@ -18,7 +18,7 @@ def test_the_first_seconds_have_the_stationary_variance(tmp_path, hydro_unit):
     fmu = export_fmu(hydro_unit, tmp_path / "m.fmu", basis="modal", fmax_hz=60.0, inputs=[])
     ss = truncated_state_space(full_state_space(hydro_unit), 60.0)
     disc = discretize(ss, H)
-    ports = ss.node_ports(default_turbulence_node(hydro_unit))
+    ports = ss.node_ports(machine_excitation(hydro_unit).broadband_node)
     asd = 3000.0
     s = steady_start(disc, ss.speed_rpm * RPM_TO_RAD_S, ports)
     g1 = disc.gamma1[:, ports]

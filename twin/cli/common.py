@@ -14,7 +14,6 @@ import math
 from twin.defaults import (
     CHAINS,
     DEFAULT_RECORDS,
-    DEFAULT_TURBULENCE_ASD,
     DRAWS,
     GIBBS_BURN_IN,
     HMC_MIN_WARMUP,
@@ -234,8 +233,9 @@ def add_record(p: argparse.ArgumentParser, duration_required: bool) -> None:
     p.add_argument(
         "--turbulence",
         type=NONNEGATIVE,
-        default=DEFAULT_TURBULENCE_ASD,
-        help="one-sided ASD of the runner turbulence force [N/sqrt(Hz)]",
+        default=None,
+        help="one-sided ASD of the broad-band force (turbulence, process forces) [N/sqrt(Hz)] (default: the "
+        "machine's, from its model file's [excitation] or its weight)",
     )
     p.add_argument(
         "--noise",

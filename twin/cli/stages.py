@@ -21,7 +21,6 @@ from twin.cli.common import (
     rows_or_auto,
 )
 from twin.defaults import (
-    DEFAULT_UNBALANCE_ME,
     MAX_ORDER,
     ORDERS_PER_MODE,
     SAMPLES,
@@ -293,6 +292,11 @@ def _params(args: argparse.Namespace) -> int:
     print("\nlibrary effects it can take (--effect LABEL adds one; the label is the text before the colon):")
     for text in candidates:
         print(f"  {text}")
+    from twin.fem.excitation import machine_excitation
+
+    print("\nexcitation (the model file's [excitation], or derived from the machine):")
+    for line in machine_excitation(model).describe().splitlines():
+        print(f"  {line}")
     return 0
 
 
@@ -408,7 +412,10 @@ def add_commands(sub) -> None:
     p.add_argument("--seed", type=NATURAL, default=1, help="random seed of turbulence and noise")
     p.add_argument("--truth", default=None, help=f"what the truth hides: {TRUTH_HELP} (default: none)")
     p.add_argument(
-        "--unbalance", type=NONNEGATIVE, default=DEFAULT_UNBALANCE_ME, help="1X unbalance at the generator [kg m]"
+        "--unbalance",
+        type=NONNEGATIVE,
+        default=None,
+        help="1X unbalance [kg m] (default: the machine's, from its model file's [excitation] or balance grade G2.5)",
     )
     p.add_argument(
         "--basis",

@@ -158,7 +158,7 @@ def observability(
     observable, reasons = verdicts(best, f_std / freq, z_std / zeta, best_prominence)
     cluster = mode_clusters(freq, zeta, f_std)
     settings = {
-        "turbulence_asd": excitation.turbulence_asd,
+        "turbulence_asd": float(np.sqrt(sp.force_psd)),
         "noise_ratio": excitation.noise_ratio,
         "noise_std_m": sp.noise_std_m,
         "duration_s": excitation.duration_s,

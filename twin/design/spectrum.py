@@ -43,8 +43,8 @@ import scipy.linalg as sla
 from twin.defaults import NOISE_RATIO, RECORD_DURATION_S, SAMPLING_RATE_HZ
 from twin.errors import ModelError
 from twin.fem.model import RotorModel
-from twin.fmu.export import default_turbulence_node
-from twin.fmu.simulate import DEFAULT_TURBULENCE_ASD, sensor_noise_std
+from twin.fem.excitation import machine_excitation
+from twin.fmu.simulate import sensor_noise_std
 from twin.fmu.statespace import StateSpace
 from twin.modes.shapes import normalisation_jacobian
 
@@ -58,10 +58,11 @@ class Excitation:
 
     Attributes
     ----------
-    turbulence_asd : float
-        One-sided ASD of the runner turbulence force, x and y [N/√Hz].
+    turbulence_asd : float, optional
+        One-sided ASD of the broad-band force (turbulence, process forces), x and y [N/√Hz]; the machine's
+        by default (:func:`twin.fem.excitation.machine_excitation`).
     noise_ratio : float
-        Sensor noise std as a fraction of the median channel RMS of the turbulence response
+        Sensor noise std as a fraction of the median channel RMS of the broad-band response
         (ignored when ``noise_std_m`` is given).
     noise_std_m : float, optional
         Sensor noise std [m] per sample.
@@ -71,7 +72,7 @@ class Excitation:
         Sampling rate [Hz].
     """
 
-    turbulence_asd: float = DEFAULT_TURBULENCE_ASD
+    turbulence_asd: float | None = None
     noise_ratio: float = NOISE_RATIO
     noise_std_m: float | None = None
     duration_s: float = RECORD_DURATION_S
@@ -81,6 +82,8 @@ class Excitation:
         """Raise :class:`ModelError` naming the first setting out of range."""
         for name in ("turbulence_asd", "duration_s", "fs_hz"):
             value = getattr(self, name)
+            if value is None and name == "turbulence_asd":
+                continue
             if not (np.isfinite(value) and value > 0):
                 raise ModelError(f"{name} must be positive, got {value}")
         if not (np.isfinite(self.noise_ratio) and self.noise_ratio >= 0):
@@ -139,7 +142,7 @@ class Spectrum:
 
 
 def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spectrum:
-    """The :class:`Spectrum` of ``ss`` under ``excitation`` (turbulence at the model's immersed node).
+    """The :class:`Spectrum` of ``ss`` under ``excitation`` (the broad-band force at the machine's node for it).
 
     Examples
     --------
@@ -150,19 +153,18 @@ def spectrum(ss: StateSpace, model: RotorModel, excitation: Excitation) -> Spect
     (1, 8, 8)
     """
     excitation.check()
-    node = default_turbulence_node(model)
-    if node is None:
-        raise ModelError(f"model '{model.name}' has no [regions] immersed node for the turbulence to act on")
-    ports = [ss.port_index(f"{node}.{d}") for d in "xy"]
+    machine = machine_excitation(model)
+    asd = machine.broadband_asd if excitation.turbulence_asd is None else excitation.turbulence_asd
+    if not asd > 0:
+        raise ModelError(f"model '{model.name}': no broad-band force drives it (its [excitation] broadband_asd is 0)")
+    ports = ss.node_ports(machine.broadband_node)
     h = 1.0 / excitation.fs_hz
-    noise_std = sensor_noise_std(
-        ss, h, excitation.turbulence_asd, ports, excitation.noise_ratio, excitation.noise_std_m
-    )
+    noise_std = sensor_noise_std(ss, h, asd, ports, excitation.noise_ratio, excitation.noise_std_m)
     lam, V = sla.eig(ss.A)
     c = ss.C @ V
     b = np.linalg.solve(V, ss.B[:, ports])
     noise_psd = max(2.0 * noise_std**2 / excitation.fs_hz, 1e-300)
-    return Spectrum(lam, c, b, excitation.turbulence_asd**2, noise_psd, noise_std, h)
+    return Spectrum(lam, c, b, asd**2, noise_psd, noise_std, h)
 
 
 def _grid(pole: complex, f_top_hz: float) -> tuple[np.ndarray, np.ndarray]:

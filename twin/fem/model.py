@@ -86,6 +86,9 @@ class RotorModel:
     operation : Operation, optional
         Operating conditions and the laws the parameters follow in them
         (:mod:`twin.fem.operation`); None for a model that declares none.
+    excitation : Excitation, optional
+        What the model file's ``[excitation]`` table declares (:mod:`twin.fem.excitation`; the rest is derived
+        from the machine by :func:`twin.fem.excitation.machine_excitation`); None for a model that declares none.
 
     Examples
     --------
@@ -115,6 +118,7 @@ class RotorModel:
     source: str = ""
     description: str = ""
     operation: object | None = None
+    excitation: object | None = None
 
     def __post_init__(self) -> None:
         for name in ("shaft", "disks", "bearings", "thrusts", "sensors", "effects"):

@@ -14,6 +14,8 @@ and the key. The format (see ``models/hydro_unit.toml`` for a full example)::
     [[sensor]]     name, node, location?, directions? (default ["x", "y"]); channels <name>_<dir>
     [regions]      named node lists: immersed, generator, seal, ...
     [damping]      shaft_mass_proportional [1/s], shaft_stiffness_proportional [s]
+    [excitation]   unbalance_at?, unbalance_me? [kg m], balance_grade? [mm/s], broadband_at?,
+                   broadband_asd? [N/sqrt(Hz)], max_response? [m] (:mod:`twin.fem.excitation`)
     [effects.KEY]  switched-on effects of :mod:`twin.fem.effects` with their values
     [[condition]]  name, units, reference, range = [low, high], description?: operating data
     [[law]]        parameter, reference?, slopes = {condition = per unit}, description?
@@ -40,6 +42,7 @@ from twin.fem.elements import (
     ShaftElement,
     ThrustBearing,
 )
+from twin.fem.excitation import BALANCE_GRADE_MM_S, Excitation
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.operation import read_operation
 from twin.fem.tables import MISSING, Table, array_of_tables, label_table, read_toml
@@ -166,6 +169,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
     rayleigh = _read_damping(top)
+    excitation = _read_excitation(top, n_nodes, disks, regions)
     tables: list[str] = []
     effects = _read_effects(top, regions, effect_elements(bearings, thrusts), tables)
     model = RotorModel(
@@ -181,6 +185,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
         rayleigh=rayleigh,
         source=source,
         description=description,
+        excitation=excitation,
     )
     check_effect_bounds(effects, model, source, tables)
     model = model.with_effects(*effects)
@@ -328,6 +333,38 @@ def _read_regions(top: Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
         if not nodes or len(set(nodes)) != len(nodes):
             raise t.error(key, f"expected a non-empty list of distinct nodes, got {nodes!r}")
         out[key] = tuple(nodes)
+    return out
+
+
+def _read_location(t: Table, key: str, n_nodes: int, places: dict[str, int]) -> int | None:
+    """A node given by number, or by the name of a disk or a region (its first node); None when not given."""
+    if not t.has(key):
+        t.used.add(key)
+        return None
+    value = t._get(key, None)
+    if isinstance(value, str):
+        if value not in places:
+            known = ", ".join(sorted(places)) or "none"
+            raise t.error(key, f"'{value}' names no disk or region of the model (disks and regions: {known})")
+        return places[value]
+    return t.node(key, n_nodes)
+
+
+def _read_excitation(top: Table, n_nodes: int, disks, regions) -> Excitation | None:
+    if not top.has("excitation"):
+        top.used.add("excitation")
+        return None
+    t = Table(top.path, "[excitation]", top._get("excitation", {}))
+    places = {**{k: v[0] for k, v in regions.items()}, **{d.name: d.node for d in disks}}
+    out = Excitation(
+        unbalance_node=_read_location(t, "unbalance_at", n_nodes, places),
+        unbalance_me=t.number("unbalance_me", None, nonnegative=True),
+        balance_grade=t.number("balance_grade", BALANCE_GRADE_MM_S, positive=True),
+        broadband_node=_read_location(t, "broadband_at", n_nodes, places),
+        broadband_asd=t.number("broadband_asd", None, nonnegative=True),
+        max_response=t.number("max_response", None, positive=True),
+    )
+    t.finish()
     return out
 
 

@@ -16,7 +16,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from twin import __version__
-from twin.defaults import DEFAULT_TURBULENCE_ASD, DEFAULT_UNBALANCE_ME
+from twin.fem.excitation import machine_excitation
 from twin.fmu import build
 
 #: The FMU's units: name, SI base-unit exponents, display units (name, factor: shown = factor x value).
@@ -42,14 +42,6 @@ VR = {
     "steady_start": 8,
 }
 VR_TIME, VR_INPUT0, VR_OUTPUT0, VR_STATE0, VR_DER0 = 0, 100, 1000, 100000, 200000
-#: Start values of the real parameters (modelDescription and runtime, where a reset returns them): the
-#: default experiment shows the unit running with twin's default unbalance and turbulence.
-START = {
-    "unbalance_me": DEFAULT_UNBALANCE_ME,
-    "unbalance_phase": 0.0,
-    "turbulence_asd": DEFAULT_TURBULENCE_ASD,
-    "noise_std": 0.0,
-}
 #: Length of the default experiment [s].
 DEFAULT_STOP_S = 30.0
 #: The FMI 3.0 log category of the runtime's messages (every one reports an error).
@@ -72,8 +64,28 @@ class Variable:
     attrs: tuple[tuple[str, str], ...] = ()
 
 
+def start_values(model) -> dict[str, float]:
+    """Start values of the FMU's real parameters (modelDescription and runtime, where a reset returns them): the
+    default experiment shows the machine running with its own unbalance and broad-band force
+    (:func:`twin.fem.excitation.machine_excitation`).
+
+    Examples
+    --------
+    >>> start_values(hydro_unit)
+    {'unbalance_me': 100.0, 'unbalance_phase': 0.0, 'turbulence_asd': 3000.0, 'noise_std': 0.0}
+    """
+    ex = machine_excitation(model)
+    return {
+        "unbalance_me": ex.unbalance_me,
+        "unbalance_phase": 0.0,
+        "turbulence_asd": ex.broadband_asd,
+        "noise_std": 0.0,
+    }
+
+
 def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list[Variable]:
     """The FMU's variables, in the order of its modelDescription."""
+    START = start_values(model)
 
     def real(name, vr, causality, variability, description, **attrs):
         return Variable(name, vr, causality, variability, description, attrs=tuple(attrs.items()))
@@ -104,7 +116,7 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
             VR["turbulence_asd"],
             "parameter",
             "fixed",
-            "amplitude spectral density of the white turbulence force on the runner, x and y (one-sided)",
+            "amplitude spectral density of the white broad-band force (turbulence, process forces), x and y (one-sided)",
             start=repr(START["turbulence_asd"]),
             unit="N/sqrt(Hz)",
             min="0",

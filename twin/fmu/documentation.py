@@ -64,7 +64,7 @@ def documentation_html(model_description: bytes, attrs: dict, step_s: float) -> 
 <p>A linear rotor model exported by twin {html.escape(__version__)} as an FMI {html.escape(version)} FMU for
 {html.escape(interfaces or "no interface")}. It is stepped in its modal form, exactly for a communication
 step of any length; the outputs are proximeter displacements. Forces: the external inputs are held over a
-step; the built-in 1X unbalance and the runner's white turbulence force are parameters, set before
+step; the built-in 1X unbalance and the machine's white broad-band force (turbulence) are parameters, set before
 initialisation, and linear between samples every {step_s:.12g} s from the start time. In model exchange
 the host integrates the modal states, with a time event at each of those samples.</p>
 {truth}

@@ -37,9 +37,16 @@ from pathlib import Path
 import numpy as np
 
 from twin.errors import ModelError, TwinError
+from twin.fem.excitation import machine_excitation
 from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fmu import build
-from twin.fmu.description import START, fmi2_description, fmi3_build_description, fmi3_description, variables
+from twin.fmu.description import (
+    fmi2_description,
+    fmi3_build_description,
+    fmi3_description,
+    start_values,
+    variables,
+)
 from twin.fmu.documentation import documentation_html
 from twin.fmu.modal import modal_form
 from twin.fmu.statespace import StateSpace, check_stable, discretize
@@ -102,20 +109,6 @@ def resolve_inputs(model: RotorModel, inputs: Sequence[str] | None) -> list[Port
     return out
 
 
-def default_unbalance_node(model: RotorModel) -> int:
-    """The generator region's node if declared, else the heaviest disk's node."""
-    if "generator" in model.regions:
-        return model.regions["generator"][0]
-    if model.disks:
-        return max(model.disks, key=lambda d: d.m).node
-    return 0
-
-
-def default_turbulence_node(model: RotorModel) -> int | None:
-    """The immersed (runner) region's node, where turbulence acts; None without one."""
-    return model.regions["immersed"][0] if "immersed" in model.regions else None
-
-
 def export_fmu(
     model: RotorModel,
     path: str | Path,
@@ -153,8 +146,8 @@ def export_fmu(
     state_space : StateSpace, optional
         Use this system (e.g. a truth model) instead of building one from ``model``.
     unbalance_node, turbulence_node : int, optional
-        Default node of the 1X unbalance (a parameter of the FMU) and node of the
-        turbulence force (fixed); defaults: generator region, immersed region.
+        Default node of the 1X unbalance (a parameter of the FMU) and node of the broad-band
+        force (fixed); defaults: the machine's (:func:`twin.fem.excitation.machine_excitation`).
     description : str, optional
         The modelDescription's description (default: model, speed, basis, states).
     name : str, optional
@@ -197,8 +190,9 @@ def export_fmu(
     if state_space is None:
         state_space = model_state_space(model, basis, fmax_hz)
     ports = resolve_inputs(model, inputs)
-    unbalance_node = default_unbalance_node(model) if unbalance_node is None else int(unbalance_node)
-    turbulence_node = default_turbulence_node(model) if turbulence_node is None else int(turbulence_node)
+    excitation = machine_excitation(model)
+    unbalance_node = excitation.unbalance_node if unbalance_node is None else int(unbalance_node)
+    turbulence_node = excitation.broadband_node if turbulence_node is None else int(turbulence_node)
     for what, node in (("unbalance_node", unbalance_node), ("turbulence_node", turbulence_node)):
         if node is not None and not 0 <= node < model.n_nodes:
             raise ModelError(f"{what} {node} does not exist (nodes 0..{model.n_nodes - 1})")
@@ -223,7 +217,7 @@ def export_fmu(
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
     dims = (form.n_modes, n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node, int(steady is not None))
-    starts = [START[k] for k in ("unbalance_me", "unbalance_phase", "turbulence_asd", "noise_std")]
+    starts = list(start_values(model).values())
     head = RESOURCE_MAGIC + struct.pack("<9i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 

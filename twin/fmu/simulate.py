@@ -19,16 +19,12 @@ import scipy.linalg as sla
 import xarray as xr
 
 from twin import __version__
-from twin.defaults import (  # noqa: F401 (shared with the CLI)
-    DEFAULT_TURBULENCE_ASD,
-    DEFAULT_UNBALANCE_ME,
-    NOISE_RATIO,
-    SAMPLING_RATE_HZ,
-)
+from twin.defaults import NOISE_RATIO, SAMPLING_RATE_HZ
 from twin.errors import ModelError, TwinWarning
-from twin.fem.model import RotorModel
+from twin.fem.excitation import MachineExcitation, machine_excitation
+from twin.fem.model import RPM_TO_RAD_S, RotorModel
 from twin.fem.truthfile import Truth
-from twin.fmu.export import default_turbulence_node, default_unbalance_node, export_fmu
+from twin.fmu.export import export_fmu
 from twin.fmu.run import record_outputs
 from twin.fmu.statespace import StateSpace, check_stable, discretize
 from twin.fmu.truth import MAX_TARGET_DAMPING, hidden_effects, model_state_space, truth_state_space
@@ -108,6 +104,60 @@ def sensor_noise_std(
     return noise_ratio * float(np.median(rms)) if rms.any() else 0.0
 
 
+def response_pp(
+    ss: StateSpace, h: float, unbalance_node: int, unbalance_me: float, node: int, asd: float
+) -> np.ndarray:
+    """Expected peak-to-peak displacement [m] of each output: twice the 1X unbalance response's amplitude plus
+    six times the broad-band response's RMS (±3 sigma); infinite at an undamped resonance.
+
+    Examples
+    --------
+    >>> from twin.fmu.truth import model_state_space
+    >>> pp = response_pp(model_state_space(hydro_unit), 1 / 256, 8, 100.0, 28, 3000.0)
+    >>> pp.shape, bool(pp.max() < 1e-3)  # m, well below a millimetre
+    ((8,), True)
+    """
+    omega = ss.speed_rpm * RPM_TO_RAD_S
+    one_x = np.zeros(ss.C.shape[0])
+    if unbalance_me > 0 and omega > 0:
+        force = np.zeros(ss.B.shape[1], dtype=complex)
+        x, y = ss.node_ports(unbalance_node)
+        force[x], force[y] = unbalance_me * omega**2, -1j * unbalance_me * omega**2  # forward: cos, sin
+        try:
+            state = np.linalg.solve(1j * omega * np.eye(ss.n_states) - ss.A, ss.B @ force)
+        except np.linalg.LinAlgError:
+            return np.full(ss.C.shape[0], np.inf)
+        one_x = np.abs(ss.C @ state)
+    return 2.0 * one_x + 6.0 * output_rms(ss, h, asd, ss.node_ports(node))
+
+
+def check_response(
+    name: str, ss: StateSpace, h: float, excitation: MachineExcitation, unbalance_me: float, asd: float
+) -> None:
+    """Refuse an excitation that would drive the shaft beyond ``excitation.max_response``, and warn above
+    ``excitation.warn_response`` (a damaging vibration), before anything is simulated."""
+    pp = response_pp(ss, h, excitation.unbalance_node, unbalance_me, excitation.broadband_node, asd)
+    worst = int(np.argmax(pp))
+    what = (
+        f"the excitation would drive the shaft to {1e6 * pp[worst]:.3g} um peak to peak at {ss.outputs[worst]} "
+        f"({unbalance_me:.4g} kg m of 1X unbalance at node {excitation.unbalance_node}, a broad-band force of "
+        f"{asd:.4g} N/sqrt(Hz) at node {excitation.broadband_node})"
+    )
+    if not pp[worst] <= excitation.max_response:
+        raise ModelError(
+            f"{name}: {what}, beyond the {1e6 * excitation.max_response:.4g} um the machine allows "
+            f"({excitation.sources['max_response']}): set the machine's excitation in its model file's "
+            "[excitation] table (or a larger max_response there)"
+        )
+    if pp[worst] > excitation.warn_response:
+        warnings.warn(
+            f"{name}: {what}, above the {1e6 * excitation.warn_response:.4g} um of ISO 20816-1's zone C/D "
+            "boundary, where vibration damages a machine",
+            TwinWarning,
+            stacklevel=3,
+        )
+
+
 def simulate(
     model: RotorModel,
     *,
@@ -115,8 +165,8 @@ def simulate(
     fs_hz: float = SAMPLING_RATE_HZ,
     seed: int = 1,
     truth: Truth | None = None,
-    turbulence_asd: float = DEFAULT_TURBULENCE_ASD,
-    unbalance_me: float = DEFAULT_UNBALANCE_ME,
+    turbulence_asd: float | None = None,
+    unbalance_me: float | None = None,
     unbalance_phase_rad: float = 0.0,
     noise_ratio: float = NOISE_RATIO,
     noise_std_m: float | None = None,
@@ -141,12 +191,14 @@ def simulate(
         Seed of the turbulence; the sensor noise uses ``seed + 7919``.
     truth : Truth, optional
         Hidden effects (see :func:`twin.fem.truthfile.load_truth`).
-    turbulence_asd : float
-        One-sided amplitude spectral density of the runner turbulence force, x and y [N/√Hz].
-    unbalance_me, unbalance_phase_rad : float
-        1X unbalance at the generator [kg m] and its phase [rad].
+    turbulence_asd : float, optional
+        One-sided amplitude spectral density of the broad-band force (turbulence, process forces), x and y
+        [N/√Hz], at the machine's node for it; the machine's by default
+        (:func:`twin.fem.excitation.machine_excitation`).
+    unbalance_me, unbalance_phase_rad : float, optional
+        1X unbalance [kg m] (the machine's by default, at its node) and its phase [rad].
     noise_ratio : float
-        Sensor noise std as a fraction of the median channel RMS of the turbulence response.
+        Sensor noise std as a fraction of the median channel RMS of the broad-band response.
     noise_std_m : float, optional
         Sensor noise std [m] per sample, instead of ``noise_ratio`` (keeps the noise of the
         sensors the same when the layout changes, e.g. after ``twin sensors``).
@@ -175,7 +227,19 @@ def simulate(
     >>> ds = simulate(hydro_unit, duration_s=1.0, fs_hz=256.0, progress=False)
     >>> ds.displacement.dims, ds.sizes["time"], ds.attrs["sampling_rate"]
     (('time', 'channel'), 256, 256.0)
+
+    A response the machine could not survive is refused before any work (the limit is the model file's
+    ``[excitation] max_response``, by default ten times ISO 20816-1's zone C/D boundary), a damaging one
+    warned about:
+
+    >>> simulate(hydro_unit, duration_s=1.0, unbalance_me=1e5, progress=False)
+    Traceback (most recent call last):
+    ...
+    twin.errors.ModelError: hydro_unit: the excitation would drive the shaft to 1.83e+05 um peak to peak at GEN_x ...
     """
+    excitation = machine_excitation(model)
+    turbulence_asd = excitation.broadband_asd if turbulence_asd is None else float(turbulence_asd)
+    unbalance_me = excitation.unbalance_me if unbalance_me is None else float(unbalance_me)
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise ModelError(f"duration must be positive, got {duration_s} s")
     if not (np.isfinite(fs_hz) and fs_hz > 0):
@@ -213,8 +277,9 @@ def simulate(
     if n_rec < 2:
         raise ModelError(f"{duration_s} s at {fs_hz} Hz gives fewer than two samples")
 
-    turb_node = default_turbulence_node(model)
-    turb_ports = [] if turb_node is None else ss.node_ports(turb_node)
+    turb_node = excitation.broadband_node
+    turb_ports = ss.node_ports(turb_node)
+    check_response(model.name, ss, h, excitation, unbalance_me, turbulence_asd)
     noise_std = sensor_noise_std(ss, h, turbulence_asd, turb_ports, noise_ratio, noise_std_m)
     start_values = {
         "unbalance_me": unbalance_me,
@@ -262,7 +327,7 @@ def simulate(
         "turbulence_node": turb_node,
         "unbalance_me": unbalance_me,
         "unbalance_phase_rad": unbalance_phase_rad,
-        "unbalance_node": default_unbalance_node(model),
+        "unbalance_node": excitation.unbalance_node,
         "noise_ratio": noise_ratio,
         "noise_std_m": noise_std,
         "basis": ss.basis,

@@ -34,6 +34,7 @@ import numpy as np
 
 from twin.errors import ModelError
 from twin.fem.effects import effect_classes, effect_fields, effect_label, holds, library_effects, local_changes
+from twin.fem.excitation import machine_excitation
 from twin.fem.model import RotorModel
 
 
@@ -208,7 +209,8 @@ def posterior_model(
 
 
 def parameters_json(model: RotorModel) -> dict:
-    """The ``twin params --json`` layout: a model's parameters, its effects and the library effects it can take.
+    """The ``twin params --json`` layout: a model's parameters, its effects, the library effects it can take and
+    the excitation that drives it (:func:`twin.fem.excitation.machine_excitation`).
 
     Each parameter with its nominal value (SI, ``unit``), its group for ``--params``, its physical bounds
     (``null`` for an open side: JSON has no infinity) and its description.
@@ -248,4 +250,8 @@ def parameters_json(model: RotorModel) -> dict:
         "groups": list(PARAMETER_GROUPS),
         "effects": [effect_label(e) for e in model.effects],
         "library": [c.label for c in candidates(model)],
+        "excitation": {
+            k: finite(v) if isinstance(v, float) else v
+            for k, v in dataclasses.asdict(machine_excitation(model)).items()
+        },
     }

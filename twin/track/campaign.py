@@ -184,16 +184,15 @@ def _kept(path: Path, ident: str) -> bool:
 
 
 def _noise_std(model: RotorModel, fs_hz: float, noise_ratio: float) -> float:
-    """Sensor noise std [m] from the reference operating point's turbulence response."""
-    from twin.defaults import DEFAULT_TURBULENCE_ASD
-    from twin.fmu.export import default_turbulence_node
+    """Sensor noise std [m] from the reference operating point's response to the machine's broad-band force."""
+    from twin.fem.excitation import machine_excitation
     from twin.fmu.simulate import sensor_noise_std, system_for
 
     ref = at_operating_point(model, {})
     ss = system_for(ref, None, "full", None)
-    node = default_turbulence_node(ref)
-    ports = [] if node is None else ss.node_ports(node)
-    return sensor_noise_std(ss, 1.0 / fs_hz, DEFAULT_TURBULENCE_ASD, ports, noise_ratio, None)
+    excitation = machine_excitation(ref)
+    ports = ss.node_ports(excitation.broadband_node)
+    return sensor_noise_std(ss, 1.0 / fs_hz, excitation.broadband_asd, ports, noise_ratio, None)
 
 
 def _simulate_record(
