@@ -125,3 +125,24 @@ def test_per_mode_effect_is_updated_by_the_gibbs_sampler(hydro_unit):
     assert float(mass.mean()) == pytest.approx(6.09e4, rel=0.05)
     applied = [e for e in tw.model.effects if e.key == "fsi_per_mode"]
     assert len(applied) == 1 and applied[0].added_mass[3] == pytest.approx(6.09e4, rel=0.05)
+
+
+def test_an_update_the_sampler_cannot_run_falls_back_to_laplace(hydro_unit, monkeypatch):
+    """The round's diagnosis is not lost when the sampler cannot take the named effects (the HMC marginal model
+    on a layout that leaves parametrised DOFs unobserved): the effects are fitted by Laplace, with a warning."""
+    truth = Truth((MagneticPull(-1.5e8),))
+    data = synthesize_modes(hydro_unit, truth, n_modes=13, samples=100, seed=6, pole_variance=(0.01, 0.01))
+    tw = Twin(hydro_unit, data)
+    sampler_update = Twin.update
+
+    def no_sampler(self, params, *, method="hmc", **kwargs):
+        if method != "laplace":
+            raise UpdateError("the marginal pole model needs the stage-2 condensation")
+        return sampler_update(self, params, method=method, **kwargs)
+
+    monkeypatch.setattr(Twin, "update", no_sampler)
+    with pytest.warns(TwinWarning, match="round 1: the hmc update of magnetic_pull cannot run .* Laplace"):
+        last = tw.run(candidates=["magnetic_pull", "seal_cross_coupling"], max_rounds=2)
+    assert tw.added == ["magnetic_pull"] and last.verdict == "nothing missing"
+    assert tw.model.parameter("MAG.stiffness").nominal == pytest.approx(-1.5e8, rel=0.05)
+    assert tw.history[-1].error < 0.2 * tw.history[0].error

@@ -20,7 +20,7 @@ from typing import Any
 import xarray as xr
 
 from twin.defaults import MAX_ROUNDS
-from twin.errors import TwinError, TwinWarning
+from twin.errors import TwinError, TwinWarning, UpdateError
 from twin.fem.effects import effect_label, free_names, holds, is_per_mode_name
 from twin.fem.model import RotorModel
 from twin.loop.candidates import add_effects
@@ -166,7 +166,10 @@ class Twin:
         Each round diagnoses the current model; when it names effects the
         model does not have yet, they are added and every effect the loop
         has added is updated jointly (``method`` and ``kwargs`` as
-        :meth:`update`). The loop stops when a diagnosis names nothing new
+        :meth:`update`); where the sampler cannot take them (the HMC's
+        marginal model needs every parametrised DOF observed or condensable),
+        they are fitted by the Laplace approximation instead, with a warning,
+        so the round's diagnosis is not lost. The loop stops when a diagnosis names nothing new
         ("nothing missing", "unexplained", "not enough data", or the same
         effects again), or after ``max_rounds`` rounds. The last update's
         posterior is then calibrated on records simulated at its estimate, on
@@ -212,7 +215,19 @@ class Twin:
                 self.add_effect(label)
             with stage(f"round {k}: update {', '.join(self.added)} ({method})"):
                 extra = {"progress": progress} if method != "laplace" and "progress" not in kwargs else {}
-                self.update(self.added_parameters(), method=method, bootstrap=0, tasks=tasks, **kwargs, **extra)
+                try:
+                    self.update(self.added_parameters(), method=method, bootstrap=0, tasks=tasks, **kwargs, **extra)
+                except UpdateError as exc:
+                    if method == "laplace":
+                        raise
+                    # the round's diagnosis stands: its effects are fitted by the Laplace approximation instead
+                    warnings.warn(
+                        f"round {k}: the {method} update of {', '.join(self.added)} cannot run ({exc}); "
+                        "updated by the Laplace approximation of the pole fit instead",
+                        TwinWarning,
+                        stacklevel=2,
+                    )
+                    self.update(self.added_parameters(), method="laplace", bootstrap=0)
             progress_log.info(
                 "round %d: error E %.3g%% -> %.3g%%", k, 100 * self.history[0].error, 100 * self.history[-1].error
             )
