@@ -28,7 +28,7 @@ class BearingChange(Effect):
     key: ClassVar[str] = "bearing_change"
     element: ClassVar[str | None] = "bearing"
     explanation: ClassVar[str] = (
-        "the guide bearing is softer or stiffer than modelled (wear, clearance, oil temperature)"
+        "the bearing is softer or stiffer than modelled (wear, clearance, lubricant temperature)"
     )
     bearing: str = ""
     stiffness_change: float = 0.0  # N/m, added to kxx and kyy

@@ -43,7 +43,7 @@ class BearingScale(Effect):
     key: ClassVar[str] = "bearing_scale"
     element: ClassVar[str | None] = "bearing"
     explanation: ClassVar[str] = (
-        "all of the guide bearing's stiffness and damping coefficients, cross-coupled ones included, are larger "
+        "all of the bearing's stiffness and damping coefficients, cross-coupled ones included, are larger "
         "or smaller by one factor (a changed clearance or static load)"
     )
     bearing: str = ""
