@@ -91,3 +91,17 @@ def test_model_rejects_items_off_the_shaft(ross_model):
 
     with pytest.raises(ModelError, match="disk 'far' is on node 9"):
         dataclasses.replace(ross_model, disks=(Disk("far", 9, 1.0, 1.0, 1.0),))
+
+
+def test_the_model_says_which_physics_is_on():
+    from twin.fem.modelfile import model_from_dict
+
+    data = {
+        "model": {"name": "m", "speed_rpm": 0.0, "shear_deformation": False, "gyroscopic": True},
+        "materials": {"steel": {"E": 2.1e11, "G": 8.1e10, "rho": 7800.0}},
+        "shaft": [{"nodes": [0, 2], "length": 1.0, "outer_diameter": 0.1, "inner_diameter": 0.0, "material": "steel"}],
+        "damping": {"shaft_stiffness_proportional": 1e-4},
+    }
+    physics = model_from_dict(data).physics
+    assert physics["shear_deformation"] is False and physics["rotary_inertia"] is True
+    assert physics["gyroscopic"] is True and physics["shaft_stiffness_proportional"] == 1e-4

@@ -276,6 +276,19 @@ def _params(args: argparse.Namespace) -> int:
     effects = [describe(e, model) for e in model.effects]
     candidates = [describe(c.effect, model) for c in library_candidates(model)]
     print(f"{model.name}: {model.n_dof} DOF, {model.speed_rpm:g} rpm, sensors {', '.join(model.channels)}")
+    on = model.physics
+    flags = ", ".join(
+        f"{label} {'on' if on[key] is True else 'off' if on[key] is False else 'on some elements'}"
+        for key, label in (
+            ("shear_deformation", "shear deformation (Timoshenko)"),
+            ("rotary_inertia", "rotary inertia"),
+            ("gyroscopic", "gyroscopic coupling"),
+        )
+    )
+    print(
+        f"shaft: {len(model.shaft)} elements, {flags}; structural damping {on['shaft_mass_proportional']:g} M + "
+        f"{on['shaft_stiffness_proportional']:g} K"
+    )
     print(
         f"\n{len(rows)} parameters (SI units; --params takes names, globs such as 'LGB.c*', or the groups "
         f"{', '.join(PARAMETER_GROUPS)}):"

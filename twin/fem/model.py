@@ -152,6 +152,31 @@ class RotorModel:
 
     # -- geometry ---------------------------------------------------------------
     @property
+    def physics(self) -> dict[str, object]:
+        """Which physics the shaft's elements include, and its structural damping (as the model file set them).
+
+        Each of ``shear_deformation`` (Timoshenko), ``rotary_inertia`` and ``gyroscopic`` is True or False for
+        the whole shaft, or ``"mixed"``; ``shaft_mass_proportional`` [1/s] and ``shaft_stiffness_proportional``
+        [s] are the Rayleigh damping's coefficients.
+
+        Examples
+        --------
+        >>> hydro_unit.physics["gyroscopic"], hydro_unit.physics["shaft_stiffness_proportional"]
+        (True, 6e-05)
+        """
+
+        def kind(flags: list[bool]) -> object:
+            return flags[0] if len(set(flags)) == 1 else "mixed"
+
+        return {
+            "shear_deformation": kind([el.shear for el in self.shaft]),
+            "rotary_inertia": kind([el.rotary_inertia for el in self.shaft]),
+            "gyroscopic": kind([el.gyroscopic for el in self.shaft]),
+            "shaft_mass_proportional": self.rayleigh[0],
+            "shaft_stiffness_proportional": self.rayleigh[1],
+        }
+
+    @property
     def n_nodes(self) -> int:
         """Number of nodes."""
         return len(self.shaft) + 1

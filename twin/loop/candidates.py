@@ -250,6 +250,7 @@ def parameters_json(model: RotorModel) -> dict:
         "groups": list(PARAMETER_GROUPS),
         "effects": [effect_label(e) for e in model.effects],
         "library": [c.label for c in candidates(model)],
+        "physics": model.physics,
         "excitation": {
             k: finite(v) if isinstance(v, float) else v
             for k, v in dataclasses.asdict(machine_excitation(model)).items()
