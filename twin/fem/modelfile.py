@@ -339,7 +339,6 @@ def _read_regions(top: Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
 def _read_location(t: Table, key: str, n_nodes: int, places: dict[str, int]) -> int | None:
     """A node given by number, or by the name of a disk or a region (its first node); None when not given."""
     if not t.has(key):
-        t.used.add(key)
         return None
     value = t._get(key, None)
     if isinstance(value, str):
@@ -352,7 +351,6 @@ def _read_location(t: Table, key: str, n_nodes: int, places: dict[str, int]) -> 
 
 def _read_excitation(top: Table, n_nodes: int, disks, regions) -> Excitation | None:
     if not top.has("excitation"):
-        top.used.add("excitation")
         return None
     t = Table(top.path, "[excitation]", top._get("excitation", {}))
     places = {**{k: v[0] for k, v in regions.items()}, **{d.name: d.node for d in disks}}

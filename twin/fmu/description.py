@@ -83,9 +83,8 @@ def start_values(model) -> dict[str, float]:
     }
 
 
-def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list[Variable]:
-    """The FMU's variables, in the order of its modelDescription."""
-    START = start_values(model)
+def variables(model, ss, form, ports, unbalance_node: int, steady: bool, start: dict[str, float]) -> list[Variable]:
+    """The FMU's variables, in the order of its modelDescription; ``start``: :func:`start_values`."""
 
     def real(name, vr, causality, variability, description, **attrs):
         return Variable(name, vr, causality, variability, description, attrs=tuple(attrs.items()))
@@ -97,7 +96,7 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
             "parameter",
             "fixed",
             "unbalance mass times eccentricity (1X, forward)",
-            start=repr(START["unbalance_me"]),
+            start=repr(start["unbalance_me"]),
             unit="kg.m",
             min="0",
         ),
@@ -107,7 +106,7 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
             "parameter",
             "fixed",
             "phase of the unbalance at t = 0",
-            start=repr(START["unbalance_phase"]),
+            start=repr(start["unbalance_phase"]),
             unit="rad",
             displayUnit="deg",
         ),
@@ -117,7 +116,7 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
             "parameter",
             "fixed",
             "amplitude spectral density of the white broad-band force (turbulence, process forces), x and y (one-sided)",
-            start=repr(START["turbulence_asd"]),
+            start=repr(start["turbulence_asd"]),
             unit="N/sqrt(Hz)",
             min="0",
         ),
@@ -127,7 +126,7 @@ def variables(model, ss, form, ports, unbalance_node: int, steady: bool) -> list
             "parameter",
             "fixed",
             "standard deviation of the sensor noise",
-            start=repr(START["noise_std"]),
+            start=repr(start["noise_std"]),
             unit="m",
             displayUnit="um",
             min="0",

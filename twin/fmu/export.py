@@ -217,11 +217,12 @@ def export_fmu(
     guid = "{" + str(uuid.UUID(hashlib.sha256(body + name.encode()).hexdigest()[:32])) + "}"
     n, p = state_space.B.shape
     dims = (form.n_modes, n, p, state_space.C.shape[0], len(ports), *turb, unbalance_node, int(steady is not None))
-    starts = list(start_values(model).values())
+    start = start_values(model)
+    starts = list(start.values())
     head = RESOURCE_MAGIC + struct.pack("<9i6d", *dims, step_s, omega, *starts)
     resource = head + guid.encode().ljust(64, b"\0") + body
 
-    vs = variables(model, state_space, form, ports, unbalance_node, steady is not None)
+    vs = variables(model, state_space, form, ports, unbalance_node, steady is not None, start)
     text = description or (
         f"{model.name} at {state_space.speed_rpm:g} rpm, {state_space.basis} basis, "
         f"{state_space.n_states} states (twin linear rotor)"
