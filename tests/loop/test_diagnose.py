@@ -15,6 +15,7 @@ from twin.fem.effects import (
     SealCrossCoupling,
     ShaftStiffnessChange,
     ThrustTilt,
+    exclusive,
 )
 from twin.fem.truthfile import Truth
 from twin.loop.diagnose import consistent, diagnose
@@ -47,7 +48,9 @@ def test_hidden_effect_is_ranked_first_and_recovered(hydro_unit, label):
     fitted = dict(zip(top.names, top.values))
     for name, value in truth.items():
         assert fitted[name] == pytest.approx(value, rel=0.10), name
-    assert d.ranking[1].log_bayes_factor < top.log_bayes_factor - 3  # strong evidence over the runner-up
+    # strong evidence over the runner-up: another change, not the hidden one's richer form (which fits as well)
+    runner_up = next(f for f in d.ranking[1:] if not exclusive(f.label, label))
+    assert runner_up.log_bayes_factor < top.log_bayes_factor - 3
 
 
 def test_undetermined_parameter_is_reported_with_its_uncertainty(hydro_unit):
@@ -162,3 +165,28 @@ def test_candidate_fits_on_a_dask_cluster_give_the_same_diagnosis(hydro_unit, da
     np.testing.assert_allclose(
         [f.log_bayes_factor for f in there.fits], [f.log_bayes_factor for f in here.fits], rtol=1e-6
     )
+
+
+@pytest.mark.parametrize(
+    "pick_ln_b, richer_ln_b, chosen",
+    [(20.0, 10.0, "bearing_change:B6"), (20.0, 18.0, "bearing_anisotropic:B0"), (5.0, 2.5, None)],
+)
+def test_a_second_effect_enters_only_when_it_pays_for_itself_against_a_richer_form(
+    ross_model, pick_ln_b, richer_ln_b, chosen
+):
+    """With a bearing change at B0 chosen, one at B6 must beat B0's anisotropic change by strong evidence."""
+    from types import SimpleNamespace
+
+    from twin.loop.candidates import select
+    from twin.loop.diagnose import _against_richer
+
+    first, pick, richer = select(ross_model, ["bearing_change:B0", "bearing_change:B6", "bearing_anisotropic:B0"])
+    fitted = {pick.label: SimpleNamespace(log_bayes_factor=pick_ln_b)}
+    fitted[richer.label] = SimpleNamespace(log_bayes_factor=richer_ln_b)
+
+    def run(*args, **kwargs):
+        raise AssertionError("both are fitted already")
+
+    out = _against_richer(pick, [first], [pick, richer], fitted, run, {})
+    assert (out.label if out else None) == chosen
+    assert _against_richer(pick, [], [pick, richer], fitted, run, {}) is pick  # nothing chosen: nothing richer

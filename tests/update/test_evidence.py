@@ -42,3 +42,16 @@ def test_laplace_evidence_of_a_linear_model_is_the_integral_over_the_prior():
     assert np.isclose(log_evidence(y - a * u, u, H), np.log(z), rtol=1e-10)
     # the truncated prior's mass enters as its log: a sign constraint halves the prior
     assert np.isclose(log_evidence(y - a * u, u, H, np.log(0.5)) - log_evidence(y - a * u, u, H), np.log(2))
+
+
+def test_the_simplest_form_the_data_allow_is_named():
+    """A richer form is named only beyond the margin over the form it holds; unrelated effects play no part."""
+    from twin.update.evidence import simplest
+
+    evidence = {"fsi_per_mode": 52.0, "fsi": 50.0, "magnetic_pull": 51.9}
+    assert simplest("fsi_per_mode", evidence, 3.0) == "fsi"
+    assert simplest("fsi_per_mode", evidence, 1.0) == "fsi_per_mode"
+    assert simplest("magnetic_pull", evidence, 3.0) == "magnetic_pull"
+    assert simplest("bearing_anisotropic:UGB", {"bearing_anisotropic:UGB": 9.0, "bearing_change:LGB": 8.0}, 3.0) == (
+        "bearing_anisotropic:UGB"
+    )

@@ -14,7 +14,17 @@
    library candidate (:func:`twin.loop.candidates.candidates`) *jointly* with the
    effects already chosen and with those the model has, and adds the one of
    the largest log Bayes factor if it is strong (``ln B >`` :data:`STRONG_EVIDENCE`,
-   odds above 20:1 on the Kass-Raftery scale). A model that agrees with the
+   odds above 20:1 on the Kass-Raftery scale). A second effect enters only
+   when it pays for itself against a *richer form* of an effect already
+   chosen (an effect that holds it as a special case: per-mode FSI for FSI,
+   an anisotropic bearing change for a bearing change), fitted in its place:
+   its evidence must exceed the richer form's by the same margin. Otherwise
+   the richer form takes the first effect's place (when it is strongly
+   supported itself): one change described more fully is named rather than
+   a second change elsewhere that absorbs what the first form cannot fit.
+   Likewise a richer form is chosen over the simpler one it holds only when
+   its evidence exceeds the simpler's by that margin
+   (:func:`twin.update.evidence.simplest`). A model that agrees with the
    data gets no effect, however well one fits the noise (a candidate can
    reach a strong ln B on one record by taking up a few-sigma scatter of one
    mode). After each addition, an effect
@@ -59,6 +69,7 @@ from twin.loop.coverage import Coverage, coverage
 from twin.loop.locate import Location, locate
 from twin.modes.measured import TOLERANCE, Measured, measured_modes
 from twin.tasks import mapper, one_blas_thread
+from twin.update.evidence import simplest
 from twin.update.laplace import Fit, fit, log_evidence_as_is
 
 log = logging.getLogger(__name__)
@@ -337,9 +348,13 @@ def diagnose(
             if unfitted:
                 fitted.update({f.label: f for f in run(_fit_with, unfitted, **shared)})
             best = max(tier, key=lambda c: fitted[c.label].log_bayes_factor)
+            evidence = {c.label: fitted[c.label].log_bayes_factor for c in tier}
+            best = next(c for c in tier if c.label == simplest(best.label, evidence, STRONG_EVIDENCE))
             if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE:
                 pick = best
                 break
+        if pick is not None and not any(holds(pick.label, c.label) for c in included):
+            pick = _against_richer(pick, included, remaining, fitted, run, shared)
         if pick is None:
             break
         added, fit_added = pick, fitted[pick.label]
@@ -446,6 +461,35 @@ def diagnose(
         path,
         cover,
     )
+
+
+def _against_richer(
+    pick: Candidate,
+    included: list[Candidate],
+    remaining: list[Candidate],
+    fitted: dict[str, Fit],
+    run,
+    shared: dict,
+) -> Candidate | None:
+    """The candidate to add in place of a second effect ``pick``: ``pick`` itself only when it pays for itself
+    against the richer forms of the effects already chosen (those that hold one of them as a special case).
+
+    Each richer form is fitted in place of the effect it holds. ``pick`` enters when its log evidence exceeds the
+    best richer form's by :data:`STRONG_EVIDENCE`; otherwise that richer form takes the first effect's place when it
+    is itself strongly supported, and nothing enters when it is not.
+    """
+    richer = [c for c in remaining if any(holds(c.label, i.label) for i in included)]
+    if not richer:
+        return pick
+    unfitted = [c for c in richer if c.label not in fitted]
+    if unfitted:
+        fitted.update({f.label: f for f in run(_fit_with, unfitted, **shared)})
+    best = max(richer, key=lambda c: fitted[c.label].log_bayes_factor)
+    margin = fitted[pick.label].log_bayes_factor - fitted[best.label].log_bayes_factor
+    if margin > STRONG_EVIDENCE:
+        return pick
+    log.info("%s does not pay for itself against %s (ln B %.1f); not added", pick.label, best.label, margin)
+    return best if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE else None
 
 
 def _drop_unneeded(

@@ -24,13 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from twin.fem.effects import exclusive
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, with_change, with_parameters
 from twin.loop.candidates import Candidate
 from twin.loop.candidates import candidates as all_candidates
 from twin.modes.sensitivity import pole_jacobian, solve_modes
 from twin.track.physics import Tracked, parts, tracked_indices
-from twin.update.evidence import linear_fit
+from twin.update.evidence import linear_fit, simplest
 
 #: Random walk of a followed change per square-root day, as a fraction of its plausible scale.
 PROCESS_NOISE = 0.02
@@ -101,7 +102,9 @@ class Verdict:
 
 def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict:
     """The candidate that best explains the pooled residual ``r`` (``2m``, covariance ``cov``): each weighed as
-    a linear-Gaussian hypothesis against no change (:func:`twin.update.evidence.linear_fit`).
+    a linear-Gaussian hypothesis against no change (:func:`twin.update.evidence.linear_fit`). A richer form
+    of a change is named only when it pays for itself against the simpler (:func:`twin.update.evidence.simplest`);
+    the runner-up is the best other change, not the named one in a richer or simpler form.
 
     Only pole parts measured since the onset take part (NaN elsewhere).
     """
@@ -109,7 +112,11 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
     r, cov = r[ok], cov[np.ix_(ok, ok)]
     fits = [(linear_fit(r, c.jacobian[ok], c.scale, cov), c) for c in cands]
     scored = sorted(fits, key=lambda t: -t[0].log_bayes_factor)
-    (best_fit, best), (second_fit, second) = scored[0], scored[1]
+    evidence = {c.label: f.log_bayes_factor for f, c in fits}
+    label = simplest(scored[0][1].label, evidence, MIN_MARGIN)
+    best_fit, best = next(t for t in scored if t[1].label == label)
+    # the runner-up is another change, not the best one in a richer or a simpler form (which fits as well)
+    second_fit, second = next((t for t in scored[1:] if not exclusive(t[1].label, best.label)), scored[1])
     best_ev, second_ev = best_fit.log_bayes_factor, second_fit.log_bayes_factor
     mean, post = best_fit.values, best_fit.covariance
     return Verdict(

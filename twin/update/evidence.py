@@ -20,6 +20,7 @@ the scan of local changes (:mod:`twin.loop.locate`) and the tracker's naming of 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,3 +91,27 @@ def linear_fit(y: np.ndarray, jacobian: np.ndarray, scale: np.ndarray, cov: np.n
     e = y - J @ u
     s = np.asarray(scale, float)
     return LinearFit(s * u, np.linalg.inv(H) * np.outer(s, s), float(e @ e), log_evidence(e, u, H) + 0.5 * float(y @ y))
+
+
+def simplest(best: str, evidence: Mapping[str, float], margin: float) -> str:
+    """The simplest form of the change ``best`` that the data allow: an effect ``best`` holds as a special case
+    (:func:`twin.fem.effects.holds`) takes its place unless ``best``'s log evidence exceeds the simpler form's
+    by more than ``margin``. ``evidence`` maps labels to log evidence (or log Bayes factors against one model).
+
+    A richer form fits at least as well as the form it holds; it is named only when the data pay for its
+    extra parameters, so that an equal change in x and y is not named as an anisotropic one.
+
+    Examples
+    --------
+    >>> simplest("bearing_anisotropic:B0", {"bearing_anisotropic:B0": 31.0, "bearing_change:B0": 29.5}, 3.0)
+    'bearing_change:B0'
+    >>> simplest("bearing_anisotropic:B0", {"bearing_anisotropic:B0": 41.0, "bearing_change:B0": 29.5}, 3.0)
+    'bearing_anisotropic:B0'
+    """
+    from twin.fem.effects import holds
+
+    while True:
+        simpler = [label for label in evidence if holds(best, label) and evidence[best] - evidence[label] <= margin]
+        if not simpler:
+            return best
+        best = max(simpler, key=lambda label: evidence[label])

@@ -90,18 +90,21 @@ def test_labels_with_a_wrong_element_are_named():
 def test_library_and_local_changes_are_told_apart(hydro_unit):
     library, local = effect_classes(local=False), effect_classes(local=True)
     assert not set(library) & set(local) and set(library) | set(local) == set(effect_classes())
-    assert list(library)[:6] == [
+    assert list(library)[:7] == [
         "fsi",
         "fsi_per_mode",
         "magnetic_pull",
         "seal_cross_coupling",
         "bearing_change",
+        "bearing_anisotropic",
         "thrust_tilt",
     ]
     assert list(local) == ["shaft_stiffness", "disk_mass", "disk_inertia"]
-    assert [effect_label(e) for e in library_effects(hydro_unit)][4:7] == [
+    assert [effect_label(e) for e in library_effects(hydro_unit)][4:9] == [
         "bearing_change:UGB",
         "bearing_change:LGB",
+        "bearing_anisotropic:UGB",
+        "bearing_anisotropic:LGB",
         "thrust_tilt:thrust",
     ]
     assert len(local_changes(hydro_unit)) == len(hydro_unit.shaft) + 2 * len(hydro_unit.disks)

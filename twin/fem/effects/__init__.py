@@ -5,20 +5,22 @@ returns the parameters it adds. It acts on a named region of the model file
 (``[regions]``) or on a named element, so the same effect fits any machine
 that declares that region or element. The library:
 
-==========================  ==========  ==================================================
-key                         acts on     parameters
-==========================  ==========  ==================================================
-``fsi``                     immersed    ``FSI.added_mass`` [kg], ``FSI.added_damping`` [N s/m]
-``fsi_per_mode``            immersed    ``FSI.added_mass_<i>``, ``FSI.added_damping_<i>`` per mode i
-``magnetic_pull``           generator   ``MAG.stiffness`` [N/m] (negative: unbalanced magnetic pull)
-``seal_cross_coupling``     seal        ``SEAL.kxy`` [N/m] (cross-coupled, forward destabilising)
-``bearing_change:<B>``      a bearing   ``<B>.stiffness_change`` [N/m], ``<B>.damping_change`` [N s/m]
-``thrust_tilt:<T>``         a thrust    ``<T>.k_tilt_change`` [N m/rad]
-==========================  ==========  ==================================================
+============================  ==========  ==================================================
+key                           acts on     parameters
+============================  ==========  ==================================================
+``fsi``                       immersed    ``FSI.added_mass`` [kg], ``FSI.added_damping`` [N s/m]
+``fsi_per_mode``              immersed    ``FSI.added_mass_<i>``, ``FSI.added_damping_<i>`` per mode i
+``magnetic_pull``             generator   ``MAG.stiffness`` [N/m] (negative: unbalanced magnetic pull)
+``seal_cross_coupling``       seal        ``SEAL.kxy`` [N/m] (cross-coupled, forward destabilising)
+``bearing_change:<B>``        a bearing   ``<B>.stiffness_change`` [N/m], ``<B>.damping_change`` [N s/m]
+``bearing_anisotropic:<B>``   a bearing   ``<B>.kxx_change`` ... ``<B>.cyy_change`` (each direct coefficient)
+``bearing_scale:<B>``         a bearing   ``<B>.scale_change`` [1] (all eight coefficients by one factor)
+``thrust_tilt:<T>``           a thrust    ``<T>.k_tilt_change`` [N m/rad]
+============================  ==========  ==================================================
 
 and the local changes outside it, the localisation scan's hypotheses, one
 relative parameter each: ``shaft_stiffness:<e>`` (``shaft<e>.stiffness_change``),
-``disk_mass:<d>`` (``<d>.mass_change``), ``disk_inertia:<d>`` (``<d>.inertia_change``).
+``disk_mass:<d>`` (``<d>.m  ass_change``), ``disk_inertia:<d>`` (``<d>.inertia_change``).
 :func:`effect_classes` lists every registered one, those of other modules of
 this folder and of other packages included.
 
@@ -52,7 +54,8 @@ from twin.fem.effects.base import (
     plausible_scales,
     scaled,
 )
-from twin.fem.effects.bearing import BearingChange
+from twin.fem.effects.bearing import BearingAnisotropicChange, BearingChange
+from twin.fem.effects.bearing_scale import BearingScale
 from twin.fem.effects.disk import DiskInertiaChange, DiskMassChange
 from twin.fem.effects.fsi import (
     FSI_DAMPING_PER_MASS,
@@ -88,7 +91,9 @@ __all__ = [
     "FSI_DAMPING_PER_MASS",
     "LOCAL_CHANGE_SCALE",
     "RELATIVE_BOUNDS",
+    "BearingAnisotropicChange",
     "BearingChange",
+    "BearingScale",
     "DiskInertiaChange",
     "DiskMassChange",
     "Effect",
