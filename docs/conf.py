@@ -8,7 +8,7 @@ from pathlib import Path
 import twin
 
 # docs/_ext: the notebooks executed at build time (executed_notebooks), the parser as the command-line page
-# renders it (cli_reference)
+# renders it (cli_reference), the model-file reference from the reader's declaration (model_file_reference)
 sys.path.insert(0, str(Path(__file__).parent / "_ext"))
 
 project = "twin"
@@ -24,6 +24,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "sphinxarg.ext",
     "executed_notebooks",
+    "model_file_reference",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 

@@ -125,6 +125,19 @@ def test_params_lists_names_bounds_and_the_effects_that_bring_more(capsys):
     assert "magnetic_pull" not in data["library"] and "bearings" in data["groups"]
 
 
+def test_from_ross_writes_a_model_file_that_loads(tmp_path, capsys):
+    out = tmp_path / "rig.toml"
+    assert main(["from-ross", "tests/data/ross/rotor_example.toml", "--speed", "3000", "-o", str(out)]) == 0
+    assert "7 nodes, 2 disks, 2 bearings" in capsys.readouterr().out
+    assert main(["modal", str(out), "--modes", "4", "--json"]) == 0
+    assert len(json.loads(capsys.readouterr().out)["modes"]) == 4
+    layered = tmp_path / "layered.toml"
+    layered.write_text(Path("tests/data/ross/rotor_example.toml").read_text().replace("n = 3\naxial", "n = 2\naxial"))
+    assert main(["from-ross", str(layered), "--speed", "3000", "-o", str(tmp_path / "no.toml")]) == 2
+    assert "second shaft element at position 2" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["layered.toml", "rig.toml"]  # nothing half-written
+
+
 def test_output_into_a_closed_pipe_is_not_an_error():
     import subprocess
     import sys

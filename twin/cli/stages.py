@@ -260,6 +260,23 @@ def _synthesize_modes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _from_ross(args: argparse.Namespace) -> int:
+    """``twin from-ross``: a ROSS rotor file as a twin model file, checked by reading it back."""
+    from twin.fem.modelfile import model_from_dict
+    from twin.fem.ross import read_ross, ross_model_text
+    from twin.netcdf import atomic_output
+
+    data = read_ross(args.rotor, args.speed, name=args.name, sensors=not args.no_sensors)
+    model = model_from_dict(data, source=args.rotor)
+    with atomic_output(args.output, ".toml.part") as tmp:
+        Path(tmp).write_text(ross_model_text(data, Path(args.rotor).name), encoding="utf-8")
+    print(
+        f"{args.output}: model '{model.name}' at {model.speed_rpm:g} rpm, {model.n_nodes} nodes, "
+        f"{len(model.disks)} disks, {len(model.bearings)} bearings; channels {', '.join(model.channels) or 'none'}"
+    )
+    return 0
+
+
 def _params(args: argparse.Namespace) -> int:
     """``twin params``: the names ``--params`` and ``--effect`` take, with values, units and bounds."""
     from twin.fem.effects import describe
@@ -349,6 +366,22 @@ def add_commands(sub) -> None:
     p.add_argument("--points", type=COUNT, default=41, help="number of speeds")
     p.add_argument("--modes", type=COUNT, default=12, help="number of modes followed")
     p.add_argument("-o", "--output", default="campbell.png", help="figure file (.png, .pdf or .svg)")
+    p = command(
+        sub,
+        "from-ross",
+        "a model file from a rotor saved by ROSS",
+        "Reads a ROSS Rotor.save file (TOML; ROSS itself is not needed) and writes a twin model file at a\n"
+        "running speed: shaft sections, materials, disks, bearings and seals with their coefficients at that\n"
+        "speed, the shaft's switches and proportional damping, and a proximeter pair at each bearing. Add\n"
+        "regions, the excitation and operating conditions to it (the model-file reference lists them).",
+        ["twin from-ross compressor.toml --speed 9000 -o compressor_twin.toml"],
+        _from_ross,
+    )
+    p.add_argument("rotor", help="the file ROSS's Rotor.save wrote (TOML)")
+    p.add_argument("--speed", type=NONNEGATIVE, required=True, help="running speed [rpm]")
+    p.add_argument("-o", "--output", required=True, help="the model file to write (TOML)")
+    p.add_argument("--name", default=None, help="the model's name (default: the ROSS file's name)")
+    p.add_argument("--no-sensors", action="store_true", help="no proximeter pairs at the bearings")
     p = command(
         sub,
         "params",

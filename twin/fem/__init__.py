@@ -5,6 +5,7 @@ from twin.fem.elements import Bearing, Disk, Material, ShaftElement, ThrustBeari
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.modelfile import load_model, shipped_model
 from twin.fem.parameters import Parameter, Term
+from twin.fem.ross import from_ross, load_ross
 
 __all__ = [
     "Bearing",
@@ -18,7 +19,9 @@ __all__ = [
     "Term",
     "ThrustBearing",
     "effect_classes",
+    "from_ross",
     "load_model",
+    "load_ross",
     "register",
     "shipped_model",
 ]

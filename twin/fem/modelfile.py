@@ -2,24 +2,9 @@
 
 A model file is data only: nothing in it is executed. Every problem is
 reported as a :class:`~twin.errors.ModelFileError` naming the file, the table
-and the key. The format (see ``models/hydro_unit.toml`` for a full example)::
-
-    [model]        name, speed_rpm, description?, shear_deformation?, rotary_inertia?, gyroscopic?
-    [materials.X]  E [Pa], rho [kg/m3], and G [Pa] or poisson
-    [[shaft]]      nodes = [first, last], material, outer_diameter [m], inner_diameter [m],
-                   and length [m] (split equally) or element_lengths [m]
-    [[disk]]       name, node, mass [kg], Id [kg m2], Ip [kg m2]
-    [[bearing]]    name, node, kxx kxy kyx kyy [N/m], cxx cxy cyx cyy [N s/m]
-    [[thrust]]     name, node, k_tilt [N m/rad], c_tilt [N m s/rad]
-    [[sensor]]     name, node, location?, directions? (default ["x", "y"]); channels <name>_<dir>
-    [regions]      named node lists: immersed, generator, seal, ...
-    [damping]      shaft_mass_proportional [1/s], shaft_stiffness_proportional [s]
-    [excitation]   unbalance_at?, unbalance_me? [kg m], balance_grade? [mm/s], broadband_at?,
-                   broadband_asd? [N/sqrt(Hz)], max_response? [m] (:mod:`twin.fem.excitation`)
-    [effects.KEY]  switched-on effects of :mod:`twin.fem.effects` with their values
-    [[condition]]  name, units, reference, range = [low, high], description?: operating data
-    [[law]]        parameter, reference?, slopes = {condition = per unit}, description?
-                   (:mod:`twin.fem.operation`)
+and the key. The tables and keys, with their units, defaults and rules, are
+declared in :mod:`twin.fem.schema` (the docs' model-file reference is generated
+from it); ``models/hydro_unit.toml`` is a full example.
 """
 
 from __future__ import annotations
@@ -42,9 +27,10 @@ from twin.fem.elements import (
     ShaftElement,
     ThrustBearing,
 )
-from twin.fem.excitation import BALANCE_GRADE_MM_S, Excitation
+from twin.fem.excitation import Excitation
 from twin.fem.model import RotorModel, Sensor
 from twin.fem.operation import read_operation
+from twin.fem.schema import section
 from twin.fem.tables import MISSING, Table, array_of_tables, label_table, read_toml
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
@@ -110,11 +96,11 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     3
     """
     top = Table(source, "(top level)", data)
-    head = Table(source, "[model]", top._get("model", MISSING))
-    name = head.name()
-    speed_rpm = head.number("speed_rpm", nonnegative=True)
-    description = head.string("description", "")
-    flags = {k: head.boolean(k, True) for k in ("shear_deformation", "rotary_inertia", "gyroscopic")}
+    head = Table(source, "[model]", top._get("model", MISSING), section("[model]"))
+    name = head.read("name")
+    speed_rpm = head.read("speed_rpm")
+    description = head.read("description")
+    flags = {k: head.read(k) for k in ("shear_deformation", "rotary_inertia", "gyroscopic")}
     head.finish()
 
     materials = _read_materials(top)
@@ -124,7 +110,7 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     names: dict[str, str] = {}
 
     def unique(table: Table, kind: str) -> str:
-        nm = table.name()
+        nm = table.read("name")
         label_table(table, nm)
         if nm in names:
             raise table.error("name", f"'{nm}' is already the name of a {names[nm]}")
@@ -132,39 +118,21 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
         return nm
 
     disks = []
-    for t in array_of_tables(top, "disk"):
+    for t in array_of_tables(top, "disk", section=section("[[disk]]")):
         nm = unique(t, "disk")
-        disks.append(
-            Disk(
-                nm,
-                t.node("node", n_nodes),
-                t.number("mass", nonnegative=True),
-                t.number("Id", nonnegative=True),
-                t.number("Ip", nonnegative=True),
-            )
-        )
+        disks.append(Disk(nm, t.read("node", n_nodes), t.read("mass"), t.read("Id"), t.read("Ip")))
         t.finish()
     bearings = []
-    for t in array_of_tables(top, "bearing"):
+    for t in array_of_tables(top, "bearing", section=section("[[bearing]]")):
         nm = unique(t, "bearing")
-        node = t.node("node", n_nodes)
-        # a guide bearing holds the shaft: positive direct stiffness, non-negative direct damping
-        rules = {
-            "kxx": {"positive": True},
-            "kyy": {"positive": True},
-            "cxx": {"nonnegative": True},
-            "cyy": {"nonnegative": True},
-        }
-        bearings.append(Bearing(nm, node, {k: t.number(k, **rules.get(k, {})) for k in BEARING_COEFFICIENTS}))
+        node = t.read("node", n_nodes)
+        # a guide bearing holds the shaft: positive direct stiffness, non-negative direct damping (the schema's rules)
+        bearings.append(Bearing(nm, node, {k: t.read(k) for k in BEARING_COEFFICIENTS}))
         t.finish()
     thrusts = []
-    for t in array_of_tables(top, "thrust"):
+    for t in array_of_tables(top, "thrust", section=section("[[thrust]]")):
         nm = unique(t, "thrust bearing")
-        thrusts.append(
-            ThrustBearing(
-                nm, t.node("node", n_nodes), t.number("k_tilt", nonnegative=True), t.number("c_tilt", nonnegative=True)
-            )
-        )
+        thrusts.append(ThrustBearing(nm, t.read("node", n_nodes), t.read("k_tilt"), t.read("c_tilt")))
         t.finish()
     sensors = _read_sensors(top, n_nodes)
     regions = _read_regions(top, n_nodes)
@@ -225,15 +193,15 @@ def _read_materials(top: Table) -> dict[str, Material]:
     out = {}
     for key in tables.data:
         tables.used.add(key)
-        t = Table(top.path, f"[materials.{key}]", tables.data[key])
-        E = t.number("E", positive=True)
-        rho = t.number("rho", positive=True)
+        t = Table(top.path, f"[materials.{key}]", tables.data[key], section("[materials.<name>]"))
+        E = t.read("E")
+        rho = t.read("rho")
         if t.has("G") == t.has("poisson"):
             raise t.error("G", "give exactly one of 'G' (shear modulus) and 'poisson'")
         if t.has("G"):
-            G = t.number("G", positive=True)
+            G = t.read("G")
         else:
-            nu = t.number("poisson")
+            nu = t.read("poisson")
             if not -1.0 < nu < 0.5:
                 raise t.error("poisson", f"must lie in (-1, 0.5), got {nu:g}")
             G = E / (2 * (1 + nu))
@@ -246,8 +214,8 @@ def _read_materials(top: Table) -> dict[str, Material]:
 
 def _read_shaft(top: Table, materials: dict[str, Material], flags: dict[str, bool]) -> list[ShaftElement]:
     sections = []
-    for t in array_of_tables(top, "shaft", required=True):
-        nodes = t.array("nodes")
+    for t in array_of_tables(top, "shaft", required=True, section=section("[[shaft]]")):
+        nodes = t.read("nodes")
         if len(nodes) != 2 or any(isinstance(n, bool) or not isinstance(n, int) or n < 0 for n in nodes):
             raise t.error("nodes", f"expected [first, last] node numbers, got {nodes!r}")
         first, last = nodes
@@ -257,19 +225,19 @@ def _read_shaft(top: Table, materials: dict[str, Material], flags: dict[str, boo
         if t.has("length") == t.has("element_lengths"):
             raise t.error("length", "give exactly one of 'length' (split equally) and 'element_lengths'")
         if t.has("length"):
-            lengths = [t.number("length", positive=True) / n_el] * n_el
+            lengths = [t.read("length") / n_el] * n_el
         else:
-            lengths = t.array("element_lengths")
+            lengths = t.read("element_lengths")
             if len(lengths) != n_el:
                 raise t.error("element_lengths", f"nodes {nodes} span {n_el} elements, got {len(lengths)} lengths")
             for v in lengths:
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
                     raise t.error("element_lengths", f"every length must be a positive number, got {v!r}")
-        od = t.number("outer_diameter", positive=True)
-        id_ = t.number("inner_diameter", nonnegative=True)
+        od = t.read("outer_diameter")
+        id_ = t.read("inner_diameter")
         if id_ >= od:
             raise t.error("inner_diameter", f"must be smaller than outer_diameter ({od:g} m), got {id_:g}")
-        mat = t.string("material")
+        mat = t.read("material")
         if mat not in materials:
             raise t.error("material", f"unknown material '{mat}' (defined: {', '.join(sorted(materials))})")
         t.finish()
@@ -308,12 +276,12 @@ def _read_shaft(top: Table, materials: dict[str, Material], flags: dict[str, boo
 
 def _read_sensors(top: Table, n_nodes: int) -> list[Sensor]:
     sensors: list[Sensor] = []
-    for t in array_of_tables(top, "sensor"):
-        nm = t.name()
+    for t in array_of_tables(top, "sensor", section=section("[[sensor]]")):
+        nm = t.read("name")
         label_table(t, nm)
-        node = t.node("node", n_nodes)
-        location = t.string("location", "")
-        directions = t.array("directions", ["x", "y"])
+        node = t.read("node", n_nodes)
+        location = t.read("location")
+        directions = t.read("directions")
         if not directions or any(d not in ("x", "y") for d in directions) or len(set(directions)) != len(directions):
             raise t.error("directions", f"expected distinct 'x' and/or 'y', got {directions!r}")
         t.finish()
@@ -338,6 +306,7 @@ def _read_regions(top: Table, n_nodes: int) -> dict[str, tuple[int, ...]]:
 
 def _read_location(t: Table, key: str, n_nodes: int, places: dict[str, int]) -> int | None:
     """A node given by number, or by the name of a disk or a region (its first node); None when not given."""
+    t.section.key(key)  # a declared place
     if not t.has(key):
         return None
     value = t._get(key, None)
@@ -352,24 +321,24 @@ def _read_location(t: Table, key: str, n_nodes: int, places: dict[str, int]) -> 
 def _read_excitation(top: Table, n_nodes: int, disks, regions) -> Excitation | None:
     if not top.has("excitation"):
         return None
-    t = Table(top.path, "[excitation]", top._get("excitation", {}))
+    t = Table(top.path, "[excitation]", top._get("excitation", {}), section("[excitation]"))
     places = {**{k: v[0] for k, v in regions.items()}, **{d.name: d.node for d in disks}}
     out = Excitation(
         unbalance_node=_read_location(t, "unbalance_at", n_nodes, places),
-        unbalance_me=t.number("unbalance_me", None, nonnegative=True),
-        balance_grade=t.number("balance_grade", BALANCE_GRADE_MM_S, positive=True),
+        unbalance_me=t.read("unbalance_me"),
+        balance_grade=t.read("balance_grade"),
         broadband_node=_read_location(t, "broadband_at", n_nodes, places),
-        broadband_asd=t.number("broadband_asd", None, nonnegative=True),
-        max_response=t.number("max_response", None, positive=True),
+        broadband_asd=t.read("broadband_asd"),
+        max_response=t.read("max_response"),
     )
     t.finish()
     return out
 
 
 def _read_damping(top: Table) -> tuple[float, float]:
-    t = Table(top.path, "[damping]", top._get("damping", {}))
-    a = t.number("shaft_mass_proportional", 0.0, nonnegative=True)
-    b = t.number("shaft_stiffness_proportional", 0.0, nonnegative=True)
+    t = Table(top.path, "[damping]", top._get("damping", {}), section("[damping]"))
+    a = t.read("shaft_mass_proportional")
+    b = t.read("shaft_stiffness_proportional")
     t.finish()
     return (a, b)
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from twin.errors import ModelError, ModelFileError
 from twin.fem.effects import effect_label, effect_providing, library_effects
+from twin.fem.schema import section
 from twin.fem.tables import array_of_tables, label_table
 
 _IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -247,17 +248,17 @@ def read_operation(top, model) -> Operation | None:
     condition, a law that takes its parameter outside the physical bounds somewhere in the declared ranges.
     """
     conditions: list[Condition] = []
-    for t in array_of_tables(top, "condition"):
-        name = t.string("name")
+    for t in array_of_tables(top, "condition", section=section("[[condition]]")):
+        name = t.read("name")
         if not _IDENTIFIER.match(name):
             raise t.error("name", f"{name!r} is not a valid condition name (letters, digits and '_')")
         label_table(t, name)
         if name in {c.name for c in conditions}:
             raise t.error("name", f"a second condition named '{name}'")
-        units = t.string("units")
+        units = t.read("units")
         _check_units(t, units)
-        reference = t.number("reference")
-        span = t.array("range")
+        reference = t.read("reference")
+        span = t.read("range")
         if (
             len(span) != 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in span)
@@ -266,11 +267,9 @@ def read_operation(top, model) -> Operation | None:
             raise t.error("range", f"expected [low, high] with low < high, got {span!r}")
         if not span[0] <= reference <= span[1]:
             raise t.error("reference", f"{reference:g} {units} is outside the range [{span[0]:g}, {span[1]:g}]")
-        conditions.append(
-            Condition(name, units, reference, float(span[0]), float(span[1]), t.string("description", ""))
-        )
+        conditions.append(Condition(name, units, reference, float(span[0]), float(span[1]), t.read("description")))
         t.finish()
-    laws_tables = array_of_tables(top, "law")
+    laws_tables = array_of_tables(top, "law", section=section("[[law]]"))
     if not conditions:
         if laws_tables:
             raise laws_tables[0].error(None, "a law needs operating conditions: declare them in [[condition]] tables")
@@ -278,7 +277,7 @@ def read_operation(top, model) -> Operation | None:
     op = Operation(tuple(conditions))
     laws: list[Law] = []
     for t in laws_tables:
-        parameter = t.string("parameter")
+        parameter = t.read("parameter")
         label_table(t, parameter)
         if parameter in {law.parameter for law in laws}:
             raise t.error("parameter", f"a second law for '{parameter}': put every condition's slope in one law")
@@ -289,8 +288,8 @@ def read_operation(top, model) -> Operation | None:
             raise t.error("parameter", str(exc)) from None
         if p.per_mode:
             raise t.error("parameter", f"'{parameter}' takes one value per mode; a law sets a single FEM parameter")
-        reference = t.number("reference", None)
-        slopes_table = t._get("slopes", None)
+        reference = t.read("reference")
+        slopes_table = t.read("slopes")
         if not isinstance(slopes_table, dict) or not slopes_table:
             raise t.error("slopes", "expected a table of slopes by condition, e.g. slopes = { power = -1.5e5 }")
         slopes = []
@@ -300,7 +299,7 @@ def read_operation(top, model) -> Operation | None:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise t.error("slopes", f"the slope on '{k}' must be a finite number, got {v!r}")
             slopes.append((k, float(v)))
-        law = Law(parameter, tuple(slopes), reference, t.string("description", ""))
+        law = Law(parameter, tuple(slopes), reference, t.read("description"))
         t.finish()
         _check_bounds(t, op, law, p, extended)
         laws.append(law)

@@ -24,11 +24,28 @@ NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*$")
 class Table:
     """One TOML table being read: typed getters that report file/table/key, and a check for unknown keys."""
 
-    def __init__(self, path: str, where: str, data: Any) -> None:
+    def __init__(self, path: str, where: str, data: Any, section: Any = None) -> None:
         if not isinstance(data, Mapping):
             raise ModelFileError(path, where, None, f"must be a table, got {type(data).__name__}")
-        self.path, self.where, self.data = path, where, data
+        self.path, self.where, self.data, self.section = path, where, data, section
         self.used: set[str] = set()
+
+    def read(self, name: str, n_nodes: int | None = None) -> Any:
+        """The value of key ``name`` as the table's section declares it (:class:`twin.fem.schema.Key`: its kind,
+        default and rule); ``n_nodes`` bounds a node number."""
+        key = self.section.key(name)
+        if key.kind == "number":
+            return self.number(
+                name, key.default, positive=key.rule == "positive", nonnegative=key.rule == "nonnegative"
+            )
+        if key.kind == "node":
+            return self.node(name, n_nodes)
+        if key.kind == "nodes":
+            return self.node_list(name, n_nodes, key.default)
+        getter = {"string": self.string, "boolean": self.boolean, "array": self.array, "table": self._get}
+        if key.kind == "name":
+            return self.name(name)
+        return getter[key.kind](name, key.default)
 
     def error(self, key: str | None, problem: str) -> ModelFileError:
         return ModelFileError(self.path, self.where, key, problem)
@@ -121,12 +138,12 @@ class Table:
             raise self.error(key, f"unknown key{hint}")
 
 
-def array_of_tables(top: Table, key: str, required: bool = False) -> list[Table]:
-    """The tables of the array ``[[key]]``, each named by its place (``[[key]] #1``)."""
+def array_of_tables(top: Table, key: str, required: bool = False, section: Any = None) -> list[Table]:
+    """The tables of the array ``[[key]]``, each named by its place (``[[key]] #1``), read as ``section`` declares."""
     items = top.array(key, MISSING if required else [])
     if required and not items:
         raise top.error(key, f"at least one [[{key}]] table is needed")
-    return [Table(top.path, f"[[{key}]] #{i + 1}", item) for i, item in enumerate(items)]
+    return [Table(top.path, f"[[{key}]] #{i + 1}", item, section) for i, item in enumerate(items)]
 
 
 def label_table(table: Table, name: str) -> None:
