@@ -22,11 +22,13 @@ from twin import load_model
 from twin.fem.effects import MagneticPull
 from twin.fem.truthfile import Truth
 from twin.loop.diagnose import diagnose
-from twin.harness.scenarios import REFERENCE_EFFECTS, parse_scenario
+from twin.fem.effects import effect_label
+from twin.harness.scenarios import parse_scenario
 from twin.modes.measured import measured_modes
 
 ROOT = Path(__file__).resolve().parent.parent
-DEFAULT = [k for k in REFERENCE_EFFECTS if k != "fsi_per_mode"] + [
+#: Besides every effect whose reference size the model file declares (not the per-mode FSI):
+MORE = [
     "magnetic_pull@1.5+seal_cross_coupling@0.8",
     "shaft_stiffness:18@0.5",
     "disk_mass:generator@1.1",
@@ -39,15 +41,17 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=3)
-    parser.add_argument("--hidden", default=",".join(DEFAULT))
+    parser.add_argument("--hidden", default=None, help="comma-separated specs (default: every declared one and more)")
     args = parser.parse_args()
     model = load_model(ROOT / "models" / "hydro_unit.toml")
+    declared = [effect_label(e) for e in model.reference_changes if not e.per_mode]
+    args.hidden = args.hidden or ",".join(declared + MORE)
     print(
         f"{'hidden':<44} {'seed':>4} {'verdict':<17} {'named':<38} {'E before':>9} {'E after':>8} {'fall':>6} "
         f"{'time':>6}  parameter errors / place"
     )
     for spec in args.hidden.split(","):
-        scenario = parse_scenario(spec)
+        scenario = parse_scenario(spec, model)
         truth = scenario.truth_values(model)
         for seed in range(3, 3 + args.seeds):
             effects = scenario.truth().effects or (MagneticPull(0.0),)

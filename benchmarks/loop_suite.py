@@ -10,6 +10,11 @@ the nothing-hidden seeds (about 1 when the uncertainty is honest).
 
     python benchmarks/loop_suite.py [--workers 2] [--out twin-suite] [--method hmc|laplace]
                                     [--bootstrap R] [--from-table twin-suite/sweep.nc]
+                                    [--model pelton_unit --fmax 100]
+
+``--model`` runs another shipped machine's suite, ``benchmarks/loop_suite_<model>.txt`` (the same scenario
+kinds on its own effects and elements), into ``results/loop_suite_<model>.md``; ``--fmax`` is the highest
+frequency its extraction looks for modes up to.
 
 About 20 min on 2 cores without the calibration of each scenario's last
 update (``--bootstrap 0``, as ``results/loop_suite.md`` was measured); the
@@ -87,6 +92,8 @@ def summary(table: xr.Dataset) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", default="hydro_unit", help="a shipped machine")
+    parser.add_argument("--fmax", type=float, default=None, help="twin sweep --fmax (default: the sweep's)")
     parser.add_argument("--out", default="twin-suite")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--method", choices=tuple(RESULTS), default="hmc")
@@ -99,11 +106,15 @@ def main() -> None:
         help="records each scenario's last update is calibrated on (twin sweep --bootstrap; default: the loop's)",
     )
     args = parser.parse_args()
+    hydro = args.model == "hydro_unit"
+    suite = SUITE if hydro else SUITE.with_name(f"loop_suite_{args.model}.txt")
+    extra = ([] if hydro else ["--model", args.model]) + ([] if args.fmax is None else ["--fmax", f"{args.fmax:g}"])
     command = [
         "twin",
         "sweep",
         "--scenarios",
-        str(SUITE),
+        str(suite),
+        *extra,
         "--out",
         args.out,
         "--workers",
@@ -112,7 +123,8 @@ def main() -> None:
         args.method,
         *(["--bootstrap", str(args.bootstrap)] if args.bootstrap is not None else []),
     ]
-    flag = "" if args.bootstrap is None else f" --bootstrap {args.bootstrap}"
+    flag = ("" if args.bootstrap is None else f" --bootstrap {args.bootstrap}") + "".join(f" {a}" for a in extra)
+    own = "" if hydro else f" --model {args.model}" + ("" if args.fmax is None else f" --fmax {args.fmax:g}")
     t0 = time.perf_counter()
     if args.from_table is None:
         subprocess.run(command, check=False)
@@ -123,18 +135,22 @@ def main() -> None:
     method = json.loads(table.attrs.get("settings", "{}")).get("method", "laplace")  # tables before it: Laplace
     method = {"gibbs": "hmc"}.get(method, method)  # tables whose 'gibbs' ran the HMC sampler
     lines = [
-        "# The twin loop on scenarios it was not tuned to",
+        "# The twin loop on scenarios it was not tuned to" + ("" if hydro else f": {args.model}"),
         "",
-        f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}{flag}`, i.e. "
-        f"`twin sweep --scenarios benchmarks/loop_suite.txt --workers {args.workers} --method {method}{flag}` "
+        f"Command: `python benchmarks/loop_suite.py --workers {args.workers} --method {method}"
+        f"{'' if args.bootstrap is None else f' --bootstrap {args.bootstrap}'}{own}`, i.e. "
+        f"`twin sweep --scenarios benchmarks/{suite.name} --workers {args.workers} --method {method}{flag}` "
         f"({table.attrs.get('producer', 'twin')}); sweep {table.attrs.get('elapsed_s', float('nan')):.0f} s.",
         "",
     ]
     lines += summary(table)
-    RESULTS[method].parent.mkdir(exist_ok=True)
-    RESULTS[method].write_text("\n".join(lines) + "\n")
+    results = RESULTS[method]
+    if not hydro:
+        results = results.with_name(results.name.replace("loop_suite", f"loop_suite_{args.model}"))
+    results.parent.mkdir(exist_ok=True)
+    results.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-    print(f"wrote {RESULTS[method]} in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    print(f"wrote {results} in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
 
 
 if __name__ == "__main__":

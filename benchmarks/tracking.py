@@ -4,7 +4,7 @@ Three parts, each a set of ``twin campaign`` runs tracked by ``twin track`` (the
 seeds no test uses (from 5000):
 
 ``detection``
-    For each library effect at its reference size (:data:`twin.harness.scenarios.REFERENCE_EFFECTS`, the
+    For each library effect at its reference size (the model file's ``[reference_changes]``, the
     per-mode FSI left out) and a local change (element 18's bending stiffness), at three sizes, as a step
     and as a ramp: a campaign of ``--baseline-days`` of baseline, one day more, then the change, tracked
     for ``--after-days``. The six cases of an effect share one seed (the same baseline and noise, so they
@@ -49,7 +49,6 @@ from twin.fem import load_model
 from twin.fem.effects import effect_label, scaled
 from twin.fem.effects import ShaftStiffnessChange
 from twin.fem.operation import at_operating_point, with_parameters
-from twin.harness.scenarios import REFERENCE_EFFECTS
 from twin.tasks import dask_client
 from twin.track import campaign, read_schedule, track
 from twin.track.records import adopt
@@ -60,9 +59,10 @@ SIZES = (0.25, 0.5, 1.0)
 LOCAL = "shaft_stiffness:18"
 
 
-def reference_effects() -> dict[str, object]:
-    """The effects a detection case hides at size 1: the library's (not the per-mode FSI) and a local one."""
-    out = {k: v for k, v in REFERENCE_EFFECTS.items() if not getattr(v, "per_mode", False)}
+def reference_effects(model) -> dict[str, object]:
+    """The effects a detection case hides at size 1: those whose reference size the model file declares (not a
+    per-mode one) and a local one."""
+    out = {effect_label(e): e for e in model.reference_changes if not e.per_mode}
     out[LOCAL] = ShaftStiffnessChange(18, -0.5)
     return out
 
@@ -122,7 +122,7 @@ def predicted_size(model, effect, duration: float, n_records: int) -> float:
     ref = at_operating_point(model, {})
     params = {p.name: p.nominal for p in effect.parameters(ref)}
     names = list(params)
-    library = effect_label(effect) in REFERENCE_EFFECTS
+    library = not effect.local
     base = with_parameters(ref, names) if library else ref.with_effects(effect)
     ident = identifiability(base, names, excitation=Excitation(duration_s=duration))
     std = ident["std"].values
@@ -158,7 +158,7 @@ def share_modes(donor: Path, case: Path) -> int:
 
 def detection(args, model, root: Path, client) -> list[str]:
     """Per effect one seed: its cases share the baseline and the noise, and differ only by the change."""
-    effects = reference_effects()
+    effects = reference_effects(model)
     chosen = args.effects or list(effects)
     start = args.baseline_days + 1.0
     days = start + args.after_days

@@ -119,7 +119,7 @@ def scenario_record(job: tuple[str, int], duration_s: float, extraction: dict | 
 
     name, seed = job
     model = load_model(shipped_model("hydro_unit"))
-    scenario = parse_scenario("none" if name == "bearings" else name)
+    scenario = parse_scenario("none" if name == "bearings" else name, model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if streams == "numpy":
@@ -365,13 +365,14 @@ def scenario_problem(name: str) -> str | None:
     >>> scenario_problem("shaft_stiffness:18")
     "'shaft_stiffness:18' changes the model outside the effect library: nothing to add and update"
     """
+    from twin import load_model, shipped_model
     from twin.errors import TwinError
     from twin.harness.scenarios import parse_scenario
 
     if name in SCENARIOS:
         return None
     try:
-        scenario = parse_scenario(name)
+        scenario = parse_scenario(name, load_model(shipped_model("hydro_unit")))
     except TwinError as err:
         return f"{err}; or one of {', '.join(SCENARIOS)}"
     if scenario.changes:

@@ -47,6 +47,10 @@ RECORD_DURATION_S = 1200.0
 SAMPLING_RATE_HZ = 256.0
 NOISE_RATIO = 0.05
 
+#: The highest frequency the demo's and the sweep's extraction look for modes up to [Hz]: the hydro unit's
+#: lightly damped modes below it; a faster machine needs more (``--fmax``).
+DEMO_FMAX_HZ = 60.0
+
 #: A mode of the extraction is the average of its poles at this many model orders (at most).
 ORDERS_PER_MODE = 8
 #: The largest model order an extraction's stabilisation diagram reaches.

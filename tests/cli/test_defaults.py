@@ -9,6 +9,7 @@ from twin.cli.parser import build_parser
 from twin.extract.options import ExtractOptions
 from twin.fmu.simulate import simulate
 from twin.harness.demo import run_demo
+from twin.harness.sweep import Settings
 from twin.loop.twin import Twin
 from twin.update import synthesize_modes
 
@@ -36,6 +37,8 @@ EXTRACT = {f.name: f.default for f in dataclasses.fields(ExtractOptions)}
         ),
         (["demo"], "duration", signature_default(run_demo, "duration_s")),
         (["demo"], "samples", signature_default(run_demo, "samples")),
+        (["demo"], "fmax", signature_default(run_demo, "fmax_hz")),
+        (["sweep"], "fmax", Settings().fmax_hz),
         (["extract", "s.nc", "-o", "m.nc"], "max_order", EXTRACT["max_order"]),
         (["extract", "s.nc", "-o", "m.nc"], "samples", EXTRACT["samples"]),
         (["extract", "s.nc", "-o", "m.nc"], "fmin", EXTRACT["fmin_hz"]),

@@ -91,11 +91,11 @@ def test_truth_needs_the_region_of_its_effect(tmp_path, ross_model):
     "spec",
     ["shaft_stiffness:18@0.5", "disk_inertia:generator@1.2", "magnetic_pull+seal_cross_coupling", "fsi_per_mode"],
 )
-def test_a_files_truth_attr_reads_back_local_changes_too(spec):
+def test_a_files_truth_attr_reads_back_local_changes_too(hydro_unit, spec):
     # the extraction judges the target modes' observability from the truth a record names; a local change
     # outside the library (the held-out suite's shaft and disk changes) was "not a truth description"
     from twin.fem.truthfile import truth_from_json
     from twin.harness.scenarios import parse_scenario
 
-    truth = parse_scenario(spec).truth()
+    truth = parse_scenario(spec, hydro_unit).truth()
     assert truth_from_json(truth.to_json()) == truth

@@ -78,7 +78,7 @@ def test_demo_command_writes_the_report_and_the_error_falls(tmp_path, capsys):
 
 
 def test_demo_refuses_an_unknown_hidden_effect(tmp_path):
-    with pytest.raises(TwinError, match="unknown 'gravity'; choose from magnetic_pull"):
+    with pytest.raises(TwinError, match="unknown 'gravity'; choose from fsi, fsi_per_mode, magnetic_pull"):
         run_demo(tmp_path, hidden="gravity", progress=False)
     assert not any(tmp_path.iterdir())
 
@@ -117,7 +117,7 @@ def test_hidden_effect_in_fmu_signals_is_found_and_identified(hidden, hidden_swe
     r = hidden_sweep.sel(scenario=hidden)
     assert str(r.verdict.values) == "missing effect" and str(r.missing.values) == hidden
     assert float(r.error_after) < 0.2 * float(r.error_before), (float(r.error_before), float(r.error_after))
-    truth = parse_scenario(hidden).truth_values(hydro_unit)
+    truth = parse_scenario(hidden, hydro_unit).truth_values(hydro_unit)
     identified = r.where(np.isfinite(r["map"]), drop=True)
     assert sorted(identified["parameter"].values) == sorted(truth)
     for name in truth:
@@ -150,7 +150,10 @@ def test_no_hidden_effect_in_fmu_signals_is_no_false_alarm(hidden_sweep, hydro_u
     r = hidden_sweep.sel(scenario="none")
     assert str(r.verdict.values) == "nothing missing" and int(r.seed) == NO_EFFECT_SEED
     assert bool(r.passed)
-    assert parse_scenario("fsi").truth_values(hydro_unit) == {"FSI.added_mass": 6e4, "FSI.added_damping": 2e6}
+    assert parse_scenario("fsi", hydro_unit).truth_values(hydro_unit) == {
+        "FSI.added_mass": 6e4,
+        "FSI.added_damping": 2e6,
+    }
 
 
 @pytest.mark.slow

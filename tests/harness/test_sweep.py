@@ -6,6 +6,7 @@ import xarray as xr
 
 from twin.cli import main
 from twin.errors import TwinError
+from twin.harness.scenarios import reference_labels
 from twin.harness.sweep import Settings, scenario_grid, sweep, tabulate
 
 
@@ -31,7 +32,7 @@ def _row(verdict, missing, before, after, params, location=""):
     }
 
 
-def test_table_and_pass_rule():
+def test_table_and_pass_rule(hydro_unit):
     scenarios = [("magnetic_pull", 1), ("magnetic_pull", 2), ("thrust_tilt:thrust", 1), ("none", 5), ("fsi", 1)]
     rows = [
         _row("missing effect", "magnetic_pull", 0.08, 0.002, {"MAG.stiffness": (-1.05e8, 5e6, -1e8)}),
@@ -40,7 +41,7 @@ def test_table_and_pass_rule():
         _row("nothing missing", "", 0.003, 0.003, {}),
         _row("missing effect", "fsi", 0.05, 0.015, {"FSI.added_mass": (6e4, 1e3, 6e4)}),  # falls 70% only
     ]
-    t = tabulate(scenarios, rows, Settings())
+    t = tabulate(scenarios, rows, Settings(), hydro_unit)
     assert t["passed"].values.tolist() == [True, False, True, True, False]
     # strictly, the tilt stiffness 20% off (2 std) fails: it is not within 10%
     assert t["passed_strict"].values.tolist() == [True, False, False, True, False]
@@ -53,16 +54,17 @@ def test_table_and_pass_rule():
     assert t["hidden"].values.tolist()[3] == "none" and t["seed"].values.tolist() == [1, 2, 1, 5, 1]
 
 
-def test_wrong_verdict_fails_the_scenario():
+def test_wrong_verdict_fails_the_scenario(hydro_unit):
     t = tabulate(
         [("none", 1), ("fsi", 1)],
         [_row("missing effect", "fsi", 0.01, 0.001, {}), _row("missing effect", "magnetic_pull", 0.05, 0.001, {})],
         Settings(),
+        hydro_unit,
     )
     assert t["passed"].values.tolist() == [False, False]
 
 
-def test_change_outside_the_library_passes_when_called_unexplained_and_located():
+def test_change_outside_the_library_passes_when_called_unexplained_and_located(hydro_unit):
     rows = [
         _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:18"),
         _row("unexplained", "", 0.02, 0.02, {}, location="shaft_stiffness:5"),
@@ -70,14 +72,14 @@ def test_change_outside_the_library_passes_when_called_unexplained_and_located()
         _row("unexplained", "", 0.02, 0.02, {}, location="disk_mass:generator"),
     ]
     scenarios = [("shaft_stiffness_loss", s) for s in (1, 2, 3)] + [("disk_mass:generator@1.1", 1)]
-    t = tabulate(scenarios, rows, Settings())
+    t = tabulate(scenarios, rows, Settings(), hydro_unit)
     assert t["passed"].values.tolist() == [True, False, False, True]
     assert t["passed_strict"].values.tolist() == [True, False, False, True]
     assert t["location"].values.tolist()[:2] == ["shaft_stiffness:18", "shaft_stiffness:5"]
     assert t["expected"].values.tolist()[3] == "unexplained, at disk_mass:generator"
 
 
-def test_two_hidden_effects_pass_only_when_both_are_named():
+def test_two_hidden_effects_pass_only_when_both_are_named(hydro_unit):
     scenarios = [("magnetic_pull+seal_cross_coupling", 1)] * 3
     both = {"MAG.stiffness": (-1.02e8, 4e6, -1e8), "SEAL.kxy": (4.9e7, 2e6, 5e7)}
     rows = [
@@ -85,7 +87,7 @@ def test_two_hidden_effects_pass_only_when_both_are_named():
         _row("missing effect", "magnetic_pull", 0.05, 0.004, {"MAG.stiffness": (-1.3e8, 4e6, -1e8)}),
         _row("missing effect", "magnetic_pull+seal_cross_coupling+fsi", 0.05, 0.002, both),
     ]
-    t = tabulate(scenarios, rows, Settings())
+    t = tabulate(scenarios, rows, Settings(), hydro_unit)
     assert t["passed"].values.tolist() == [
         True,
         False,
@@ -93,23 +95,27 @@ def test_two_hidden_effects_pass_only_when_both_are_named():
     ]  # the order does not matter; one missing or one extra fails
 
 
-def test_scenario_file(tmp_path):
+def test_scenario_file(tmp_path, hydro_unit):
     from twin.harness.sweep import read_scenarios
 
     f = tmp_path / "suite.txt"
     f.write_text("# sizes\nmagnetic_pull@0.3 31,32\n\nmagnetic_pull+fsi 33  # two at once\n")
-    assert read_scenarios(f) == [("magnetic_pull@0.3", 31), ("magnetic_pull@0.3", 32), ("magnetic_pull+fsi", 33)]
+    assert read_scenarios(f, hydro_unit) == [
+        ("magnetic_pull@0.3", 31),
+        ("magnetic_pull@0.3", 32),
+        ("magnetic_pull+fsi", 33),
+    ]
     f.write_text("magnetic_pull@0.3\n")
     with pytest.raises(TwinError, match=r"suite.txt, line 1: expected 'SPEC SEED"):
-        read_scenarios(f)
+        read_scenarios(f, hydro_unit)
     f.write_text("none 1\nmagnetic_pul 2\n")
     with pytest.raises(TwinError, match=r"line 2: .*unknown 'magnetic_pul'"):
-        read_scenarios(f)
+        read_scenarios(f, hydro_unit)
 
 
 def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path, hydro_unit):
-    with pytest.raises(TwinError, match="unknown 'gravity'; choose from magnetic_pull"):
-        scenario_grid(["magnetic_pull", "gravity"])
+    with pytest.raises(TwinError, match="unknown 'gravity'; choose from fsi, fsi_per_mode, magnetic_pull"):
+        scenario_grid(hydro_unit, ["magnetic_pull", "gravity"])
     with pytest.raises(TwinError, match="at least one scenario"):
         sweep([], tmp_path / "s")
     with pytest.raises(TwinError, match="unknown 'gravity'"):
@@ -119,7 +125,7 @@ def test_bad_scenarios_are_named_and_nothing_is_written(tmp_path, hydro_unit):
     assert not (tmp_path / "s").exists()
     assert main(["sweep", "--seeds", "1,x", "--out", str(tmp_path / "s")]) == 2
     assert main(["sweep", "--hidden", "all,gravity", "--out", str(tmp_path / "s")]) == 2
-    assert len(scenario_grid(seeds=[1, 2])) == 14
+    assert len(scenario_grid(hydro_unit, seeds=[1, 2])) == 2 * len(reference_labels(hydro_unit)) == 22
 
 
 @pytest.mark.slow
@@ -171,7 +177,7 @@ def test_a_scenario_that_raises_fails_alone(monkeypatch, hydro_unit, tmp_path):
     row = sw.run_scenario(("magnetic_pull", 1), hydro_unit, str(tmp_path), Settings())
     assert row["verdict"] == "error" and "ValueError: no such thing" in row["warnings"][-1][1]
     good = _row("missing effect", "magnetic_pull", 0.08, 0.002, {"MAG.stiffness": (-1.05e8, 5e6, -1e8)})
-    t = tabulate([("magnetic_pull", 1), ("magnetic_pull", 2)], [row, good], Settings())
+    t = tabulate([("magnetic_pull", 1), ("magnetic_pull", 2)], [row, good], Settings(), hydro_unit)
     assert t["passed"].values.tolist() == [False, True] and str(t["verdict"].values[0]) == "error"
 
 

@@ -13,6 +13,7 @@ import math
 
 from twin.defaults import (
     CHAINS,
+    DEMO_FMAX_HZ,
     DEFAULT_RECORDS,
     DRAWS,
     GIBBS_BURN_IN,
@@ -218,6 +219,12 @@ def add_loop_settings(p: argparse.ArgumentParser, records: int | None = None) ->
     ``--bootstrap`` (the loop's when None)."""
     p.add_argument("--duration", type=POSITIVE, default=RECORD_DURATION_S, help="record length [s]")
     p.add_argument("--samples", type=COUNT, default=SAMPLES, help="jackknife samples per mode")
+    p.add_argument(
+        "--fmax",
+        type=POSITIVE,
+        default=DEMO_FMAX_HZ,
+        help="highest frequency the extraction looks for modes up to [Hz]",
+    )
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
     add_method(p, "how each round updates the added effects")
     add_bootstrap(p, records)

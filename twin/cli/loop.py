@@ -209,6 +209,7 @@ def _demo(args: argparse.Namespace) -> int:
             duration_s=args.duration,
             seed=args.seed,
             samples=args.samples,
+            fmax_hz=args.fmax,
             method=args.method,
             bootstrap=args.bootstrap,
             tasks=client,
@@ -304,17 +305,26 @@ def _loop(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from twin.fem import load_model
-    from twin.harness.scenarios import REFERENCE_EFFECTS
+    from twin.harness.demo import default_model_path
+    from twin.harness.scenarios import reference_labels
     from twin.harness.sweep import Settings, read_scenarios, scenario_grid, sweep
     from twin.harness.sweep_report import sweep_text
 
-    model = load_model(args.model) if args.model else None
+    model = load_model(args.model if args.model else default_model_path())
     if args.scenarios:
-        scenarios = read_scenarios(args.scenarios)
+        scenarios = read_scenarios(args.scenarios, model)
     else:
-        hidden = [h for token in args.hidden.split(",") for h in (REFERENCE_EFFECTS if token == "all" else [token])]
-        scenarios = scenario_grid(hidden, _int_list(args.seeds, "--seeds"))
-    settings = Settings(duration_s=args.duration, samples=args.samples, method=args.method, bootstrap=args.bootstrap)
+        hidden = [
+            h for token in args.hidden.split(",") for h in (reference_labels(model) if token == "all" else [token])
+        ]
+        scenarios = scenario_grid(model, hidden, _int_list(args.seeds, "--seeds"))
+    settings = Settings(
+        duration_s=args.duration,
+        samples=args.samples,
+        fmax_hz=args.fmax,
+        method=args.method,
+        bootstrap=args.bootstrap,
+    )
     with tasks(args) as client:
         table = sweep(scenarios, args.out, model=model, settings=settings, tasks=client)
     print(sweep_text(table))

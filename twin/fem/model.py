@@ -89,6 +89,9 @@ class RotorModel:
     excitation : Excitation, optional
         What the model file's ``[excitation]`` table declares (:mod:`twin.fem.excitation`; the rest is derived
         from the machine by :func:`twin.fem.excitation.machine_excitation`); None for a model that declares none.
+    reference_changes : sequence
+        Effects at the sizes the model file declares for hidden changes of reference size
+        (``[reference_changes]``; :func:`twin.harness.scenarios.reference_effect` derives the others).
 
     Examples
     --------
@@ -119,9 +122,10 @@ class RotorModel:
     description: str = ""
     operation: object | None = None
     excitation: object | None = None
+    reference_changes: Sequence[object] = ()
 
     def __post_init__(self) -> None:
-        for name in ("shaft", "disks", "bearings", "thrusts", "sensors", "effects"):
+        for name in ("shaft", "disks", "bearings", "thrusts", "sensors", "effects", "reference_changes"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "regions", {k: tuple(int(n) for n in v) for k, v in dict(self.regions).items()})
         object.__setattr__(self, "values", {k: float(v) for k, v in dict(self.values).items()})

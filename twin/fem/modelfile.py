@@ -140,6 +140,14 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
     excitation = _read_excitation(top, n_nodes, disks, regions)
     tables: list[str] = []
     effects = _read_effects(top, regions, effect_elements(bearings, thrusts), tables)
+    reference_tables: list[str] = []
+    reference_changes = read_effect_tables(
+        Table(top.path, "[reference_changes]", top._get("reference_changes", {})),
+        regions,
+        prefix="reference_changes.",
+        elements=effect_elements(bearings, thrusts),
+        tables_read=reference_tables,
+    )
     model = RotorModel(
         name=name,
         shaft=shaft,
@@ -156,6 +164,8 @@ def model_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> RotorMod
         excitation=excitation,
     )
     check_effect_bounds(effects, model, source, tables)
+    check_effect_bounds(reference_changes, model, source, reference_tables)
+    model = dataclasses.replace(model, reference_changes=tuple(reference_changes))
     model = model.with_effects(*effects)
     operation = read_operation(top, model)
     top.finish()

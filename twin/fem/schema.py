@@ -268,6 +268,13 @@ SECTIONS: tuple[Section, ...] = (
         ),
     ),
     Section(
+        '[reference_changes."<label>"]',
+        "The size of a library effect that benchmarks and demos hide at reference size (`twin demo --hidden "
+        "LABEL`, `LABEL@1`), with the keys of `[effects]` (per-mode effects take one value per mode). An effect "
+        "without one is hidden at a size derived from the machine ({func}`twin.harness.scenarios.reference_effect`).",
+        free_keys='as `[effects."<label>"]` below',
+    ),
+    Section(
         "[[condition]]",
         "An operating condition the records carry ({mod}`twin.fem.operation`): power, temperature, head...",
         (

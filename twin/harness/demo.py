@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from twin.defaults import (  # noqa: F401 (shared with the CLI)
+    DEMO_FMAX_HZ,
     DEMO_RECORDS,
     RECORD_DURATION_S,
     SAMPLES,
@@ -226,7 +227,6 @@ def check_demo(
     from twin.fem import load_model
 
     check_records(bootstrap, method)
-    scenario = parse_scenario(hidden)
     if model is None:
         path = default_model_path()
         if not path.exists():
@@ -234,6 +234,7 @@ def check_demo(
                 f"the demo model {path} is not there (an installed copy without the source tree?): give a model file"
             )
         model = load_model(path)
+    scenario = parse_scenario(hidden, model)
     scenario.check(model)
     return model, scenario, check_folder(out)
 
@@ -246,7 +247,7 @@ def run_demo(
     duration_s: float = RECORD_DURATION_S,
     fs_hz: float = SAMPLING_RATE_HZ,
     samples: int = SAMPLES,
-    fmax_hz: float = 60.0,
+    fmax_hz: float = DEMO_FMAX_HZ,
     seed: int = 1,
     method: str = "hmc",
     bootstrap: int | None = None,

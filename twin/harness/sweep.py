@@ -35,13 +35,13 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from twin.defaults import RECORD_DURATION_S, SAMPLING_RATE_HZ
+from twin.defaults import DEMO_FMAX_HZ, RECORD_DURATION_S, SAMPLING_RATE_HZ
 from twin import __version__
 from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
 from twin.loop.bootstrap import DEFAULT_RECORDS
 from twin.harness.demo import SAMPLES, run_demo
-from twin.harness.scenarios import REFERENCE_EFFECTS, Scenario, parse_scenario
+from twin.harness.scenarios import Scenario, parse_scenario, reference_labels, spec_folder
 from twin.netcdf import check_folder, check_writable, write_netcdf
 from twin.tasks import mapper
 
@@ -62,27 +62,30 @@ class Settings:
     duration_s: float = RECORD_DURATION_S
     fs_hz: float = SAMPLING_RATE_HZ
     samples: int = SAMPLES
-    fmax_hz: float = 60.0
+    fmax_hz: float = DEMO_FMAX_HZ
     method: str = "hmc"
     bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.DEFAULT_RECORDS), not the demo's
 
 
-def scenario_grid(hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)) -> list[tuple[str, int]]:
-    """Every hidden spec with every seed (default: each library effect at its reference size).
+def scenario_grid(
+    model: RotorModel, hidden: Sequence[str] | None = None, seeds: Sequence[int] = (1,)
+) -> list[tuple[str, int]]:
+    """Every hidden spec with every seed (default: each library effect ``model`` admits at its reference size,
+    :func:`twin.harness.scenarios.reference_labels`).
 
     Examples
     --------
-    >>> scenario_grid(["magnetic_pull", "none"], seeds=[1, 2])
+    >>> scenario_grid(hydro_unit, ["magnetic_pull", "none"], seeds=[1, 2])
     [('magnetic_pull', 1), ('magnetic_pull', 2), ('none', 1), ('none', 2)]
     """
-    hidden = list(REFERENCE_EFFECTS) if hidden is None else list(hidden)
+    hidden = reference_labels(model) if hidden is None else list(hidden)
     for h in hidden:
-        parse_scenario(h)  # names a bad spec
+        parse_scenario(h, model)  # names a bad spec
     return [(h, int(s)) for h, s in itertools.product(hidden, seeds)]
 
 
-def read_scenarios(path: str | Path) -> list[tuple[str, int]]:
-    r"""Scenarios from a text file: one ``SPEC SEED[,SEED...]`` per line, ``#`` comments.
+def read_scenarios(path: str | Path, model: RotorModel) -> list[tuple[str, int]]:
+    r"""Scenarios for ``model`` from a text file: one ``SPEC SEED[,SEED...]`` per line, ``#`` comments.
 
     Examples
     --------
@@ -90,7 +93,7 @@ def read_scenarios(path: str | Path) -> list[tuple[str, int]]:
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     f = pathlib.Path(tmp, "s.txt")
     ...     _ = f.write_text("# suite\nmagnetic_pull@0.2 31,32\nnone 40\n")
-    ...     read_scenarios(f)
+    ...     read_scenarios(f, hydro_unit)
     [('magnetic_pull@0.2', 31), ('magnetic_pull@0.2', 32), ('none', 40)]
     """
     path = Path(path)
@@ -108,7 +111,7 @@ def read_scenarios(path: str | Path) -> list[tuple[str, int]]:
             raise TwinError(f"{path}, line {n}: expected 'SPEC SEED[,SEED...]', got '{text}'")
         try:
             seeds = [int(x) for x in parts[1].split(",")]
-            parse_scenario(parts[0])
+            parse_scenario(parts[0], model)
         except ValueError:
             raise TwinError(f"{path}, line {n}: seeds are comma-separated integers, got '{parts[1]}'") from None
         except TwinError as err:
@@ -140,7 +143,7 @@ def folder_name(hidden: str, seed: int) -> str:
     >>> folder_name("bearing_change:LGB@0.5", 2)
     'bearing_change_LGB_x0.5_seed2'
     """
-    return f"{parse_scenario(hidden).folder}_seed{seed}"
+    return f"{spec_folder(hidden)}_seed{seed}"
 
 
 def run_scenario(scenario: tuple[str, int], model: RotorModel, out: str, settings: Settings) -> dict:
@@ -266,7 +269,7 @@ def sweep(
         raise TwinError("a sweep needs at least one scenario")
     model = model if model is not None else load_model(default_model_path())
     for h, _ in scenarios:
-        parse_scenario(h).check(model)  # a bad spec fails before any work
+        parse_scenario(h, model).check(model)  # a bad spec fails before any work
     out = check_folder(out, make=True)
     check_writable(out / "sweep.nc")
     t0 = time.perf_counter()
@@ -276,7 +279,7 @@ def sweep(
     for (hidden, seed), row in zip(scenarios, rows):
         for category, message in row["warnings"]:
             warnings.warn(f"scenario {hidden}, seed {seed}: {message}", category, stacklevel=2)
-    table = tabulate(scenarios, rows, settings)
+    table = tabulate(scenarios, rows, settings, model)
     table.attrs["elapsed_s"] = time.perf_counter() - t0
     write_netcdf(table, out / "sweep.nc")
     log.info(
@@ -293,8 +296,10 @@ def sweep(
 PARAMETER_VARIABLES = ("map", "std", "q05", "q95", "r_hat", "ess_bulk", "truth", "determined")
 
 
-def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], settings: Settings) -> xr.Dataset:
-    """The Dataset of a sweep from the scenarios and their summaries (see :func:`sweep`)."""
+def tabulate(
+    scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], settings: Settings, model: RotorModel
+) -> xr.Dataset:
+    """The Dataset of a sweep from the scenarios on ``model`` and their summaries (see :func:`sweep`)."""
     names = sorted({n for r in rows for n in r["parameters"]})
     par = {k: np.full((len(rows), len(names)), np.nan) for k in PARAMETER_VARIABLES}
     for i, r in enumerate(rows):
@@ -309,7 +314,7 @@ def tabulate(scenarios: Sequence[tuple[str, int]], rows: Sequence[dict], setting
     after_interval = np.array([r["error_after_interval"] for r in rows], dtype=float).reshape(len(rows), 2)
     fall = 1.0 - after / before
     hidden = [h for h, _ in scenarios]
-    parsed = [parse_scenario(h) for h in hidden]
+    parsed = [parse_scenario(h, model) for h in hidden]
     found = np.array([right_diagnosis(sc, r) for sc, r in zip(parsed, rows)])
     within = np.isnan(par["truth"]) | (np.abs(rel) <= MAX_PARAMETER_ERROR)  # no truth: nothing to check
     close = within | (np.abs(z) <= MAX_Z)
