@@ -23,7 +23,7 @@ def _error(tmp_path, old, new, count=1):
 
 
 def test_shipped_models_load():
-    for name in ("hydro_unit", "ross_reference"):
+    for name in ("hydro_unit", "pelton_unit", "ross_reference"):
         model = load_model(ROOT / "models" / f"{name}.toml")
         assert model.name == name and model.source.endswith(f"{name}.toml")
         assert load_model(name).source == str(shipped_model(name)) and shipped_model(name).is_file()

@@ -7,7 +7,8 @@ import pytest
 
 from twin import ModelFileError
 from twin.fem.effects import ShaftStiffnessChange
-from twin.track.profile import DEFAULT_VARIATION, Variation, operating_points
+from twin.fem.operation import Variation
+from twin.track.profile import operating_points
 from twin.track.schedule import Change, read_schedule
 
 BASE = "days = 3\nrecords_per_day = 4\nduration = 600.0\n"
@@ -32,7 +33,7 @@ def test_a_schedule_with_defaults_and_a_change(tmp_path, hydro_unit):
     s = _read(tmp_path, BASE + 'start = "2027-03-01T06:00:00+01:00"\n' + CHANGE, hydro_unit)
     assert s.n_records == 12 and s.duration_s == 600.0 and s.fs_hz == 256.0
     assert s.start == dt.datetime(2027, 3, 1, 5, tzinfo=dt.UTC)
-    assert s.variations["power"].mean == DEFAULT_VARIATION["power"]["mean"]
+    assert s.variations["power"].mean == hydro_unit.operation.condition("power").variation.mean == 150.0
     assert s.variations["oil_temperature"].follows == {"power": 0.04}
     (change,) = s.changes
     assert change.truth.effects[1] == ShaftStiffnessChange(18, -0.3)
@@ -54,7 +55,7 @@ def test_operation_tables_override_the_defaults(tmp_path, hydro_unit):
 
 def test_operating_points_are_seeded_clipped_and_follow_their_daily_cycle(hydro_unit):
     op = hydro_unit.operation
-    variations = {k: Variation(**{"mean": op.condition(k).reference, **DEFAULT_VARIATION[k]}) for k in op.names}
+    variations = {k: op.condition(k).variation for k in op.names}
     days = np.arange(4 * 400) / 4
     a = operating_points(variations, op, days, 0.0, seed=11)
     assert np.array_equal(a, operating_points(variations, op, days, 0.0, seed=11))

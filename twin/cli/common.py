@@ -28,9 +28,9 @@ from twin.defaults import (
 )
 
 MODEL_HELP = (
-    "model file (TOML), or the name of a shipped model: hydro_unit (every command), or ross_reference "
-    "(ROSS's test rotor, for checking the FEM: unstable by design and without water, so not for simulate, "
-    "synthesize-modes with the paper's truth, or the loop)"
+    "model file (TOML), or the name of a shipped model: hydro_unit or pelton_unit (every command), or "
+    "ross_reference (ROSS's test rotor, for checking the FEM: unstable by design and without water, so not for "
+    "simulate, synthesize-modes with the paper's truth, or the loop)"
 )
 MODES_HELP = "modes file (NetCDF: mode x sample x channel, from twin extract or twin synthesize-modes)"
 #: What a truth file is, said where --truth is taken.

@@ -36,16 +36,66 @@ import itertools
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from twin.errors import ModelError, ModelFileError
 from twin.fem.effects import effect_label, effect_providing, library_effects
 from twin.fem.schema import section
-from twin.fem.tables import array_of_tables, label_table
+from twin.fem.tables import Table, array_of_tables, label_table
 
 _IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Variation:
+    """How one condition varies over a campaign, in the condition's units (:func:`twin.track.profile.operating_points`):
+    a mean, a daily cycle highest at ``peak_hour``, a yearly season highest on ``seasonal_peak_day``, a linear drift,
+    other conditions it follows (``follows``: per unit of their departure from their mean) and a random dispatch
+    level (``dispatch_std``, AR(1) with ``dispatch_correlation`` between successive records).
+
+    A model file declares a condition's typical variation (``[condition.variation]``); a campaign's schedule
+    overrides it (``[operation.<condition>]``); a condition without one stays at its reference value.
+    """
+
+    mean: float
+    daily_amplitude: float = 0.0
+    peak_hour: float = 18.0
+    seasonal_amplitude: float = 0.0
+    seasonal_peak_day: float = 200.0
+    drift_per_year: float = 0.0
+    dispatch_std: float = 0.0
+    dispatch_correlation: float = 0.0
+    follows: dict[str, float] = field(default_factory=dict)
+
+
+#: The keys of a variation table that may not be negative.
+_NONNEGATIVE = ("dispatch_std", "daily_amplitude", "seasonal_amplitude")
+
+
+def read_variation(t: Table, base: Variation, names, name: str) -> Variation:
+    """A condition's variation from table ``t`` (a schedule's ``[operation.<name>]`` or a model file's
+    ``[condition.variation]``) over ``base``; ``names`` are the declared conditions, which ``follows`` may name.
+    Errors name the file, the table and the key."""
+    values: dict = {}
+    for f in fields(Variation):
+        if f.name == "follows":
+            follows = t._get("follows", base.follows)
+            if not isinstance(follows, dict):
+                raise t.error("follows", f"expected a table of slopes by condition, got {follows!r}")
+            for k, v in follows.items():
+                if k not in names or k == name:
+                    raise t.error("follows", f"'{k}' is not another declared condition ({', '.join(names)})")
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                    raise t.error("follows", f"the slope on '{k}' must be a finite number, got {v!r}")
+            values["follows"] = {k: float(v) for k, v in follows.items()}
+        else:
+            values[f.name] = t.number(f.name, getattr(base, f.name), nonnegative=f.name in _NONNEGATIVE)
+    if not 0 <= values["dispatch_correlation"] < 1:
+        raise t.error("dispatch_correlation", f"must be in [0, 1), got {values['dispatch_correlation']:g}")
+    t.finish()
+    return replace(base, **values)
 
 
 @dataclass(frozen=True)
@@ -65,6 +115,7 @@ class Condition:
     low: float
     high: float
     description: str = ""
+    variation: Variation | None = None
 
     def contains(self, value: float) -> bool:
         """Whether ``value`` lies in the declared range (ends included)."""
@@ -248,6 +299,7 @@ def read_operation(top, model) -> Operation | None:
     condition, a law that takes its parameter outside the physical bounds somewhere in the declared ranges.
     """
     conditions: list[Condition] = []
+    variations: list[tuple[Table, object]] = []
     for t in array_of_tables(top, "condition", section=section("[[condition]]")):
         name = t.read("name")
         if not _IDENTIFIER.match(name):
@@ -268,7 +320,14 @@ def read_operation(top, model) -> Operation | None:
         if not span[0] <= reference <= span[1]:
             raise t.error("reference", f"{reference:g} {units} is outside the range [{span[0]:g}, {span[1]:g}]")
         conditions.append(Condition(name, units, reference, float(span[0]), float(span[1]), t.read("description")))
+        variations.append((t, t.read("variation")))
         t.finish()
+    names = [c.name for c in conditions]
+    for i, ((t, raw), c) in enumerate(zip(variations, conditions)):
+        if raw is not None:
+            table = Table(t.path, f"{t.where}, [condition.variation]", raw)
+            variation = read_variation(table, Variation(mean=c.reference), names, c.name)
+            conditions[i] = dataclasses.replace(c, variation=variation)
     laws_tables = array_of_tables(top, "law", section=section("[[law]]"))
     if not conditions:
         if laws_tables:

@@ -283,6 +283,16 @@ SECTIONS: tuple[Section, ...] = (
             Key("reference", "number", "the value at which the model's coefficients hold, inside the range", "units"),
             Key("range", "array", "[low, high]: the values the machine runs at", "units"),
             Key("description", "string", "one line on it", default=""),
+            Key(
+                "variation",
+                "table",
+                "how it varies in a campaign by default, a `[condition.variation]` table with the keys of a "
+                "schedule's `[operation.<condition>]` (mean, daily_amplitude, peak_hour, seasonal_amplitude, "
+                "seasonal_peak_day, drift_per_year, dispatch_std, dispatch_correlation, follows; "
+                "{class}`twin.fem.operation.Variation`); a schedule overrides it",
+                default=None,
+                default_text="stays at the reference",
+            ),
         ),
     ),
     Section(

@@ -11,77 +11,28 @@ Each condition follows, at a record's start ``t`` [days] and hour of day ``h``::
 where ``dispatch`` is a random level from record to record, normal with standard deviation
 ``dispatch_std`` and correlation ``dispatch_correlation`` between successive records (an AR(1)
 sequence), and ``follows`` couples a condition to others (the oil warms with the load). The value is
-clipped to the model's range for the condition. The defaults (:data:`DEFAULT_VARIATION`) are those of a
-peaking hydro unit; a condition without defaults stays at its reference value.
+clipped to the model's range for the condition. A model file declares each condition's typical
+variation (:class:`twin.fem.operation.Variation`, its ``[condition.variation]`` table: the hydro unit's
+are those of a peaking unit), a schedule overrides it, and a condition without one stays at its
+reference value.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from twin.fem.operation import Variation, read_variation
 from twin.fem.tables import Table
 
 #: Days in a year, for seasons and drifts.
 YEAR_DAYS = 365.25
 
 
-@dataclass(frozen=True)
-class Variation:
-    """How one condition varies (in the condition's units; see the module's text)."""
-
-    mean: float
-    daily_amplitude: float = 0.0
-    peak_hour: float = 18.0
-    seasonal_amplitude: float = 0.0
-    seasonal_peak_day: float = 200.0
-    drift_per_year: float = 0.0
-    dispatch_std: float = 0.0
-    dispatch_correlation: float = 0.0
-    follows: dict[str, float] = field(default_factory=dict)
-
-
-#: Defaults by condition name, for the hydro unit's conditions: a peaking unit dispatched around 150 MW
-#: with an evening peak; reactive power following the load; the head with the reservoir's yearly fill
-#: (highest in late spring); the guide-bearing oil 0.04 degC warmer per MW of load (bearing losses) and
-#: with the cooling water's season (warmest in summer).
-DEFAULT_VARIATION: dict[str, dict] = {
-    "power": {
-        "mean": 150.0,
-        "daily_amplitude": 35.0,
-        "peak_hour": 18.0,
-        "dispatch_std": 25.0,
-        "dispatch_correlation": 0.3,
-    },
-    "reactive_power": {
-        "mean": 25.0,
-        "daily_amplitude": 15.0,
-        "peak_hour": 18.0,
-        "dispatch_std": 15.0,
-        "dispatch_correlation": 0.3,
-    },
-    "head": {
-        "mean": 140.0,
-        "seasonal_amplitude": 5.0,
-        "seasonal_peak_day": 150.0,
-        "dispatch_std": 0.5,
-        "dispatch_correlation": 0.95,
-    },
-    "oil_temperature": {
-        "mean": 45.0,
-        "seasonal_amplitude": 3.0,
-        "seasonal_peak_day": 200.0,
-        "follows": {"power": 0.04},
-        "dispatch_std": 0.7,
-        "dispatch_correlation": 0.6,
-    },
-}
-
-
 def read_variations(table, operation) -> dict[str, Variation]:
-    """Each declared condition's variation: the schedule's ``[operation.<condition>]`` over the defaults.
+    """Each declared condition's variation: the schedule's ``[operation.<condition>]`` over the model file's
+    (``[condition.variation]``; a condition without one stays at its reference).
 
     ``table`` is the schedule's ``[operation]`` reading table; errors name the file, the table and the key.
     """
@@ -89,33 +40,12 @@ def read_variations(table, operation) -> dict[str, Variation]:
     out: dict[str, Variation] = {}
     for name in names:
         c = operation.condition(name)
-        base = Variation(**{"mean": c.reference, **DEFAULT_VARIATION.get(name, {})})
+        base = c.variation or Variation(mean=c.reference)
         if name not in table.data:
             out[name] = base
             continue
         t = Table(table.path, f"[operation.{name}]", table._get(name, {}))
-        values = {}
-        for f in fields(Variation):
-            if f.name == "follows":
-                follows = t._get("follows", base.follows)
-                if not isinstance(follows, dict):
-                    raise t.error("follows", f"expected a table of slopes by condition, got {follows!r}")
-                for k, v in follows.items():
-                    if k not in names or k == name:
-                        raise t.error("follows", f"'{k}' is not another declared condition ({', '.join(names)})")
-                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                        raise t.error("follows", f"the slope on '{k}' must be a finite number, got {v!r}")
-                values["follows"] = {k: float(v) for k, v in follows.items()}
-            else:
-                values[f.name] = t.number(
-                    f.name,
-                    getattr(base, f.name),
-                    nonnegative=f.name in ("dispatch_std", "daily_amplitude", "seasonal_amplitude"),
-                )
-        if not 0 <= values["dispatch_correlation"] < 1:
-            raise t.error("dispatch_correlation", f"must be in [0, 1), got {values['dispatch_correlation']:g}")
-        t.finish()
-        out[name] = replace(base, **values)
+        out[name] = read_variation(t, base, names, name)
     unknown = [k for k in table.data if k not in names]
     if unknown:
         raise table.error(unknown[0], f"no condition '{unknown[0]}' in the model (it declares: {', '.join(names)})")

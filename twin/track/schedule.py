@@ -10,7 +10,7 @@ A schedule is a TOML file read for one model (its operating conditions are the m
     start = 2027-01-01T00:00:00Z   # the first record's start (UTC; default 2027-01-01T00:00:00Z)
 
     [operation.power]              # how a condition varies (see twin.track.profile); every key optional,
-    mean = 150.0                   # the defaults are DEFAULT_VARIATION's for the hydro unit's conditions
+    mean = 150.0                   # the defaults: the model file's [condition.variation] tables
     daily_amplitude = 35.0
 
     [[change]]                     # a hidden change, any number of them
@@ -36,7 +36,8 @@ from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
 from twin.fem.tables import Table, array_of_tables, read_toml
 from twin.fem.truthfile import Truth, truth_from_tables
-from twin.track.profile import Variation, read_variations
+from twin.fem.operation import Variation
+from twin.track.profile import read_variations
 
 #: The first record's start when a schedule names none.
 DEFAULT_START = dt.datetime(2027, 1, 1, tzinfo=dt.UTC)
