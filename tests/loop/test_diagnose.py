@@ -190,3 +190,25 @@ def test_a_second_effect_enters_only_when_it_pays_for_itself_against_a_richer_fo
     out = _against_richer(pick, [first], [pick, richer], fitted, run, {})
     assert (out.label if out else None) == chosen
     assert _against_richer(pick, [], [pick, richer], fitted, run, {}) is pick  # nothing chosen: nothing richer
+
+
+@pytest.mark.parametrize("margin, kept", [(2.0, "bearing_change:B0"), (5.0, "bearing_anisotropic:B0")])
+def test_a_chosen_richer_form_gives_way_when_the_others_explain_what_it_added(ross_model, margin, kept):
+    """After a second effect comes in, the richer form stays only while it beats its simpler form by 3."""
+    from types import SimpleNamespace
+
+    from twin.loop.candidates import select
+    from twin.loop.diagnose import _simplify
+
+    simple, rich, other = select(ross_model, ["bearing_change:B0", "bearing_anisotropic:B0", "bearing_change:B6"])
+    current = SimpleNamespace(log_evidence=100.0, value_of=lambda: {})
+
+    def run(func, candidates, **shared):
+        assert [c.label for c in candidates] == ["bearing_change:B0"] and shared["included"] == (other,)
+        return [SimpleNamespace(label="bearing_change:B0", log_evidence=100.0 - margin)]
+
+    included, path = [rich, other], []
+    fit, lnz = _simplify(included, [simple, rich, other], path, current, None, None, [], run)
+    assert [c.label for c in included] == [kept, "bearing_change:B6"]
+    assert (path == [("simplify", "bearing_anisotropic:B0", margin)]) == (kept == "bearing_change:B0")
+    assert lnz == fit.log_evidence == (100.0 - margin if kept == "bearing_change:B0" else 100.0)

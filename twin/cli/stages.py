@@ -306,8 +306,9 @@ def _params(args: argparse.Namespace) -> int:
         f"shaft: {len(model.shaft)} elements, {flags}; structural damping {on['shaft_mass_proportional']:g} M + "
         f"{on['shaft_stiffness_proportional']:g} K"
     )
+    glob = f"'{model.bearings[0].name}.c*'" if model.bearings else "'*.m'"
     print(
-        f"\n{len(rows)} parameters (SI units; --params takes names, globs such as 'LGB.c*', or the groups "
+        f"\n{len(rows)} parameters (SI units; --params takes names, globs such as {glob}, or the groups "
         f"{', '.join(PARAMETER_GROUPS)}):"
     )
     print(f"  {'name':<26} {'nominal':>11} {'unit':<10} {'group':<9} {'bounds':<16} description")
@@ -444,8 +445,9 @@ def add_commands(sub) -> None:
         sub,
         "simulate",
         "simulate proximeter signals through the model's FMU",
-        "Turbulence on the runner, unbalance at the generator and sensor noise drive the FMU (through\n"
-        "FMPy); the proximeter displacements are written as signals.nc (time x channel, metres).",
+        "The machine's excitation (its model file's [excitation], or derived from the machine: a 1X\n"
+        "unbalance and broad-band process forces) and sensor noise drive the FMU (through FMPy); the\n"
+        "proximeter displacements are written as signals.nc (time x channel, metres).",
         [
             "twin simulate hydro_unit --duration 1200 -o signals.nc",
             "twin simulate hydro_unit --duration 600 --truth paper --seed 3 -o signals.nc",

@@ -24,7 +24,8 @@
    a second change elsewhere that absorbs what the first form cannot fit.
    Likewise a richer form is chosen over the simpler one it holds only when
    its evidence exceeds the simpler's by that margin
-   (:func:`twin.update.evidence.simplest`). A model that agrees with the
+   (:func:`twin.update.evidence.simplest`), and after each step a chosen
+   richer form that no longer does, given the others, gives way to it. A model that agrees with the
    data gets no effect, however well one fits the noise (a candidate can
    reach a strong ln B on one record by taking up a few-sigma scatter of one
    mode). After each addition, an effect
@@ -367,6 +368,7 @@ def diagnose(
         # per-mode FSI stays a candidate after the mode-independent one (it may replace it), not the other way
         remaining = [c for c in remaining if c is not added and not holds(added.label, c.label)]
         current, current_lnz = _drop_unneeded(included, path, current, model, meas, own, run)
+        current, current_lnz = _simplify(included, chosen, path, current, model, meas, own, run)
     first = first or []
     by_label = {c.label: c for c in chosen}
     best = max((f.log_bayes_factor for f in first), default=-np.inf)
@@ -490,6 +492,42 @@ def _against_richer(
         return pick
     log.info("%s does not pay for itself against %s (ln B %.1f); not added", pick.label, best.label, margin)
     return best if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE else None
+
+
+def _simplify(
+    included: list[Candidate],
+    chosen: Sequence[Candidate],
+    path: list,
+    current: Fit,
+    model: RotorModel,
+    meas: Measured,
+    own: Sequence[str],
+    run,
+) -> tuple[Fit, float]:
+    """Replace a chosen richer form by a simpler form it holds while the others now explain what it added: the
+    richer form stays only when its log evidence exceeds the simpler's, fitted in its place with the other
+    chosen effects, by :data:`STRONG_EVIDENCE` (a richer form chosen before a second effect came in may have
+    taken up that effect's share of the misfit)."""
+    changed = True
+    while changed:
+        changed = False
+        for rich in list(included):
+            simpler = [c for c in chosen if holds(rich.label, c.label)]
+            if not simpler:
+                continue
+            rest = tuple(c for c in included if c is not rich)
+            start = current.value_of()
+            fits = run(_fit_with, simpler, model=model, meas=meas, own=own, included=rest, start=start, reference=0.0)
+            best = max(fits, key=lambda f: f.log_evidence)
+            margin = current.log_evidence - best.log_evidence
+            if margin > STRONG_EVIDENCE:
+                continue
+            simple = next(c for c in simpler if c.label == best.label)
+            included[included.index(rich)] = simple
+            path.append(("simplify", rich.label, margin))
+            current, changed = best, True
+            break
+    return current, current.log_evidence
 
 
 def _drop_unneeded(
