@@ -104,4 +104,10 @@ def test_sub_commands_are_made_one_way():
     ]
     assert found == []
     modules = [name for name, text in _sources() if name.startswith("twin/cli/") and "def add_commands(sub)" in text]
-    assert sorted(modules) == ["twin/cli/design.py", "twin/cli/loop.py", "twin/cli/stages.py", "twin/cli/track.py"]
+    assert sorted(modules) == [
+        "twin/cli/design.py",
+        "twin/cli/loop.py",
+        "twin/cli/model.py",
+        "twin/cli/stages.py",
+        "twin/cli/track.py",
+    ]

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from twin.fem.modelfile import MODELS_DIR, load_model
 from twin.fem.schema import reference_markdown
 
 
 def _write(app) -> None:
     target = Path(app.srcdir) / "reference" / "model-file.md"
     target.parent.mkdir(exist_ok=True)
-    text = reference_markdown()
+    text = reference_markdown([load_model(p) for p in sorted(MODELS_DIR.glob("*.toml"))])
     if not target.exists() or target.read_text(encoding="utf-8") != text:  # unchanged: Sphinx keeps its cache
         target.write_text(text, encoding="utf-8")
 

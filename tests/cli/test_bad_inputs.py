@@ -165,12 +165,12 @@ def test_no_truth_is_a_truth_as_the_demo_takes_it(tmp_path, capsys):
 
 
 def test_an_interrupt_is_one_line(monkeypatch, capsys):
-    import twin.cli.stages
+    import twin.cli.model
 
     def interrupted(args):
         raise KeyboardInterrupt  # what Ctrl-C raises in the main thread
 
-    monkeypatch.setattr(twin.cli.stages, "_modal", interrupted)
+    monkeypatch.setattr(twin.cli.model, "_modal", interrupted)
     from twin.cli.parser import build_parser
 
     parser = build_parser()

@@ -20,7 +20,7 @@
     twin track MODEL.toml DIR -o OUT [--baseline-days D] [--false-alarms PER_YEAR] [--json]
 
 The parser is :mod:`twin.cli.parser`; the stages' commands are in
-:mod:`twin.cli.stages` (1-3), :mod:`twin.cli.loop` (4-5) and :mod:`twin.cli.track` (over time). Progress (a
+:mod:`twin.cli.model` (1), :mod:`twin.cli.stages` (2-3), :mod:`twin.cli.loop` (4-5) and :mod:`twin.cli.track` (over time). Progress (a
 line per stage, bars for the long ones) goes to stderr when it is a
 terminal, unless ``--quiet``. Errors in the input are reported on one line (``twin: error: ...``) with exit
 status 2, never as a traceback; an interrupt (Ctrl-C) on one line with status 130.

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from twin import __version__
-from twin.cli import design, loop, stages, track
+from twin.cli import design, loop, model, stages, track
 from twin.cli.common import Formatter
 
 
@@ -35,6 +35,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log each stage and its details")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress display")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in (stages, design, loop, track):  # each command module registers its own sub-commands
+    for module in (model, stages, design, loop, track):  # each command module registers its own sub-commands
         module.add_commands(sub)
     return parser

@@ -317,6 +317,7 @@ def load_ross(path: str | Path, speed_rpm: float, *, name: str | None = None, se
 
     Examples
     --------
+    >>> from twin.fem import load_ross
     >>> m = load_ross("tests/data/ross/rotor_example.toml", 3000.0)
     >>> m.n_nodes, [b.name for b in m.bearings], m.channels
     (7, ['Bearing_0', 'Bearing_1'], ['Bearing_0_x', 'Bearing_0_y', 'Bearing_1_x', 'Bearing_1_y'])

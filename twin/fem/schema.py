@@ -11,6 +11,7 @@ from there.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -350,12 +351,11 @@ def _regions_used() -> str:
     return "; ".join(f"`{r}` ({', '.join(keys)})" for r, keys in regions.items())
 
 
-def _effect_rows() -> list[str]:
-    """One row per library effect a model file can switch on: its table, where it acts, its keys with units."""
+def _effect_rows(models: Sequence) -> list[str]:
+    """One row per library effect a model file can switch on: its table, where it acts, its keys (with units
+    when one of ``models`` admits the effect)."""
     from twin.fem.effects import effect_classes, effect_fields
-    from twin.fem.modelfile import MODELS_DIR, load_model
 
-    models = [load_model(p) for p in sorted(MODELS_DIR.glob("*.toml"))]
     rows = []
     for key, cls in effect_classes(local=False).items():
         if cls.per_mode:
@@ -373,8 +373,10 @@ def _effect_rows() -> list[str]:
     return rows
 
 
-def reference_markdown() -> str:
+def reference_markdown(models: Sequence = ()) -> str:
     """The model-file reference as Markdown: every table, every key with its kind, unit, default and meaning.
+
+    The effects' keys get their units from the first of ``models`` (e.g. the shipped ones) that admits each.
 
     Examples
     --------
@@ -410,7 +412,7 @@ def reference_markdown() -> str:
         "",
         "| table | acts on | keys | what it is |",
         "| --- | --- | --- | --- |",
-        *_effect_rows(),
+        *_effect_rows(models),
         "",
     ]
     return "\n".join(out)
