@@ -40,3 +40,27 @@ def test_a_residual_no_candidate_explains_names_nothing():
     verdict = explain.diagnose(np.array([0.0, 0.0, 0.01, -0.01]), 0.01 * np.eye(4), [a, b])
     assert verdict.log_evidence < explain.MIN_LOG_EVIDENCE
     assert verdict.text.startswith("no change the model can name stands out")
+
+
+def test_a_richer_form_is_named_only_when_it_pays_and_the_runner_up_is_another_change():
+    """bearing_anisotropic:B0 holds bearing_change:B0: fitting a little better is not enough to be named, and
+    neither form is the other's runner-up (nor the named change its own)."""
+    from twin.fem.effects import BearingAnisotropicChange, BearingChange
+
+    def linearised(label, effect, columns):
+        names = tuple(f"{label}.{i}" for i in range(len(columns)))
+        return explain.Linearised(Candidate(label, effect), names, np.ones(len(columns)), np.array(columns).T)
+
+    simple = linearised("bearing_change:B0", BearingChange("B0"), [[1.0, 0.0, 0.5, 0.0]])
+    rich = linearised("bearing_anisotropic:B0", BearingAnisotropicChange("B0"), [[1.0, 0.0, 0.5, 0.0], [0, 0, 0, 1.0]])
+    other = linearised("magnetic_pull", MagneticPull(), [[0.0, 1.0, 0.0, 0.5]])
+    cov = 0.01 * np.eye(4)
+    # a little the simple form cannot fit: the richer form's log evidence is 2.2 higher, below the margin of 3
+    r = 0.8 * simple.jacobian[:, 0] + np.array([0.0, 0.02, 0.0, 0.3])
+    verdict = explain.diagnose(r, cov, [rich, simple, other])
+    assert verdict.label == "bearing_change:B0" and verdict.runner_up == "magnetic_pull"
+    only_forms = explain.diagnose(r, cov, [rich, simple])
+    assert only_forms.label == "bearing_change:B0" and only_forms.runner_up == "bearing_anisotropic:B0"
+    # beyond the margin the richer form is named
+    r = 0.8 * simple.jacobian[:, 0] + np.array([0.0, 0.02, 0.0, 0.4])
+    assert explain.diagnose(r, cov, [rich, simple, other]).label == "bearing_anisotropic:B0"

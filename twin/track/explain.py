@@ -116,7 +116,8 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
     label = simplest(scored[0][1].label, evidence, MIN_MARGIN)
     best_fit, best = next(t for t in scored if t[1].label == label)
     # the runner-up is another change, not the best one in a richer or a simpler form (which fits as well)
-    second_fit, second = next((t for t in scored[1:] if not exclusive(t[1].label, best.label)), scored[1])
+    others = [t for t in scored if t[1].label != best.label and not exclusive(t[1].label, best.label)]
+    second_fit, second = others[0] if others else next(t for t in scored if t[1].label != best.label)
     best_ev, second_ev = best_fit.log_bayes_factor, second_fit.log_bayes_factor
     mean, post = best_fit.values, best_fit.covariance
     return Verdict(
