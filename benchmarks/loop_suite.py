@@ -123,8 +123,8 @@ def main() -> None:
         args.method,
         *(["--bootstrap", str(args.bootstrap)] if args.bootstrap is not None else []),
     ]
-    flag = ("" if args.bootstrap is None else f" --bootstrap {args.bootstrap}") + "".join(f" {a}" for a in extra)
-    own = "" if hydro else f" --model {args.model}" + ("" if args.fmax is None else f" --fmax {args.fmax:g}")
+    own = "".join(f" {a}" for a in extra)
+    flag = ("" if args.bootstrap is None else f" --bootstrap {args.bootstrap}") + own
     t0 = time.perf_counter()
     if args.from_table is None:
         subprocess.run(command, check=False)

@@ -18,17 +18,13 @@ from twin.cli.common import (
 )
 from twin.errors import TwinError
 
-#: The table of ``twin modal`` lists the modes damped less than this first: a damping ratio of 0.2 is an
-#: amplification factor of 2.5, below which API 684 counts a mode as critically damped, not a critical speed.
-LIGHT_DAMPING = 0.2
-
 
 def _modal(args: argparse.Namespace) -> int:
     import numpy as np
 
     from twin.fem import load_model
     from twin.modes import modal
-    from twin.modes.analysis import modes_json
+    from twin.modes.analysis import LIGHT_DAMPING, modes_json
 
     model = load_model(args.model)
     every = modal(model, speed_rpm=args.speed)

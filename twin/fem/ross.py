@@ -47,7 +47,7 @@ import numpy as np
 
 from twin.errors import ModelFileError
 from twin.fem.elements import BEARING_COEFFICIENTS
-from twin.fem.tables import read_toml
+from twin.fem.tables import Table, read_toml
 
 log = logging.getLogger(__name__)
 
@@ -69,24 +69,14 @@ def _close(a: float, b: float) -> bool:
     return math.isclose(a, b, rel_tol=SAME, abs_tol=0.0)
 
 
-class _Element:
-    """One element table of a ROSS file, with errors that name the file and the table."""
+class _Element(Table):
+    """One element table of a ROSS file (:class:`~twin.fem.tables.Table`: errors name the file and the table)."""
 
     def __init__(self, path: str, key: str, data: Mapping[str, Any]) -> None:
-        self.path, self.key, self.data = path, key, data
+        super().__init__(path, f'["{key}"]', data)
+        self.key = key
         self.kind = key.split("_", 1)[0]
         self.tag = str(data.get("tag", key.split("_", 1)[-1]))
-
-    def error(self, key: str | None, problem: str) -> ModelFileError:
-        return ModelFileError(self.path, f'["{self.key}"]', key, problem)
-
-    def number(self, key: str, default: float | None = None) -> float:
-        value = self.data.get(key, default)
-        if value is None:
-            raise self.error(key, "missing key")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.error(key, f"expected a finite number, got {value!r}")
-        return float(value)
 
     def at_speed(self, key: str, omega: float) -> float:
         """A bearing coefficient at the speed ``omega`` [rad/s]: interpolated over ``frequency`` when it varies."""

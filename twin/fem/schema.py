@@ -27,7 +27,6 @@ KINDS = {
     "name": "a name (letters, digits, '_' or '-', starting with a letter)",
     "boolean": "true or false",
     "node": "a node number",
-    "nodes": "an array of node numbers",
     "place": "a disk's or a region's name, or a node number",
     "array": "an array",
     "table": "a table",

@@ -40,11 +40,9 @@ class Table:
             )
         if key.kind == "node":
             return self.node(name, n_nodes)
-        if key.kind == "nodes":
-            return self.node_list(name, n_nodes, key.default)
-        getter = {"string": self.string, "boolean": self.boolean, "array": self.array, "table": self._get}
         if key.kind == "name":
             return self.name(name)
+        getter = {"string": self.string, "boolean": self.boolean, "array": self.array, "table": self._get}
         return getter[key.kind](name, key.default)
 
     def error(self, key: str | None, problem: str) -> ModelFileError:

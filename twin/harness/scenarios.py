@@ -36,7 +36,7 @@ from twin.fem.truthfile import Truth
 #: machine (:func:`reference_effect`): beyond what a record resolves, as the hydro unit's declared sizes
 #: (2% to 24%).
 REFERENCE_POLE_CHANGE = 0.05
-#: The lightly damped modes (damping ratio below 0.2) a derived reference size is measured on.
+#: The lightly damped modes (:data:`twin.modes.analysis.LIGHT_DAMPING`) a derived reference size is measured on.
 REFERENCE_MODES = 10
 #: A derived reference size takes away at most this fraction of a coefficient.
 MAX_LOSS = 0.9
@@ -265,7 +265,7 @@ def reference_effect(model, label: str):
 
 
 def _derived(model, candidate):
-    from twin.modes.analysis import modal
+    from twin.modes.analysis import LIGHT_DAMPING, modal
     from twin.modes.pairing import dataset_poles, pair_modes
 
     effect = candidate.effect
@@ -280,7 +280,7 @@ def _derived(model, candidate):
         else:  # a stiffness that is never positive goes down, anything else up, by its plausible scale
             direction.append(-scales[p.name] if high <= 0 else scales[p.name])
     base = modal(model)
-    light = base.isel(mode=np.flatnonzero(base["damping_ratio"].values < 0.2)[:REFERENCE_MODES])
+    light = base.isel(mode=np.flatnonzero(base["damping_ratio"].values < LIGHT_DAMPING)[:REFERENCE_MODES])
 
     def change(t: float) -> tuple[float, bool]:
         other = modal(model.with_effects(candidate.with_values(t * np.asarray(direction))))

@@ -350,7 +350,8 @@ def diagnose(
                 fitted.update({f.label: f for f in run(_fit_with, unfitted, **shared)})
             best = max(tier, key=lambda c: fitted[c.label].log_bayes_factor)
             evidence = {c.label: fitted[c.label].log_bayes_factor for c in tier}
-            best = next(c for c in tier if c.label == simplest(best.label, evidence, STRONG_EVIDENCE))
+            label = simplest(best.label, evidence, STRONG_EVIDENCE)
+            best = next(c for c in tier if c.label == label)
             if fitted[best.label].log_bayes_factor > STRONG_EVIDENCE:
                 pick = best
                 break

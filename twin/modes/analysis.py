@@ -114,6 +114,10 @@ def whirl_direction(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 #: proportional damping on short shaft elements gives many such eigenvalues; round-off turns pairs of them
 #: into complex pairs with a tiny imaginary part, which would otherwise be listed as modes at ζ = 100%.
 OSCILLATION_RATIO = 1e-2
+#: A mode damped less than this is lightly damped: a damping ratio of 0.2 is an amplification factor of 2.5,
+#: below which API 684 counts a mode as critically damped, not a critical speed (``twin modal`` lists the lightly
+#: damped modes first).
+LIGHT_DAMPING = 0.2
 
 
 def oscillating(poles: np.ndarray) -> np.ndarray:
