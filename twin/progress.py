@@ -12,13 +12,19 @@ drawn on stderr when the caller asks for progress and stderr is a terminal
 from __future__ import annotations
 
 import logging
+import importlib.util
 import sys
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from tqdm.auto import tqdm
+# In Jupyter, tqdm.auto draws widget bars, which need ipywidgets; without it, it warns at import (in every
+# notebook that uses twin) and falls back to text bars: take the text bars directly then.
+if importlib.util.find_spec("ipywidgets") is not None:
+    from tqdm.auto import tqdm
+else:
+    from tqdm import tqdm
 
 log = logging.getLogger("twin.progress")
 #: Whether bars may be drawn at all (the command line's ``--quiet`` turns them off).

@@ -1,5 +1,8 @@
 """Sphinx extension: the notebooks of ``notebooks/`` executed into ``docs/examples/`` at every build.
 
+Their input files (``notebooks/data/``) are copied beside them first, so a notebook reads ``data/...`` alike
+in ``notebooks/`` and in the build.
+
 Each notebook runs in its own kernel that talks to the build over IPC sockets
 (files in a private temporary folder) rather than TCP: a kernel started over
 TCP is handed ports that were free a moment before, which another process on a
@@ -11,6 +14,7 @@ what myst-nb renders; their outputs are never committed.
 from __future__ import annotations
 
 import logging
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -47,6 +51,8 @@ def _execute_all(app) -> None:
     source_dir = Path(app.srcdir).parent / "notebooks"
     target_dir = Path(app.srcdir) / "examples"
     target_dir.mkdir(exist_ok=True)
+    if (source_dir / "data").is_dir():  # the notebooks' input files, found beside them as in notebooks/
+        shutil.copytree(source_dir / "data", target_dir / "data", dirs_exist_ok=True)
     for source in sorted(source_dir.glob("*.ipynb")):
         logger.info("executing %s", source.name)
         execute(source, target_dir / source.name)

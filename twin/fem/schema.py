@@ -368,7 +368,7 @@ def _effect_rows(models: Sequence) -> list[str]:
             keys = [f"`{p.name.split('.', 1)[1]}` [{p.unit}]" for p in instance.parameters(model)]
         else:
             keys = [f"`{n}`" for n, t in effect_fields(cls).items() if t is float]
-        rows.append(f"| `{table}` | {where} | {', '.join(keys)} | {cls.explanation} |")
+        rows.append(f"| `{table}` | {where} | {', '.join(keys)} | {cls.explain()} |")
     return rows
 
 

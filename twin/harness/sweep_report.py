@@ -72,17 +72,18 @@ def diagnosis_text(d: Diagnosis, meas: Measured) -> str:
         lines.append(f"outside the library: {loc.text()}")
     if d.locations:
         lines.append("")
+    width = max([22] + [len(f.label) for f in d.ranking])
     lines += [
         "every candidate fitted alone (round 1):",
-        f"{'rank':>4} {'effect':<22} {'ln B':>10} {'E before [%]':>12} {'E after [%]':>11}  parameters",
+        f"{'rank':>4} {'effect':<{width}} {'ln B':>10} {'E before [%]':>12} {'E after [%]':>11}  parameters",
     ]
     for k, f in enumerate(d.ranking, start=1):
-        if len(f.names) <= 3:
+        if len(f.names) <= 4:
             params = ", ".join(f"{n} = {v:.3g} ± {s:.2g} {u}" for n, v, s, u in zip(f.names, f.values, f.std, f.units))
         else:
-            params = f"{len(f.names)} per-mode values"
+            params = f"{len(f.names)} parameters"
         lines.append(
-            f"{k:>4} {f.label:<22} {f.log_bayes_factor:>10.1f} {100 * f.error_before(meas):>12.3f} "
+            f"{k:>4} {f.label:<{width}} {f.log_bayes_factor:>10.1f} {100 * f.error_before(meas):>12.3f} "
             f"{100 * f.error_after(meas):>11.3f}  {params}"
         )
     lines += [LN_B_KEY, "", "why:"] + [f"  {d.explanations[f.label]}" for f in d.ranking]

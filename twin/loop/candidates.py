@@ -52,10 +52,9 @@ class Candidate:
     label: str
     effect: object
 
-    @property
-    def explanation(self) -> str:
-        """One line of physics."""
-        return self.effect.explanation
+    def explain(self, model) -> str:
+        """One line of physics, in ``model``'s words (:meth:`twin.fem.effects.Effect.explain`)."""
+        return self.effect.explain(model)
 
     @property
     def per_mode(self) -> bool:

@@ -411,7 +411,7 @@ def diagnose(
         steps = "; ".join(f"{a} {lab} (ln B = {s:.1f})" for a, lab, s in path)
         summary = (
             f"The model misses {' and '.join(named)}: "
-            + "; ".join(by_label[n].explanation for n in named)
+            + "; ".join(by_label[n].explain(model) for n in named)
             + f". Fitted jointly, they bring the error from {100 * final.error_before(meas):.2f}% to "
             f"{100 * final.error_after(meas):.2f}% (ln B = {lib_gain:.1f} against the model as it is; "
             f"search: {steps})."

@@ -96,6 +96,18 @@ def test_every_library_effect_has_a_region_or_an_element_and_an_explanation():
         assert cls.key == key and (cls.region is None) != (cls.element is None) and len(cls.explanation) > 20
 
 
+def test_region_effects_explain_themselves_in_the_machines_words(hydro_unit):
+    # the disks in the effect's region name it; a region without a disk is named by its nodes; every
+    # placeholder is filled, on any machine and without one
+    other = dataclasses.replace(hydro_unit, regions={"generator": (8,), "immersed": (27, 28), "seal": (26, 27)})
+    assert FluidAddedMass.explain(hydro_unit).startswith("the water around the runner ")
+    assert MagneticPull.explain(other).startswith("an off-centre rotor at the generator ")
+    assert "the seals at nodes 26, 27 " in SealCrossCoupling.explain(other)
+    assert FluidAddedMass.explain(other).startswith("the water around the runner ")  # node 28 of the two
+    for cls in effect_classes(local=False).values():
+        assert "{" not in cls.explain(hydro_unit) and "{" not in cls.explain()
+
+
 def test_element_effects_change_the_named_element(hydro_unit):
     from twin.fem.effects import BearingChange, ThrustTilt
 

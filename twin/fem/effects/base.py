@@ -8,7 +8,9 @@ declares, once:
   named ``element`` of one ``element_kind`` (a bearing, a thrust bearing, a
   disk, a shaft element; by default the kind the field is called after: a
   field ``bearing`` names a bearing), or neither (the whole machine);
-* ``explanation``: its physics in one line;
+* ``explanation``: its physics in one line; ``{region}`` in it becomes the
+  machine's own words for the region, the names of the disks there
+  (:meth:`Effect.explain`);
 * ``per_mode``: whether each mode has its own values (then not one FEM), and
   then ``name_pattern``, the names of its parameters for any number of modes;
 * ``local``: a local change outside the library (the localisation scan's
@@ -89,6 +91,39 @@ class Effect:
     def with_modes(self, n_modes: int) -> Effect:
         """A per-mode effect with ``n_modes`` zero values (per-mode effects only)."""
         raise ModelError(f"effect '{self.key}' has no per-mode values")
+
+    @classmethod
+    def explain(cls, model=None) -> str:
+        """Its physics in one line, in ``model``'s words: ``{region}`` in :attr:`explanation` names the disks in
+        the effect's region (:func:`region_words`), or the region generically without a model.
+
+        Examples
+        --------
+        >>> from twin.fem.effects import FluidAddedMass
+        >>> FluidAddedMass.explain(hydro_unit)
+        'the water around the runner moves with it, adding mass and damping to every mode alike'
+        >>> FluidAddedMass.explain()
+        "the water around the region 'immersed' moves with it, adding mass and damping to every mode alike"
+        """
+        return cls.explanation.replace("{region}", region_words(model, cls.region))
+
+
+def region_words(model, region: str | None) -> str:
+    """How the machine names a region: the disks in it (``"the runner"``), else its nodes (``"node 27"``); without
+    a model (or a region it declares), ``"the region 'immersed'"``.
+
+    Examples
+    --------
+    >>> region_words(hydro_unit, "immersed"), region_words(hydro_unit, "seal")
+    ('the runner', 'node 27')
+    """
+    nodes = getattr(model, "regions", {}).get(region) if region else None
+    if not nodes:
+        return f"the region '{region}'" if region else "the machine"
+    disks = [d.name for d in model.disks if d.node in nodes]
+    if disks:
+        return "the " + " and the ".join(disks)
+    return f"node {nodes[0]}" if len(nodes) == 1 else f"nodes {', '.join(str(n) for n in nodes)}"
 
 
 def element_names(model, kind: str) -> list:

@@ -29,9 +29,7 @@ class FluidAddedMass(Effect):
 
     key: ClassVar[str] = "fsi"
     region: ClassVar[str | None] = "immersed"
-    explanation: ClassVar[str] = (
-        "the water around the runner moves with it, adding mass and damping to every mode alike"
-    )
+    explanation: ClassVar[str] = "the water around {region} moves with it, adding mass and damping to every mode alike"
     added_mass: float = 0.0  # kg
     added_damping: float = 0.0  # N s/m
 
@@ -78,7 +76,7 @@ class FluidAddedMassPerMode(Effect):
     region: ClassVar[str | None] = "immersed"
     per_mode: ClassVar[bool] = True
     replaces: ClassVar[frozenset[str]] = frozenset({"fsi"})
-    explanation: ClassVar[str] = "the water around the runner adds a different mass and damping to each mode"
+    explanation: ClassVar[str] = "the water around {region} adds a different mass and damping to each mode"
     #: Names of its parameters for any number of modes (``FSI.added_mass_3``); every per-mode effect has one.
     name_pattern: ClassVar[re.Pattern] = re.compile(r"^FSI\.added_(mass|damping)_\d+$")
     per_mode_text: ClassVar[str] = "FSI.added_mass_<i> [kg] and FSI.added_damping_<i> [N s/m] per mode i: >= 0"

@@ -20,7 +20,7 @@ class MagneticPull(Effect):
     key: ClassVar[str] = "magnetic_pull"
     region: ClassVar[str | None] = "generator"
     explanation: ClassVar[str] = (
-        "an off-centre generator rotor is pulled further off centre by the magnetic field: a negative stiffness"
+        "an off-centre rotor at {region} is pulled further off centre by the magnetic field: a negative stiffness"
     )
     stiffness: float = 0.0  # N/m, negative for a pull
 

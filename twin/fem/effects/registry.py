@@ -302,8 +302,8 @@ def describe(effect: Effect, model) -> str:
     --------
     >>> from twin.fem.effects import MagneticPull
     >>> print(describe(MagneticPull(), hydro_unit))  # doctest: +NORMALIZE_WHITESPACE
-    magnetic_pull: an off-centre generator rotor is pulled further off centre by the magnetic field: a negative
-    stiffness. MAG.stiffness [N/m]: <= 0, plausible scale 8.91e+07.
+    magnetic_pull: an off-centre rotor at the generator is pulled further off centre by the magnetic field: a
+    negative stiffness. MAG.stiffness [N/m]: <= 0, plausible scale 8.91e+07.
     """
     scales = effect.plausible_scale(model)
     parts = []
@@ -314,4 +314,4 @@ def describe(effect: Effect, model) -> str:
         parts = [f"per mode i = 1..{effect.n_modes}, like the first: " + parts[0] + "; " + parts[1]]
     elif effect.per_mode:
         parts = [effect.per_mode_text]
-    return f"{effect_label(effect)}: {effect.explanation}. " + "; ".join(parts) + "."
+    return f"{effect_label(effect)}: {effect.explain(model)}. " + "; ".join(parts) + "."

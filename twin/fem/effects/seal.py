@@ -19,7 +19,7 @@ class SealCrossCoupling(Effect):
     key: ClassVar[str] = "seal_cross_coupling"
     region: ClassVar[str | None] = "seal"
     explanation: ClassVar[str] = (
-        "swirling leakage flow in the runner seals pushes the runner tangentially: a cross-coupled stiffness"
+        "swirling leakage flow in the seals at {region} pushes the rotor tangentially: a cross-coupled stiffness"
     )
     kxy: float = 0.0  # N/m; K[x, y] = +kxy, K[y, x] = -kxy
 
