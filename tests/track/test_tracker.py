@@ -124,6 +124,20 @@ def test_the_track_command(step, capsys):
     # a baseline with fewer records than the chart has residuals, plus two: one line, status 2
     assert main(args + ["--baseline-days", "1", "-q"]) == 2
     assert "the baseline (1 days) holds 8 records: a chart of" in capsys.readouterr().err
+    # a false-alarm rate at or above one per record: refused, not a NaN limit that never alarms
+    assert main(args + ["--baseline-days", str(BASELINE_DAYS), "--false-alarms", "1e5", "-q"]) == 2
+    assert "one or more per record at" in capsys.readouterr().err
+    # every record in the baseline: said as such, not "0 alarms" as if the unit had been watched
+    assert main(args + ["--baseline-days", "30", "-q"]) == 0
+    assert "all in the 30-day baseline: none monitored yet" in capsys.readouterr().out
+    assert "No record monitored yet" in (out / "report.html").read_text()
+
+
+@pytest.mark.parametrize("rate", [-1.0, 0.0, float("nan"), float("inf")])
+def test_a_false_alarm_rate_that_is_no_rate_is_refused_before_any_work(rate, tmp_path, hydro_unit):
+    with pytest.raises(TwinError, match="false-alarm rate must be a positive number"):
+        track(hydro_unit, tmp_path / "not-read", tmp_path / "out", false_alarms_per_year=rate, progress=False)
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_folder_without_records_is_refused(tmp_path, hydro_unit):

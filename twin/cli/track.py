@@ -93,7 +93,16 @@ def _track(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
         return 0
-    print(f"{summary['records']} records tracked; {len(summary['alarms'])} alarm(s)")
+    if summary["monitored"] == 0:
+        print(
+            f"{summary['records']} records, all in the {args.baseline_days:g}-day baseline: none monitored yet, "
+            "so no alarm could be raised"
+        )
+    else:
+        print(
+            f"{summary['records']} records tracked, {summary['monitored']} after the baseline; "
+            f"{len(summary['alarms'])} alarm(s)"
+        )
     for a in summary["alarms"]:
         print(f"  {a['time']} (day {a['day']:g}, onset day {a['onset_day']:g}): {a['verdict']}")
     print(f"wrote {Path(args.out) / 'track.nc'} and {Path(args.out) / 'report.html'}")

@@ -162,7 +162,12 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
         "## Alarms",
         "",
     ]
-    if table.sizes.get("alarm", 0) == 0:
+    if monitored_records(table) == 0:
+        lines.append(
+            f"No record monitored yet: every record is in the {float(table.attrs['baseline_days']):g}-day baseline, "
+            "which sets the chart; an alarm can come only from the records after it."
+        )
+    elif table.sizes.get("alarm", 0) == 0:
         lines.append("No alarm: what the operating conditions do not explain stayed within the control limit.")
     else:
         lines += [
@@ -207,6 +212,19 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
             '<img src="parameters.png">',
         ]
     return "\n".join(lines) + "\n"
+
+
+def monitored_records(table: xr.Dataset) -> int:
+    """How many of a track's records came after its baseline: the records a chart watched (none, and no alarm
+    could have been raised).
+
+    Examples
+    --------
+    >>> t = xr.Dataset(coords={"day": ("time", [0.0, 5.0, 10.0, 15.0])}, attrs={"baseline_days": 14.0})
+    >>> monitored_records(t)
+    1
+    """
+    return int((table["day"].values >= float(table.attrs["baseline_days"])).sum())
 
 
 def write_report(

@@ -39,7 +39,7 @@ from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
 from twin.track.records import extract_new, read_cached, records_in
-from twin.report.tracking import write_report
+from twin.report.tracking import monitored_records, write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
 log = logging.getLogger(__name__)
@@ -170,6 +170,13 @@ def track(
         chart, ``operating_point``; the alarms (``alarm``: time, ``alarm_day``, ``alarm_onset_day``,
         ``alarm_effect``, ``alarm_verdict``); the followed parameters (``parameter`` and its 5-95% interval).
     """
+    if not (np.isfinite(baseline_days) and baseline_days > 0):
+        raise TwinError(f"the baseline must be a positive number of days, got {baseline_days!r}")
+    if not (np.isfinite(false_alarms_per_year) and false_alarms_per_year > 0):
+        raise TwinError(
+            f"the false-alarm rate must be a positive number per unit-year (a chart set for none could never "
+            f"alarm), got {false_alarms_per_year!r}"
+        )
     op = operation_of(model)
     options = ExtractOptions.of(extract_options)
     records = records_in(folder, op)
@@ -231,6 +238,11 @@ def track(
         raise TwinError(
             f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
             f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)"
+        )
+    if false_alarms_per_year >= records_per_year:
+        raise TwinError(
+            f"a false-alarm rate of {false_alarms_per_year:g} per year is one or more per record at "
+            f"{records_per_year:.4g} records a year: give a rate below it"
         )
     limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
     series = Series(records, days, y, sig, residual, drift)
@@ -349,7 +361,8 @@ def _dataset(
 
 
 def alarms_json(table: xr.Dataset) -> dict:
-    """The ``--json`` summary: ``{"records": N, "alarms": [{"time", "day", "effects", "verdict"}]}``."""
+    """The ``--json`` summary: ``{"records": N, "monitored": M, "alarms": [{"time", "day", "effects", "verdict"}]}``
+    (``monitored``: the records after the baseline, :func:`monitored_records`)."""
     out = []
     for i in range(table.sizes.get("alarm", 0)):
         time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
@@ -365,4 +378,4 @@ def alarms_json(table: xr.Dataset) -> dict:
                 "verdict": str(table.alarm_verdict.values[i]),
             }
         )
-    return {"records": int(table.sizes["time"]), "alarms": out}
+    return {"records": int(table.sizes["time"]), "monitored": monitored_records(table), "alarms": out}
