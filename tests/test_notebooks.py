@@ -16,11 +16,14 @@ OVERRIDES = {
     # 10 min instead of 20: twice the reference pull, so that it still stands five times above the noise floor
     "end_to_end": "OUT = TMP / 'end-to-end'\nDURATION_S = 600.0\nSAMPLES = 10\nHIDDEN = 'magnetic_pull@2'",
     "posterior_analysis": "OUT = TMP\nPOSTERIOR = TMP / 'posterior.nc'",
+    "own_machine": "OUT = TMP / 'own-machine'",
 }
 
 
-# the end-to-end notebook simulates and extracts a record (about 25 s): slow
-PARAMS = [pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem == "end_to_end" else []) for p in NOTEBOOKS]
+# the end-to-end notebook simulates and extracts a record (about 25 s), the own-machine one a loop and a 10-day
+# campaign (about two minutes): slow
+SLOW = ("end_to_end", "own_machine")
+PARAMS = [pytest.param(p, id=p.stem, marks=[pytest.mark.slow] if p.stem in SLOW else []) for p in NOTEBOOKS]
 
 
 @pytest.mark.parametrize("path", PARAMS)
@@ -42,7 +45,7 @@ def test_notebook_runs(path, monkeypatch, tmp_path):
 
 
 def test_notebooks_are_listed_and_have_a_parameters_cell():
-    assert {p.stem for p in NOTEBOOKS} >= {"end_to_end", "posterior_analysis", "hydro_unit_modes"}
+    assert {p.stem for p in NOTEBOOKS} >= {"end_to_end", "posterior_analysis", "hydro_unit_modes", "own_machine"}
     for path in NOTEBOOKS:
         if path.stem in OVERRIDES:
             cells = nbformat.read(path, as_version=4).cells

@@ -57,3 +57,16 @@ def test_python_dash_m_twin_is_the_command_line(tmp_path):
     assert done.returncode == 0 and done.stdout.strip() == f"twin {twin.__version__}"
     bad = subprocess.run([sys.executable, "-m", "twin", "track"], capture_output=True, text=True, cwd=tmp_path)
     assert bad.returncode == 2 and "the following arguments are required" in bad.stderr
+
+
+def test_the_version_has_one_source():
+    """pyproject.toml reads the version from twin.__version__ rather than stating it again."""
+    import importlib.metadata
+
+    import twin
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "twin.__version__"}
+    assert importlib.metadata.version("twin") == twin.__version__
+    assert (ROOT / "twin" / "py.typed").is_file()  # the type hints are declared for users' type checkers

@@ -150,6 +150,7 @@ def test_posterior_file_round_trip_through_arviz_and_datatree(hydro_unit, paper_
     assert set(idata.groups()) >= {"posterior", "sample_stats", "observed_data", "constant_data"}
     assert idata.posterior["theta"].dims == ("chain", "draw", "parameter")
     assert list(idata.posterior["parameter"].values) == ["LGB.kxx", "LGB.kxy", "LGB.kyx", "LGB.kyy"]
+    assert list(idata.posterior["units"].values) == ["N/m"] * 4  # each parameter's SI unit, as a coordinate
     assert idata.posterior["added_mass"].dims == ("chain", "draw", "mode")
     back = read_posterior(out)
     xr.testing.assert_allclose(back["posterior"]["theta"], tree["posterior"]["theta"])

@@ -41,6 +41,7 @@ def test_the_laplace_method_finds_the_pull_and_writes_the_posterior_file(hydro_u
     assert settings["method"] == "laplace" and settings["draws"] == 400 and settings["seed"] == 3
     back = read_posterior(tmp_path / "posterior.nc")
     np.testing.assert_allclose(summary(back["posterior"].to_dataset())["mean"].values, theta.mean(), rtol=1e-12)
+    assert back["posterior"]["units"].values.tolist() == ["N/m"]
 
 
 def test_the_laplace_method_updates_the_per_mode_fsi(hydro_unit):

@@ -27,6 +27,7 @@ from twin.update.laplace import LaplaceOptions, laplace_posterior
 from twin.update.posterior import (
     RHAT_LIMIT,
     diagnostics_json,
+    parameter_coords,
     observed_data,
     summary,
     write_posterior,
@@ -175,7 +176,8 @@ def update(
     }
     if "truth" in modes.attrs:
         attrs["truth"] = modes.attrs["truth"]
-    tree = posterior_tree(problem, result, modes, attrs)
+    units = [model.parameter(n).unit for n in problem.global_names]
+    tree = posterior_tree(problem, result, modes, attrs, units)
     table = summary(tree["posterior"].to_dataset())
     tree.attrs["diagnostics"] = diagnostics_json(table)
     undetermined = undetermined_parameters(table, problem)
@@ -254,8 +256,10 @@ def _warn_margins(problem: Problem, frequency_hz: np.ndarray, n_samples: int, ma
         )
 
 
-def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: dict) -> xr.DataTree:
-    """The ArviZ-layout DataTree of a run (SI units)."""
+def posterior_tree(
+    problem: Problem, chains: Chain, modes: xr.Dataset, attrs: dict, units: Sequence[str] | None = None
+) -> xr.DataTree:
+    """The ArviZ-layout DataTree of a run (SI units; ``theta``'s ``units`` coordinate gives each parameter's)."""
     n_chain, n_draw = chains.lp.shape
     coords = {"chain": np.arange(n_chain), "draw": np.arange(n_draw)}
     post = xr.Dataset(coords=coords)
@@ -263,8 +267,8 @@ def posterior_tree(problem: Problem, chains: Chain, modes: xr.Dataset, attrs: di
         post["theta"] = xr.DataArray(
             chains.t * problem.global_scale,
             dims=("chain", "draw", "parameter"),
-            coords={"parameter": problem.global_names},
-            attrs={"long_name": "updated model parameters (SI units of each parameter)"},
+            coords=parameter_coords(problem.global_names, units),
+            attrs={"long_name": "updated model parameters (SI units of each parameter: coordinate units)"},
         )
     mode_coord = {"mode": problem.modes}
     units = {"added_mass": "kg", "added_damping": "N s/m"}

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import re
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -254,6 +254,23 @@ def observed_data(modes: xr.Dataset) -> xr.Dataset:
     return split_complex(sub.drop_vars([c for c in sub.coords if c not in ("mode", "sample", "channel")]))
 
 
+def parameter_coords(names: Sequence[str], units: Sequence[str] | None = None) -> dict:
+    """The coordinates of a posterior's ``parameter`` dimension: the names and, where known, each one's SI unit
+    (``theta`` holds parameters of many units: a stiffness in N/m beside a damping in N s/m).
+
+    Examples
+    --------
+    >>> parameter_coords(["UGB.stiffness_change", "UGB.damping_change"], ["N/m", "N s/m"])["units"]
+    ('parameter', ['N/m', 'N s/m'])
+    """
+    coords: dict = {"parameter": list(names)}
+    if units is not None:
+        if len(units) != len(names):
+            raise ValueError(f"{len(units)} units for {len(names)} parameters")
+        coords["units"] = ("parameter", [str(u) for u in units])
+    return coords
+
+
 def laplace_tree(
     post: xr.Dataset, modes: xr.Dataset, attrs: dict, draws: int = 1000, seed: int | None = 0
 ) -> xr.DataTree:
@@ -283,11 +300,12 @@ def laplace_tree(
     out = xr.Dataset(coords=coords, attrs={"laplace_map": json.dumps(dict(zip(names, map(float, mean))))})
     if shared:
         idx = [names.index(n) for n in shared]
+        units = [str(u) for u in post["unit"].values[idx]] if "unit" in post else None
         out["theta"] = xr.DataArray(
             x[None, :, idx],
             dims=("chain", "draw", "parameter"),
-            coords={"parameter": shared},
-            attrs={"long_name": "updated model parameters (SI units of each parameter)"},
+            coords=parameter_coords(shared, units),
+            attrs={"long_name": "updated model parameters (SI units of each parameter: coordinate units)"},
         )
     labels = sorted({int(n.rsplit("_", 1)[1]) for n in per_mode})
     for kind, unit in (("added_mass", "kg"), ("added_damping", "N s/m")):
