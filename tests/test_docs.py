@@ -43,3 +43,16 @@ def test_no_internal_work_numbers_in_the_project():
         if pattern.search(line)
     ]
     assert found == []
+
+
+def test_the_blocking_docs_build_pins_every_docs_tool():
+    """CI builds the docs with the toolchain in .ci/docs-constraints.txt: every package of the docs extra is
+    pinned there, and the CI script uses the file."""
+    import tomllib
+
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["docs"]
+    names = {re.split(r"[<>=!~\[ ]", r, maxsplit=1)[0].lower() for r in extra}
+    lines = (ROOT / ".ci" / "docs-constraints.txt").read_text().splitlines()
+    pins = dict(line.lower().split("==") for line in lines if line and not line.startswith("#"))
+    assert names <= set(pins), f"docs tools without a pin: {sorted(names - set(pins))}"
+    assert "-c .ci/docs-constraints.txt" in (ROOT / ".ci" / "run").read_text()
