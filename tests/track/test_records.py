@@ -42,3 +42,33 @@ def test_a_cache_answers_only_for_the_record_and_options_it_was_made_from(tmp_pa
 
     # other extraction options make every cache file stale
     assert not is_fresh(targets[0], records[0].path, {"fmax_hz": 40.0})
+
+
+def test_records_of_another_machine_or_speed_are_warned_about(tmp_path, hydro_unit):
+    import warnings
+
+    import pytest
+
+    from twin.errors import TwinWarning
+    from twin.track.records import check_machine
+
+    (tmp_path / "schedule.toml").write_text(SCHEDULE)
+    folder = tmp_path / "records"
+    campaign(hydro_unit, read_schedule(tmp_path / "schedule.toml", hydro_unit), folder, seed=3, progress=False)
+    records = records_in(folder, operation_of(hydro_unit))
+    assert [(r.model, r.speed_rpm) for r in records] == [("hydro_unit", 134.0)] * 2
+    with warnings.catch_warnings(record=True) as caught:  # the machine's own records: nothing to say
+        warnings.simplefilter("always")
+        check_machine(records, hydro_unit.name, hydro_unit.speed_rpm)
+    assert caught == []
+    with xr.open_dataset(records[1].path) as ds:
+        other = ds.load()
+    other.attrs.update(model="heavier_runner", speed_rpm=150.0)
+    other.to_netcdf(tmp_path / "other.nc")
+    shutil.move(tmp_path / "other.nc", records[1].path)
+    records = records_in(folder, operation_of(hydro_unit))
+    with pytest.warns(TwinWarning) as caught:
+        check_machine(records, hydro_unit.name, hydro_unit.speed_rpm)
+    messages = [str(w.message) for w in caught]
+    assert messages[0].startswith("1 of 2 records say they are of heavier_runner (record_00001.nc)")
+    assert messages[1].startswith("1 of 2 records were taken at 150 rpm")

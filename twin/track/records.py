@@ -18,7 +18,7 @@ import hashlib
 import itertools
 import logging
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +41,8 @@ class RecordInfo:
     path: Path
     start: dt.datetime
     point: dict[str, float]
+    model: str | None = None  # the machine the record says it is of (a simulated record's ``model`` attr)
+    speed_rpm: float | None = None  # the running speed it says it was taken at
 
 
 def parse_time(text: str, where: str) -> dt.datetime:
@@ -105,7 +107,51 @@ def record_info(path: Path, operation: Operation) -> RecordInfo:
         point = operation.check_point(point, str(path))
     except TwinError as exc:
         raise SignalError(str(exc)) from None
-    return RecordInfo(Path(path), start, point)
+    speed = attrs.get("speed_rpm")
+    try:
+        speed = float(speed) if speed is not None else None
+    except (TypeError, ValueError):
+        speed = None
+    model = str(attrs["model"]) if "model" in attrs else None
+    return RecordInfo(Path(path), start, point, model, speed)
+
+
+def check_machine(records: Sequence[RecordInfo], model_name: str, speed_rpm: float) -> None:
+    """Warn when records say they are of another machine, or were taken at another running speed, than the model
+    they are tracked with: their modes then differ from the model's for a reason no change explains.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> r = RecordInfo(Path("r.nc"), dt.datetime(2027, 1, 1, tzinfo=dt.UTC), {}, "pelton_unit", 600.0)
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     check_machine([r], "hydro_unit", 134.0)
+    >>> print(w[0].message)
+    1 of 1 records say they are of pelton_unit (r.nc), not of hydro_unit, which tracks them
+    >>> print(w[1].message)
+    1 of 1 records were taken at 600 rpm (r.nc), not at hydro_unit's 134 rpm: their modes differ for that reason alone
+    """
+    other = [r for r in records if r.model is not None and r.model != model_name]
+    if other:
+        names = ", ".join(sorted({str(r.model) for r in other}))
+        warnings.warn(
+            f"{len(other)} of {len(records)} records say they are of {names} ({other[0].path.name}"
+            f"{' ...' if len(other) > 1 else ''}), not of {model_name}, which tracks them",
+            TwinWarning,
+            stacklevel=2,
+        )
+    tolerance = 1e-6 * max(abs(speed_rpm), 1.0)
+    off = [r for r in records if r.speed_rpm is not None and abs(r.speed_rpm - speed_rpm) > tolerance]
+    if off:
+        speeds = ", ".join(f"{v:g}" for v in sorted({float(r.speed_rpm) for r in off}))  # type: ignore[arg-type]
+        warnings.warn(
+            f"{len(off)} of {len(records)} records were taken at {speeds} rpm ({off[0].path.name}"
+            f"{' ...' if len(off) > 1 else ''}), not at {model_name}'s {speed_rpm:g} rpm: their modes differ for "
+            "that reason alone",
+            TwinWarning,
+            stacklevel=2,
+        )
 
 
 def records_in(folder: str | Path, operation: Operation) -> list[RecordInfo]:

@@ -38,7 +38,7 @@ from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
-from twin.track.records import extract_new, read_cached, records_in
+from twin.track.records import check_machine, extract_new, read_cached, records_in
 from twin.report.tracking import monitored_records, write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
@@ -180,6 +180,7 @@ def track(
     op = operation_of(model)
     options = ExtractOptions.of(extract_options)
     records = records_in(folder, op)
+    check_machine(records, model.name, model.speed_rpm)
     out = check_folder(out, make=True)
     with stage(f"extract the modes of {len(records)} records"):
         cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress)
