@@ -140,6 +140,12 @@ def test_a_false_alarm_rate_that_is_no_rate_is_refused_before_any_work(rate, tmp
     assert not (tmp_path / "out").exists()
 
 
+def test_the_records_folder_is_not_the_trackers_folder(tmp_path, hydro_unit):
+    (tmp_path / "records").mkdir()
+    with pytest.raises(TwinError, match="is the folder of records"):
+        track(hydro_unit, tmp_path / "records", tmp_path / "records" / ".." / "records", progress=False)
+
+
 def test_a_folder_without_records_is_refused(tmp_path, hydro_unit):
     (tmp_path / "records").mkdir()
     with pytest.raises(TwinError, match="records"):

@@ -177,6 +177,11 @@ def track(
             f"the false-alarm rate must be a positive number per unit-year (a chart set for none could never "
             f"alarm), got {false_alarms_per_year!r}"
         )
+    if Path(out).resolve() == Path(folder).resolve():
+        raise TwinError(
+            f"the tracker's folder {out} is the folder of records: its files (track.nc, the modes' cache) would be "
+            "read as records on the next run; give another folder (-o)"
+        )
     op = operation_of(model)
     options = ExtractOptions.of(extract_options)
     records = records_in(folder, op)
