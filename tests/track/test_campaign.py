@@ -63,7 +63,7 @@ def test_a_campaign_writes_its_records_and_resumes_where_it_stopped(tmp_path, hy
     again = campaign(hydro_unit, s, out, seed=4, progress=False)
     assert list(again.made.values) == [False, False, True, False]
     assert np.array_equal(xr.load_dataset(out / RECORD_NAME.format(2)).displacement, first[2].displacement)
-    with pytest.raises(TwinError, match="a record of another campaign"):
+    with pytest.raises(TwinError, match=r"a record of another campaign \(its seed is 4, not 5\)"):
         campaign(hydro_unit, s, out, seed=5, progress=False)
 
 

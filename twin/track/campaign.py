@@ -132,7 +132,8 @@ def campaign(
         start - start.replace(month=1, day=1, hour=0, minute=0, second=0, microsecond=0)
     ).total_seconds() / 86400.0
     points = operating_points(schedule.variations, op, days, year_day0, seed)
-    todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident)]
+    this = {"model": model.name, "schedule": schedule.to_json(), "campaign_seed": int(seed)}
+    todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident, this)]
     noise_std_m = _noise_std(model, schedule.fs_hz, noise_ratio)
     log.info("campaign %s: %d records, %d to simulate", ident, schedule.n_records, len(todo))
     mapper(tasks, progress=progress, desc="records")(
@@ -164,23 +165,44 @@ def campaign(
     )
 
 
-def _kept(path: Path, ident: str) -> bool:
-    """Whether the record at ``path`` is there already, from this campaign (an error if from another)."""
+def _kept(path: Path, ident: str, this: dict) -> bool:
+    """Whether the record at ``path`` is there already, from this campaign (an error if from another, saying
+    what differs of ``this``: the model's name, the schedule, the seed, else the model file's text)."""
     if not path.exists():
         return False
     try:
         with xr.open_dataset(path) as ds:
-            theirs = ds.attrs.get("campaign")
+            attrs = dict(ds.attrs)
     except (OSError, ValueError) as exc:
         raise TwinError(
             f"{path}: a record of the campaign folder cannot be read ({exc}): remove it to simulate it again"
         ) from None
-    if theirs != ident:
+    if attrs.get("campaign") != ident:
         raise TwinError(
-            f"{path} is a record of another campaign (model, schedule or seed differ): give another "
-            "folder, or remove its records to start this one"
+            f"{path} is a record of another campaign ({_differs(attrs, this)}): give another folder, or remove its "
+            "records to start this one"
         )
     return True
+
+
+def _differs(theirs: dict, this: dict) -> str:
+    """What makes a kept record another campaign's, in words.
+
+    Examples
+    --------
+    >>> _differs({"model": "a", "schedule": "{}", "campaign_seed": 2}, {"model": "a", "schedule": "{}", "campaign_seed": 1})
+    'its seed is 2, not 1'
+    >>> _differs({"model": "a", "schedule": "{}", "campaign_seed": 1}, {"model": "a", "schedule": "{}", "campaign_seed": 1})
+    "the model file's text differs (the same model name, edited since)"
+    """
+    words = []
+    if str(theirs.get("model")) != this["model"]:
+        words.append(f"it is of {theirs.get('model')}, not {this['model']}")
+    if str(theirs.get("schedule")) != this["schedule"]:
+        words.append("its schedule differs")
+    if str(theirs.get("campaign_seed")) != str(this["campaign_seed"]):
+        words.append(f"its seed is {theirs.get('campaign_seed')}, not {this['campaign_seed']}")
+    return "; ".join(words) or "the model file's text differs (the same model name, edited since)"
 
 
 def _noise_std(model: RotorModel, fs_hz: float, noise_ratio: float) -> float:
