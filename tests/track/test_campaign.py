@@ -106,3 +106,13 @@ def test_the_campaign_command(tmp_path, schedule_file, capsys):
     schedule_file.write_text(SCHEDULE.replace("duration = 30.0", "duration = -1.0"))
     assert main(args) == 2
     assert "key 'duration': must be positive" in capsys.readouterr().err
+
+
+def test_a_change_that_makes_the_machine_unstable_is_named_with_its_record_and_day(tmp_path, hydro_unit):
+    path = tmp_path / "schedule.toml"
+    path.write_text(
+        'days = 1\nrecords_per_day = 4\nduration = 30.0\n[[change]]\nstart_day = 0.5\n[change.truth."seal_cross_coupling"]\n'
+        "kxy = 1.0e9\n"
+    )
+    with pytest.raises(TwinError, match=r"record 2 \(day 0\.5; seal_cross_coupling; power .*\): .* is unstable"):
+        campaign(hydro_unit, read_schedule(path, hydro_unit), tmp_path / "records", seed=1, progress=False)

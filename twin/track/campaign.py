@@ -26,8 +26,8 @@ import numpy as np
 import xarray as xr
 
 from twin.defaults import NOISE_RATIO
-from twin.errors import TwinError
-from twin.fem.effects import scaled
+from twin.errors import ModelError, TwinError
+from twin.fem.effects import effect_label, scaled
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, operation_of, with_change
 from twin.fem.truthfile import Truth
@@ -235,15 +235,20 @@ def _simulate_record(
     day = schedule.record_day(index)
     point = dict(zip(op.names, (float(v) for v in points[index])))
     unit, truth = record_model(model, point, schedule, day)
-    ds = simulate(
-        unit,
-        duration_s=schedule.duration_s,
-        fs_hz=schedule.fs_hz,
-        seed=record_seed(seed, index),
-        noise_std_m=noise_std_m,
-        progress=False,
-        command=command,
-    )
+    try:
+        ds = simulate(
+            unit,
+            duration_s=schedule.duration_s,
+            fs_hz=schedule.fs_hz,
+            seed=record_seed(seed, index),
+            noise_std_m=noise_std_m,
+            progress=False,
+            command=command,
+        )
+    except ModelError as exc:  # an unstable or absurd machine: say which record, day and change made it
+        hidden = ", ".join(effect_label(e) for e in truth.effects) or "no hidden change"
+        conditions = ", ".join(f"{k} {v:g}" for k, v in point.items())
+        raise ModelError(f"record {index} (day {day:g}; {hidden}; {conditions}): {exc}") from None
     ds = ds.assign(operating_point=("condition", points[index], {"long_name": "operating conditions of the record"}))
     ds = ds.assign_coords(
         condition=("condition", list(op.names)),
