@@ -108,6 +108,36 @@ def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_un
 
 
 @pytest.mark.slow
+def test_records_that_cannot_be_used_are_set_aside_and_the_rest_tracked(step, tmp_path, hydro_unit, client):
+    import shutil
+
+    from twin.errors import SignalError
+
+    folder, out, whole = step
+    records, cached = tmp_path / "records", tmp_path / "out"
+    shutil.copytree(folder, records)
+    shutil.copytree(out, cached)  # the good records' modes: nothing of them is extracted again
+    (records / "truncated.nc").write_bytes((folder / "record_00000.nc").read_bytes()[:2000])
+    with xr.open_dataset(folder / "record_00003.nc") as ds:
+        good = ds.load()
+    nan = good.copy(deep=True)
+    nan["displacement"][100:200, 2] = np.nan
+    nan.attrs["start_time"] = "2027-01-01T01:00:00Z"
+    nan.to_netcdf(records / "with_nan.nc")
+    far = good.copy(deep=True)
+    far["operating_point"][0] = 1.0e4  # MW: out of the model's range
+    far.attrs["start_time"] = "2027-01-01T02:00:00Z"
+    far.to_netcdf(records / "out_of_range.nc")
+    table = track(hydro_unit, records, cached, baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    summary = alarms_json(table)
+    assert sorted(a["file"] for a in summary["set_aside"]) == ["out_of_range.nc", "truncated.nc", "with_nan.nc"]
+    assert summary["alarms"] == alarms_json(whole)["alarms"]  # the rest tracked as before
+    assert "Records set aside" in (cached / "report.html").read_text()
+    with pytest.raises(SignalError):  # --strict: the first of them stops the track
+        track(hydro_unit, records, cached, baseline_days=BASELINE_DAYS, tasks=client, progress=False, strict=True)
+
+
+@pytest.mark.slow
 def test_the_track_command(step, capsys):
     folder, out, table = step
     args = ["track", "hydro_unit", str(folder), "-o", str(out), "--scheduler", "sync"]

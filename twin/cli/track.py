@@ -68,6 +68,12 @@ def add_commands(sub) -> None:
         help=f"false-alarm rate the control limit is set for, per unit-year (default {FALSE_ALARMS_PER_YEAR:g})",
     )
     p.add_argument(
+        "--strict",
+        action="store_true",
+        help="stop at the first record that cannot be used (by default it is set aside with the reason, "
+        "and the rest tracked)",
+    )
+    p.add_argument(
         "--json",
         action="store_true",
         help='print {"records": N, "alarms": [{"time", "day", "onset_day", "named_day", "effects", "verdict"}]}',
@@ -88,11 +94,14 @@ def _track(args: argparse.Namespace) -> int:
             baseline_days=args.baseline_days,
             false_alarms_per_year=args.false_alarms,
             tasks=client,
+            strict=args.strict,
         )
     summary = alarms_json(table)
     if args.json:
         print(json.dumps(summary))
         return 0
+    for aside in summary["set_aside"]:
+        print(f"set aside {aside['file']}: {aside['reason']}")
     if summary["monitored"] == 0:
         print(
             f"{summary['records']} records, all in the {args.baseline_days:g}-day baseline: none monitored yet, "

@@ -14,6 +14,7 @@ One self-contained page (figures embedded, :mod:`twin.report.html`) beside ``tra
 from __future__ import annotations
 
 import html
+import json
 import logging
 import tempfile
 from pathlib import Path
@@ -162,6 +163,7 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
         "## Alarms",
         "",
     ]
+    set_aside = json.loads(table.attrs.get("set_aside", "[]"))
     if monitored_records(table) == 0:
         lines.append(
             f"No record monitored yet: every record is in the {float(table.attrs['baseline_days']):g}-day baseline, "
@@ -184,6 +186,9 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
                 f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
                 f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {named} | {verdict} |"
             )
+    if set_aside:
+        lines += ["", "## Records set aside", "", "| record | why |", "| --- | --- |"]
+        lines += [f"| {html.escape(a['file'])} | {html.escape(a['reason'])} |" for a in set_aside]
     lines += [
         "",
         f"## Trends, coloured by {colour_by}",

@@ -154,23 +154,41 @@ def check_machine(records: Sequence[RecordInfo], model_name: str, speed_rpm: flo
         )
 
 
-def records_in(folder: str | Path, operation: Operation) -> list[RecordInfo]:
+def records_in(
+    folder: str | Path, operation: Operation, set_aside: list[tuple[str, str]] | None = None
+) -> list[RecordInfo]:
     """The records of ``folder`` (``*.nc``), in order of their start times.
 
-    Raises :class:`~twin.errors.TwinError` for a missing or empty folder, and
-    :class:`~twin.errors.SignalError` naming the file for a record without a start time or operating data,
-    or two records that start at the same time.
+    Raises :class:`~twin.errors.TwinError` for a missing folder or one without a usable record. A record that
+    cannot be used (unreadable, without a start time or operating data, operating data out of the model's
+    ranges, or starting at the same time as another) raises a :class:`~twin.errors.SignalError` naming the
+    file, or, when a list ``set_aside`` is given, is left out and listed there as ``(file name, reason)``.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise TwinError(f"{folder}: no such folder of records")
-    infos = sorted((record_info(p, operation) for p in sorted(folder.glob("*.nc"))), key=lambda r: r.start)
-    if not infos:
-        raise TwinError(f"{folder}: no record (*.nc) in it")
+    infos = []
+    for path in sorted(folder.glob("*.nc")):
+        try:
+            infos.append(record_info(path, operation))
+        except SignalError as exc:
+            if set_aside is None:
+                raise
+            set_aside.append((path.name, str(exc)))
+    infos.sort(key=lambda r: r.start)
+    kept = infos[:1]
     for a, b in itertools.pairwise(infos):
         if a.start == b.start:
-            raise SignalError(f"{b.path}: starts at the same time as {a.path.name} ({a.start.isoformat()})")
-    return infos
+            reason = f"{b.path}: starts at the same time as {a.path.name} ({a.start.isoformat()})"
+            if set_aside is None:
+                raise SignalError(reason)
+            set_aside.append((b.path.name, reason))
+        else:
+            kept.append(b)
+    if not kept:
+        aside = f" ({len(set_aside)} set aside, the first: {set_aside[0][1]})" if set_aside else ""
+        raise TwinError(f"{folder}: no usable record (*.nc) in it{aside}")
+    return kept
 
 
 def digest(path: Path) -> str:
@@ -225,7 +243,7 @@ def adopt(target: str | Path, record: str | Path, options: ExtractOptions | Mapp
     write_netcdf(ds, target)
 
 
-def _extract_one(path: str, *, cache: str, options: ExtractOptions) -> str:
+def _extract_one(path: str, *, cache: str, options: ExtractOptions, strict: bool = True) -> str:
     from twin.extract import extract
     from twin.modes.modesfile import write_modes
 
@@ -241,6 +259,11 @@ def _extract_one(path: str, *, cache: str, options: ExtractOptions) -> str:
     except NoModeError as exc:  # a record without any mode is a fact to keep, not a reason to stop
         write_netcdf(xr.Dataset(attrs={"no_mode": str(exc), "signals": str(path), **made}), target)
         return str(target)
+    except SignalError as exc:  # NaNs, a dead channel...: set aside with the reason, unless strict
+        if strict:
+            raise
+        write_netcdf(xr.Dataset(attrs={"unusable": str(exc), "signals": str(path), **made}), target)
+        return str(target)
     modes.attrs.update(made)
     write_modes(modes, target)
     return str(target)
@@ -253,13 +276,15 @@ def extract_new(
     options: ExtractOptions | Mapping[str, Any] | None = None,
     tasks: Any = None,
     progress: bool = True,
+    strict: bool = True,
 ) -> list[Path]:
     """Extract the modes of the records not yet in ``cache``; the cache files of all records, in order.
 
     ``options`` are :func:`twin.extract.extract`'s (:class:`~twin.extract.options.ExtractOptions` or a mapping of
     its fields; the defaults without), checked before any record is read. The records are
     independent tasks (``tasks``, :func:`twin.tasks.mapper`). A record in which no mode stands out is kept
-    as such (a cache file with a ``no_mode`` attr) and not analysed again. A cache file that is not the
+    as such (a cache file with a ``no_mode`` attr) and not analysed again; unless ``strict``, so is a record the
+    extraction cannot use (an ``unusable`` attr with the reason, :func:`unusable`). A cache file that is not the
     record's as it is now (:func:`is_fresh`) is made again.
     """
     cache = check_folder(cache, make=True)
@@ -268,8 +293,16 @@ def extract_new(
     todo = [str(r.path) for r, t in zip(records, targets) if not is_fresh(t, r.path, options)]
     if todo:
         log.info("extracting the modes of %d new or changed records (of %d)", len(todo), len(records))
-        mapper(tasks, progress=progress, desc="extract")(_extract_one, todo, cache=str(cache), options=options)
+        mapper(tasks, progress=progress, desc="extract")(
+            _extract_one, todo, cache=str(cache), options=options, strict=strict
+        )
     return targets
+
+
+def unusable(path: Path) -> str | None:
+    """Why a record's cache file says the record cannot be used (None when it can)."""
+    with xr.open_dataset(path) as ds:
+        return ds.attrs.get("unusable")
 
 
 def read_cached(path: Path) -> xr.Dataset | None:

@@ -17,6 +17,7 @@ the folder later give the same alarms as one run over all of them.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,7 +28,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.defaults import BASELINE_DAYS  # noqa: F401 (shared with the CLI)
-from twin.errors import TwinError
+from twin.errors import SignalError, TwinError
 from twin.extract.options import ExtractOptions
 from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
@@ -38,7 +39,7 @@ from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
-from twin.track.records import check_machine, extract_new, read_cached, records_in
+from twin.track.records import check_machine, extract_new, read_cached, records_in, unusable
 from twin.report.tracking import monitored_records, write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
@@ -135,6 +136,7 @@ def track(
     tasks: Any = None,
     progress: bool = True,
     report: bool = True,
+    strict: bool = False,
 ) -> xr.Dataset:
     """Track a unit over a folder of records; write ``out/track.nc`` and ``out/report.html``; return the first.
 
@@ -160,6 +162,10 @@ def track(
         Progress bars.
     report : bool
         Write ``out/report.html`` too (:func:`twin.report.tracking.write_report`).
+    strict : bool
+        Stop at the first record that cannot be used (unreadable, without operating data or with data out of
+        the model's ranges, starting with another, or with NaNs or a dead channel). By default such a record
+        is set aside and the rest tracked; the attr ``set_aside`` of the result lists them with the reasons.
 
     Returns
     -------
@@ -184,11 +190,26 @@ def track(
         )
     op = operation_of(model)
     options = ExtractOptions.of(extract_options)
-    records = records_in(folder, op)
+    set_aside: list[tuple[str, str]] = []
+    records = records_in(folder, op, None if strict else set_aside)
     check_machine(records, model.name, model.speed_rpm)
     out = check_folder(out, make=True)
     with stage(f"extract the modes of {len(records)} records"):
-        cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress)
+        cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress, strict=strict)
+    usable = []
+    for r, p in zip(records, cache):
+        reason = unusable(p)
+        if reason is None:
+            usable.append((r, p))
+        elif strict:  # cached by an earlier run that was not strict
+            raise SignalError(reason)
+        else:
+            set_aside.append((r.path.name, reason))
+    for name, reason in set_aside:
+        log.warning("set aside: %s", reason if name in reason else f"{name}: {reason}")
+    if not usable:
+        raise TwinError(f"{folder}: no usable record ({len(set_aside)} set aside, the first: {set_aside[0][1]})")
+    records, cache = [r for r, _ in usable], [p for _, p in usable]
     measured = [read_cached(p) for p in cache]
     first = next((m for m in measured if m is not None), None)
     if first is None:
@@ -274,7 +295,13 @@ def track(
         op,
         baseline_days,
     )
-    table.attrs.update({"records": str(Path(folder).resolve()), "false_alarms_per_year": float(false_alarms_per_year)})
+    table.attrs.update(
+        {
+            "records": str(Path(folder).resolve()),
+            "false_alarms_per_year": float(false_alarms_per_year),
+            "set_aside": json.dumps([{"file": name, "reason": reason} for name, reason in set_aside]),
+        }
+    )
     table["pole_se"] = (
         ("time", "mode", "part"),
         np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
@@ -367,8 +394,9 @@ def _dataset(
 
 
 def alarms_json(table: xr.Dataset) -> dict:
-    """The ``--json`` summary: ``{"records": N, "monitored": M, "alarms": [{"time", "day", "effects", "verdict"}]}``
-    (``monitored``: the records after the baseline, :func:`monitored_records`)."""
+    """The ``--json`` summary: ``{"records": N, "monitored": M, "set_aside": [{"file", "reason"}], "alarms":
+    [{"time", "day", "effects", "verdict"}]}`` (``monitored``: the records after the baseline,
+    :func:`monitored_records`; ``set_aside``: the records that could not be used, and why)."""
     out = []
     for i in range(table.sizes.get("alarm", 0)):
         time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
@@ -384,4 +412,9 @@ def alarms_json(table: xr.Dataset) -> dict:
                 "verdict": str(table.alarm_verdict.values[i]),
             }
         )
-    return {"records": int(table.sizes["time"]), "monitored": monitored_records(table), "alarms": out}
+    return {
+        "records": int(table.sizes["time"]),
+        "monitored": monitored_records(table),
+        "set_aside": json.loads(table.attrs.get("set_aside", "[]")),
+        "alarms": out,
+    }
