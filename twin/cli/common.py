@@ -147,17 +147,22 @@ def add_tolerance(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_model_and_posterior(p: argparse.ArgumentParser) -> None:
-    """The model, the measured modes, and what to do to the model first (compare, diagnose)."""
-    p.add_argument("model", help=MODEL_HELP)
-    p.add_argument("modes", help=MODES_HELP)
+def add_effect(p: argparse.ArgumentParser) -> None:
+    """``--effect LABEL``, repeatable: library effects added to the model before the command's work."""
     p.add_argument(
         "--effect",
         action="append",
         default=None,
         metavar="LABEL",
-        help="add a library effect to the model first (e.g. magnetic_pull); repeatable",
+        help="add a library effect to the model first (e.g. magnetic_pull, bearing_change:LGB); repeatable",
     )
+
+
+def add_model_and_posterior(p: argparse.ArgumentParser) -> None:
+    """The model, the measured modes, and what to do to the model first (compare, diagnose)."""
+    p.add_argument("model", help=MODEL_HELP)
+    p.add_argument("modes", help=MODES_HELP)
+    add_effect(p)
     p.add_argument(
         "--posterior",
         default=None,

@@ -15,6 +15,7 @@ from twin.cli.common import (
     NATURAL,
     add_bootstrap,
     add_chain_options,
+    add_effect,
     add_loop_settings,
     add_method,
     add_model_and_posterior,
@@ -395,13 +396,7 @@ def add_commands(sub) -> None:
         help="no prior on the effects' parameters (by default each gets a Gaussian one about the "
         "model's value, as wide as its effect's plausible scale: a bound where the data say little)",
     )
-    p.add_argument(
-        "--effect",
-        action="append",
-        default=None,
-        metavar="LABEL",
-        help="add a library effect first (e.g. magnetic_pull, bearing_change:LGB); repeatable",
-    )
+    add_effect(p)
     add_scheduler(p, "chains")
     p = command(
         sub,
@@ -471,13 +466,7 @@ def add_commands(sub) -> None:
     add_bootstrap(p)
     p.add_argument("--rounds", type=COUNT, default=MAX_ROUNDS, help="rounds at most")
     p.add_argument("--candidates", default=None, help="candidate effects, comma-separated (default: the library)")
-    p.add_argument(
-        "--effect",
-        action="append",
-        default=None,
-        metavar="LABEL",
-        help="add a library effect to the model first; repeatable",
-    )
+    add_effect(p)
     add_tolerance(p)
     add_chain_options(p)
     add_scheduler(p, "candidate fits and calibration records")

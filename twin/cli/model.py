@@ -13,6 +13,7 @@ from twin.cli.common import (
     MODEL_HELP,
     NONNEGATIVE,
     POSITIVE,
+    add_effect,
     command,
     model_with_effects,
 )
@@ -221,11 +222,5 @@ def add_commands(sub) -> None:
         _params,
     )
     p.add_argument("model", help=MODEL_HELP)
-    p.add_argument(
-        "--effect",
-        action="append",
-        default=None,
-        metavar="LABEL",
-        help="add a library effect first (e.g. magnetic_pull); repeatable",
-    )
+    add_effect(p)
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
