@@ -284,7 +284,7 @@ def extract_new(
     its fields; the defaults without), checked before any record is read. The records are
     independent tasks (``tasks``, :func:`twin.tasks.mapper`). A record in which no mode stands out is kept
     as such (a cache file with a ``no_mode`` attr) and not analysed again; unless ``strict``, so is a record the
-    extraction cannot use (an ``unusable`` attr with the reason, :func:`unusable`). A cache file that is not the
+    extraction cannot use (an ``unusable`` attr with the reason, :class:`UnusableRecord` from :func:`read_cached`). A cache file that is not the
     record's as it is now (:func:`is_fresh`) is made again.
     """
     cache = check_folder(cache, make=True)
@@ -299,15 +299,16 @@ def extract_new(
     return targets
 
 
-def unusable(path: Path) -> str | None:
-    """Why a record's cache file says the record cannot be used (None when it can)."""
-    with xr.open_dataset(path) as ds:
-        return ds.attrs.get("unusable")
+class UnusableRecord(SignalError):
+    """A record's cache file says the extraction could not use the record (the message says why)."""
 
 
 def read_cached(path: Path) -> xr.Dataset | None:
-    """A record's cached modes (None for a record without any mode)."""
+    """A record's cached modes (None for a record without any mode); :class:`UnusableRecord` with the reason for
+    a record the extraction could not use."""
     from twin.modes.modesfile import modes_from
 
     ds = load_netcdf(path, "modes", SignalError)
+    if "unusable" in ds.attrs:
+        raise UnusableRecord(str(ds.attrs["unusable"]))
     return None if "no_mode" in ds.attrs else modes_from(ds, path)

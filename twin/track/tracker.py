@@ -28,7 +28,7 @@ import xarray as xr
 
 from twin import __version__
 from twin.defaults import BASELINE_DAYS  # noqa: F401 (shared with the CLI)
-from twin.errors import SignalError, TwinError
+from twin.errors import TwinError
 from twin.extract.options import ExtractOptions
 from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
@@ -39,7 +39,7 @@ from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
-from twin.track.records import check_machine, extract_new, read_cached, records_in, unusable
+from twin.track.records import UnusableRecord, check_machine, extract_new, read_cached, records_in
 from twin.report.tracking import monitored_records, write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
@@ -196,21 +196,21 @@ def track(
     out = check_folder(out, make=True)
     with stage(f"extract the modes of {len(records)} records"):
         cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress, strict=strict)
-    usable = []
+    usable, measured = [], []
     for r, p in zip(records, cache):
-        reason = unusable(p)
-        if reason is None:
-            usable.append((r, p))
-        elif strict:  # cached by an earlier run that was not strict
-            raise SignalError(reason)
+        try:
+            measured.append(read_cached(p))
+        except UnusableRecord as exc:
+            if strict:  # cached by an earlier run that was not strict
+                raise
+            set_aside.append((r.path.name, str(exc)))
         else:
-            set_aside.append((r.path.name, reason))
+            usable.append(r)
     for name, reason in set_aside:
         log.warning("set aside: %s", reason if name in reason else f"{name}: {reason}")
     if not usable:
         raise TwinError(f"{folder}: no usable record ({len(set_aside)} set aside, the first: {set_aside[0][1]})")
-    records, cache = [r for r, _ in usable], [p for _, p in usable]
-    measured = [read_cached(p) for p in cache]
+    records = usable
     first = next((m for m in measured if m is not None), None)
     if first is None:
         raise TwinError(f"{folder}: no mode stood out of any record")

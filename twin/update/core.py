@@ -271,13 +271,16 @@ def posterior_tree(
             attrs={"long_name": "updated model parameters (SI units of each parameter: coordinate units)"},
         )
     mode_coord = {"mode": problem.modes}
-    units = {"added_mass": "kg", "added_damping": "N s/m"}
+    mode_units = {"added_mass": "kg", "added_damping": "N s/m"}
     for q, kind in enumerate(problem.mode_names):
         post[kind] = xr.DataArray(
             chains.eta[..., q] * problem.mode_scale[:, q],
             dims=("chain", "draw", "mode"),
             coords=mode_coord,
-            attrs={"units": units[kind], "long_name": f"per-mode FSI {kind.replace('_', ' ')} on the immersed DOFs"},
+            attrs={
+                "units": mode_units[kind],
+                "long_name": f"per-mode FSI {kind.replace('_', ' ')} on the immersed DOFs",
+            },
         )
     n_o = len(problem.channels)
     shape = chains.psi[..., :n_o] + 1j * chains.psi[..., n_o:]
