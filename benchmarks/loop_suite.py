@@ -10,11 +10,12 @@ the nothing-hidden seeds (about 1 when the uncertainty is honest).
 
     python benchmarks/loop_suite.py [--workers 2] [--out twin-suite] [--method hmc|laplace]
                                     [--bootstrap R] [--from-table twin-suite/sweep.nc]
-                                    [--model pelton_unit --fmax 100]
+                                    [--model pelton_unit --fmax 100 --algorithm plscf]
 
 ``--model`` runs another shipped machine's suite, ``benchmarks/loop_suite_<model>.txt`` (the same scenario
 kinds on its own effects and elements), into ``results/loop_suite_<model>.md``; ``--fmax`` is the highest
-frequency its extraction looks for modes up to.
+frequency its extraction looks for modes up to, ``--algorithm`` how it reads them (``plscf`` for the
+Pelton unit's heavily damped modes).
 
 About 20 min on 2 cores without the calibration of each scenario's last
 update (``--bootstrap 0``, as ``results/loop_suite.md`` was measured); the
@@ -94,6 +95,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", default="hydro_unit", help="a shipped machine")
     parser.add_argument("--fmax", type=float, default=None, help="twin sweep --fmax (default: the sweep's)")
+    parser.add_argument(
+        "--algorithm", default=None, help="twin sweep --algorithm: how the extraction reads the modes (default: ssi)"
+    )
     parser.add_argument("--out", default="twin-suite")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--method", choices=tuple(RESULTS), default="hmc")
@@ -108,7 +112,11 @@ def main() -> None:
     args = parser.parse_args()
     hydro = args.model == "hydro_unit"
     suite = SUITE if hydro else SUITE.with_name(f"loop_suite_{args.model}.txt")
-    extra = ([] if hydro else ["--model", args.model]) + ([] if args.fmax is None else ["--fmax", f"{args.fmax:g}"])
+    extra = (
+        ([] if hydro else ["--model", args.model])
+        + ([] if args.fmax is None else ["--fmax", f"{args.fmax:g}"])
+        + ([] if args.algorithm is None else ["--algorithm", args.algorithm])
+    )
     command = [
         "twin",
         "sweep",

@@ -16,7 +16,7 @@ mode, or a second estimate of one) and the wall time. (pyOMA2's ``Magalhaes``
 preset kept 130 to 200 clusters of noise poles on these records.)
 
 Run:  python benchmarks/outside_records.py [--only NAME,...] [--no-pyoma] [--seed 1 | --seeds 2,3,...]
-                                         [--json FILE]
+                                         [--algorithm ssi|plscf] [--json FILE]
 Needs ``pip install pyOMA-2`` for pyOMA2's columns (left out with a note otherwise).
 """
 
@@ -144,14 +144,14 @@ def koma():
     return ds, truth
 
 
-def run_twin(ds):
-    """twin's defaults on the record: damped frequencies [Hz], shapes in displacement, the block rows and
-    the wall time [s]; a record in which it finds no mode gives no estimate (all missed)."""
+def run_twin(ds, algorithm: str = "ssi"):
+    """twin's defaults (but the ``algorithm``) on the record: damped frequencies [Hz], shapes in displacement,
+    the block rows and the wall time [s]; a record in which it finds no mode gives no estimate (all missed)."""
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            m = extract(ds, progress=False)
+            m = extract(ds, progress=False, algorithm=algorithm)
         except NoModeError as exc:
             return np.empty(0), np.empty((0, ds.sizes["channel"]), complex), exc.block_rows, time.perf_counter() - t0
     block_rows = json.loads(m.attrs["settings"])["block_rows"]
@@ -219,6 +219,9 @@ def main() -> None:
         "other, with totals at the end (instead of --seed)",
     )
     ap.add_argument("--json", default=None)
+    ap.add_argument(
+        "--algorithm", default="ssi", choices=("ssi", "plscf"), help="twin's identification algorithm (default ssi)"
+    )
     args = ap.parse_args()
     try:
         import pyoma2  # noqa: F401
@@ -232,7 +235,7 @@ def main() -> None:
     for preset in PRESETS if pyoma else ():
         head += f" | {preset[:8] + ' found':>14} {'spur':>4} {'time s':>6}"
     print(
-        f"twin defaults vs pyOMA2 {pyoma or '-'} SSI-cov + automatic clustering; found = frequency within 0.5% "
+        f"twin defaults ({args.algorithm}) vs pyOMA2 {pyoma or '-'} SSI-cov + automatic clustering; found = frequency within 0.5% "
         "(or 3 times its statistical limit), MAC >= 0.95 in displacement (* pyOMA2: frequency alone)"
     )
     print(head)
@@ -242,7 +245,7 @@ def main() -> None:
         name = name if len(seeds) == 1 else f"{name} s{seed}"
         if args.only and not any(s.strip() in name for s in args.only.split(",")):
             continue
-        f_twin, shapes_twin, block_rows, dt = run_twin(ds)
+        f_twin, shapes_twin, block_rows, dt = run_twin(ds, args.algorithm)
         tw = score(f_twin, shapes_twin, truth)
         line = (
             f"{name:34} {int(truth.visible.sum()):7d} | {len(tw['found']):10d} {len(tw['missed']):6d} "

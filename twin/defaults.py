@@ -55,6 +55,9 @@ DEMO_FMAX_HZ = 60.0
 ORDERS_PER_MODE = 8
 #: The largest model order an extraction's stabilisation diagram reaches.
 MAX_ORDER = 100
+#: The extraction's identification algorithms (:mod:`twin.extract.algorithms`), the default first: covariance-driven
+#: SSI, and pLSCF for heavily damped, overlapping modes.
+ALGORITHMS = ("ssi", "plscf")
 
 #: Samples per mode of a synthetic modes file (``twin synth``, :func:`twin.update.synthesize_modes`).
 SYNTHETIC_SAMPLES = 100

@@ -12,6 +12,7 @@ import contextlib
 import math
 
 from twin.defaults import (
+    ALGORITHMS,
     CHAINS,
     DEMO_FMAX_HZ,
     DEFAULT_RECORDS,
@@ -204,6 +205,18 @@ def add_method(p: argparse.ArgumentParser, what: str) -> None:
     )
 
 
+def add_algorithm(p: argparse.ArgumentParser) -> None:
+    """``--algorithm``: how the extraction reads the modes (:mod:`twin.extract.algorithms`)."""
+    p.add_argument(
+        "--algorithm",
+        choices=ALGORITHMS,
+        default=ALGORITHMS[0],
+        help="how the extraction reads the modes from the record's covariances: ssi, covariance-driven SSI "
+        "(the default; lightly damped and slow modes); plscf, a least-squares fit of their half spectra "
+        "over the band (heavily damped, overlapping modes, 4%% of critical and more)",
+    )
+
+
 def add_chain_options(p: argparse.ArgumentParser) -> None:
     """The options every sampler takes (their defaults are the sampler's own: twin.update.samplers)."""
     p.add_argument("--draws", type=COUNT, default=None, help=f"draws kept per chain (default: {DRAWS})")
@@ -230,6 +243,7 @@ def add_loop_settings(p: argparse.ArgumentParser, records: int | None = None) ->
         default=DEMO_FMAX_HZ,
         help="highest frequency the extraction looks for modes up to [Hz]",
     )
+    add_algorithm(p)
     p.add_argument("--model", default=None, help="the twin's model file (default: the shipped hydro_unit)")
     add_method(p, "how each round updates the added effects")
     add_bootstrap(p, records)

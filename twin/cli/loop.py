@@ -211,6 +211,7 @@ def _demo(args: argparse.Namespace) -> int:
             seed=args.seed,
             samples=args.samples,
             fmax_hz=args.fmax,
+            algorithm=args.algorithm,
             method=args.method,
             bootstrap=args.bootstrap,
             tasks=client,
@@ -323,6 +324,7 @@ def _sweep(args: argparse.Namespace) -> int:
         duration_s=args.duration,
         samples=args.samples,
         fmax_hz=args.fmax,
+        algorithm=args.algorithm,
         method=args.method,
         bootstrap=args.bootstrap,
     )

@@ -13,6 +13,7 @@ from twin.cli.common import (
     NONNEGATIVE,
     POSITIVE,
     TRUTH_HELP,
+    add_algorithm,
     add_record,
     command,
     rows_or_auto,
@@ -133,6 +134,7 @@ def _extract(args: argparse.Namespace) -> int:
         orders_per_mode=args.orders_per_mode or None,
         differenced_above_hz=args.differenced_above,
         shape_samples=args.shape_samples,
+        algorithm=args.algorithm,
     )
     ds = judge_targets(extract(args.signals, options, command=" ".join(sys.argv)), args.signals)
     write_modes(ds, args.output)  # -o is required, and checked before the command ran (twin.cli._check_outputs)
@@ -299,10 +301,11 @@ def add_commands(sub) -> None:
     p = command(
         sub,
         "extract",
-        "automated modal extraction (SSI-cov) from signals to mode samples",
-        "Covariance-driven stochastic subspace identification over model orders, a stabilisation\n"
-        "diagram cleared automatically, harmonics of the running speed rejected; each mode's\n"
-        "uncertainty from jackknife samples over blocks of the record (modes.nc).",
+        "automated modal extraction (SSI-cov or pLSCF) from signals to mode samples",
+        "Covariance-driven stochastic subspace identification (or, --algorithm plscf, a frequency-domain\n"
+        "fit of the covariances' half spectra) over model orders, a stabilisation diagram cleared\n"
+        "automatically, harmonics of the running speed rejected; each mode's uncertainty from jackknife\n"
+        "samples over blocks of the record (modes.nc).",
         ["twin extract signals.nc -o modes.nc --fmax 60 --plot stabilisation.png"],
         _extract,
     )
@@ -358,6 +361,7 @@ def add_commands(sub) -> None:
         "the poles keeping their own samples, each used M / samples times (default: the shapes "
         "come with the poles)",
     )
+    add_algorithm(p)
     p.add_argument("--max-order", type=COUNT, default=MAX_ORDER, help="largest model order")
     p.add_argument("--channels", default=None, help="channels to use, e.g. UGB_x,UGB_y (default: all)")
     p.add_argument("--plot", default=None, help="stabilisation diagram figure to write (PNG)")

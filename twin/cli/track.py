@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from twin.cli.common import add_scheduler, command, tasks
+from twin.cli.common import add_algorithm, add_scheduler, command, tasks
 from twin.defaults import BASELINE_DAYS, FALSE_ALARMS_PER_YEAR
 
 
@@ -73,6 +73,7 @@ def add_commands(sub) -> None:
         help="stop at the first record that cannot be used (by default it is set aside with the reason, "
         "and the rest tracked)",
     )
+    add_algorithm(p)
     p.add_argument(
         "--json",
         action="store_true",
@@ -95,6 +96,7 @@ def _track(args: argparse.Namespace) -> int:
             false_alarms_per_year=args.false_alarms,
             tasks=client,
             strict=args.strict,
+            extract_options={"algorithm": args.algorithm},
         )
     summary = alarms_json(table)
     if args.json:

@@ -1,7 +1,7 @@
 """Automated operational modal analysis: ``signals.nc`` in, ``modes.nc`` out.
 
 One function, :func:`extract`: check the record, decimate to the band asked
-for, covariance-driven SSI over many orders, stabilisation diagram, automatic
+for, covariance-driven SSI (or pLSCF, :mod:`twin.extract.algorithms`) over many orders, stabilisation diagram, automatic
 clustering, running-speed harmonics removed (a known speed) or rejected, J jackknife samples per
 mode; its steps are :mod:`twin.extract.steps`. It never reads the model; pair the result with model
 modes by MAC with :func:`twin.pair_modes`.
@@ -23,6 +23,7 @@ import xarray as xr
 from twin import __version__
 from twin.defaults import ORDERS_PER_MODE, SAMPLES  # noqa: F401 (defaults of the extraction, shared with the CLI)
 from twin.errors import TwinWarning
+from twin.extract.algorithms import ALGORITHM_NAMES
 from twin.extract.blocks import warn_about_few_blocks
 from twin.extract.options import ExtractOptions
 from twin.extract.orders import OUTLIER_MADS
@@ -181,6 +182,15 @@ def extract(
         (``docs/decisions/extraction-shape-samples.md``). ``twin demo`` and ``twin sweep`` ask for ``4 x samples``.
         Not with ``differenced_above_hz`` or ``shape_block_rows``. None or 0
         (the default): the shapes come with the poles.
+    algorithm : {"ssi", "plscf"}
+        How the poles and shapes are read from the record's covariances at
+        each model order (:mod:`twin.extract.algorithms`): covariance-driven
+        SSI (the default) or the poly-reference least-squares complex
+        frequency-domain fit of their half spectra over the band (pLSCF,
+        :mod:`twin.extract.plscf`; model orders ``m, 2m, ...`` for ``m``
+        channels). pLSCF for heavily damped, overlapping modes (5-11%: the
+        shipped ``pelton_unit``), SSI for lightly damped, slow ones (the
+        hydro unit's); ``docs/decisions/extraction-plscf.md``.
     remove_harmonics : bool
         When the record gives its running speed (attr ``speed_rpm``), subtract
         the sinusoids at its multiples before SSI
@@ -290,11 +300,12 @@ def _modes_dataset(p: Prepared, m: Modes, opts: ExtractOptions, ref_channel: np.
         "outlier_mads": OUTLIER_MADS,
         "remove_harmonics": bool(opts.remove_harmonics),
         "differenced_above_hz": None if opts.differenced_above_hz is None else float(opts.differenced_above_hz),
+        "algorithm": opts.algorithm,
     }
     out.attrs.update(
         {
             "title": f"modes identified from {Path(p.source).name}",
-            "producer": f"twin {__version__} twin.extract (covariance-driven SSI, jackknife samples)",
+            "producer": f"twin {__version__} twin.extract ({ALGORITHM_NAMES[opts.algorithm]}, jackknife samples)",
             "command": command,
             "settings": json.dumps(settings),
             "harmonics": json.dumps(m.harmonics),

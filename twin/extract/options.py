@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.defaults import MAX_ORDER, ORDERS_PER_MODE, SAMPLES
+from twin.defaults import ALGORITHMS, MAX_ORDER, ORDERS_PER_MODE, SAMPLES
 from twin.errors import SignalError
 from twin.extract.samples import deleted_blocks
 from twin.extract.stabilisation import Criteria
@@ -60,6 +60,7 @@ class ExtractOptions:
     orders_per_mode: int | None = ORDERS_PER_MODE
     differenced_above_hz: float | None = None
     shape_samples: int | None = None
+    algorithm: str = ALGORITHMS[0]
 
     def __post_init__(self) -> None:
         spread = {True: "all", False: "none"}.get(self.order_spread, self.order_spread)  # type: ignore[call-overload]
@@ -70,6 +71,8 @@ class ExtractOptions:
             if isinstance(self.channels, str) or not isinstance(self.channels, Sequence):
                 raise SignalError(f"channels must be a list of channel names, got {self.channels!r}")
             object.__setattr__(self, "channels", tuple(str(c) for c in self.channels))
+        if self.algorithm not in ALGORITHMS:
+            raise SignalError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {self.algorithm!r}")
         if self.criteria is None:
             object.__setattr__(self, "criteria", Criteria())
         if not (whole_at_least_one(self.max_order) and self.max_order >= 2):
@@ -137,7 +140,7 @@ class ExtractOptions:
         '{"fmax_hz": 20.0, "samples": 10}'
         >>> ExtractOptions.of(colour=1)
         Traceback (most recent call last):
-        twin.errors.SignalError: the extraction has no option colour (its options: block_rows, blocks, channels, criteria, delete_blocks, differenced_above_hz, first_lag, fmax_hz, fmin_hz, max_order, order_spread, orders_per_mode, remove_harmonics, samples, shape_block_rows, shape_samples)
+        twin.errors.SignalError: the extraction has no option colour (its options: algorithm, block_rows, blocks, channels, criteria, delete_blocks, differenced_above_hz, first_lag, fmax_hz, fmin_hz, max_order, order_spread, orders_per_mode, remove_harmonics, samples, shape_block_rows, shape_samples)
         """
         if isinstance(options, cls):
             return dataclasses.replace(options, **fields) if fields else options

@@ -33,7 +33,8 @@ import numpy as np
 
 from twin.extract.harmonics import HARMONIC_MAX_DAMPING, harmonic_test
 from twin.extract.samples import MATCH_DISTANCE, jackknife, order_deviations
-from twin.extract.ssi import BlockCovariances, Realisation, block_covariances, hankel_max_lag, realise
+from twin.extract.algorithms import SSI, Algorithm, Fit
+from twin.extract.ssi import BlockCovariances, block_covariances, hankel_max_lag
 from twin.extract.stabilisation import Cluster, Criteria, Diagram, cluster_poles, diagram, pole_distance
 from twin.modes.analysis import damping_ratio
 from twin.modes.pairing import assign
@@ -101,11 +102,12 @@ class SSIPass:
 
     block_rows: int
     covariances: BlockCovariances
-    real: Realisation
+    real: Fit
     first_lag: int
     diag: Diagram
     modes: list[Cluster]
     harmonics: list[dict]
+    algorithm: Algorithm = SSI
 
 
 def ssi_pass(
@@ -122,9 +124,10 @@ def ssi_pass(
     spectrum: dict,
     quiet: bool = False,
     first_lag: int = 1,
+    algorithm: str = "ssi",
 ) -> SSIPass:
-    """SSI-cov with ``i`` block rows from lag ``first_lag`` on, the stabilisation diagram clustered and its
-    clusters sorted into modes and harmonics.
+    """SSI-cov (or another ``algorithm``, :mod:`twin.extract.algorithms`) with ``i`` block rows from lag ``first_lag``
+    on, the stabilisation diagram clustered and its clusters sorted into modes and harmonics.
 
     The record's FFT is computed once, into ``spectrum``, when a cluster must be tested as a harmonic;
     ``quiet`` logs the sorting at debug level only (a second pass, whose harmonics the first reported).
@@ -144,8 +147,9 @@ def ssi_pass(
     """
     say = log.debug if quiet else log.info
     covariances = block_covariances(y, hankel_max_lag(i, first_lag), n_blocks)
-    real = realise(covariances.covariance(), i, max_order, fs, first_lag=first_lag)
-    orders = np.arange(2, real.max_order + 1, 2)
+    how = Algorithm(algorithm, (fmin_hz, fmax))
+    real = how.fit(covariances.covariance(), i, max_order, fs, first_lag=first_lag)
+    orders = real.orders
     diag = diagram(real, orders, fmin_hz, fmax, crit)
     diag, clusters = cluster_poles(diag, len(orders), crit)
 
@@ -170,7 +174,7 @@ def ssi_pass(
             harmonics.append(h)
             say("%.4f Hz is a harmonic (band kurtosis %.2f), not a mode", h["frequency_hz"], h["kurtosis"])
             labels[c.members] = -2
-    return SSIPass(i, covariances, real, first_lag, dataclasses.replace(diag, cluster=labels), modes, harmonics)
+    return SSIPass(i, covariances, real, first_lag, dataclasses.replace(diag, cluster=labels), modes, harmonics, how)
 
 
 def matching_modes(
@@ -247,6 +251,7 @@ def shapes_at_longer_lags(
         delete=delete,
         n_samples=n_samples,
         first_lag=again.first_lag,
+        algorithm=again.algorithm,
     )
     _, l_dev = order_deviations(members, l_shapes, l_samples.shape[1])
     match = matching_modes(poles, shapes, l_poles, l_shapes)
@@ -349,6 +354,7 @@ def modes_from_differenced(
         delete=delete,
         n_samples=n_samples,
         first_lag=again.first_lag,
+        algorithm=again.algorithm,
     )
     d_dp, d_ds = order_deviations(d_members, d_shapes, d_sp.shape[1])
     match = matching_modes(poles[upper], shapes[upper], d_poles, d_shapes)

@@ -70,7 +70,8 @@ import logging
 import numpy as np
 from twin.progress import bar
 
-from twin.extract.ssi import BlockCovariances, realise
+from twin.extract.algorithms import SSI, Algorithm
+from twin.extract.ssi import BlockCovariances
 from twin.extract.stabilisation import pole_distance
 
 log = logging.getLogger(__name__)
@@ -267,6 +268,7 @@ def jackknife(
     delete: int | None = 1,
     n_samples: int | None = None,
     first_lag: int = 1,
+    algorithm: Algorithm = SSI,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full-record estimates and delete-d jackknife samples of the given modes.
 
@@ -291,6 +293,8 @@ def jackknife(
         another number, see :func:`deleted_blocks`).
     first_lag : int
         The lag the Hankel matrix starts at, as for the full record (:func:`twin.extract.ssi.hankel`).
+    algorithm : Algorithm
+        The identification algorithm and band, as for the full record (:mod:`twin.extract.algorithms`).
 
     Returns
     -------
@@ -314,7 +318,9 @@ def jackknife(
     all_orders = np.unique(np.concatenate([m[0] for m in members]))
     max_order = int(all_orders.max())
     for j in bar(range(M), desc="jackknife", unit="sample", progress=progress, mininterval=0.5):
-        real = realise(blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz, first_lag=first_lag)
+        real = algorithm.fit(
+            blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz, first_lag=first_lag
+        )
         at = {}
         for n in all_orders:
             lam, phi = real.modes(int(n))

@@ -151,6 +151,15 @@ class Realisation:
     def max_order(self) -> int:
         return self.C.shape[1]
 
+    @property
+    def n_channels(self) -> int:
+        return self.C.shape[0]
+
+    @property
+    def orders(self) -> np.ndarray:
+        """The model orders of the stabilisation diagram: 2, 4, ..., ``max_order``."""
+        return np.arange(2, self.max_order + 1, 2)
+
     def modes(self, order: int) -> tuple[np.ndarray, np.ndarray]:
         """Continuous-time poles [1/s] (``Im > 0`` only) and output shapes ``(l, k)`` of one order."""
         A = sla.solve_triangular(self.R_up[:order, :order], self.S[:order, :order], check_finite=False)

@@ -22,20 +22,32 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import squareform
 
-from twin.extract.ssi import Realisation
 from twin.modes.analysis import damping_ratio
 from twin.modes.shapes import mac, normalise_shapes
+
+if TYPE_CHECKING:
+    from twin.extract.algorithms import Fit
 
 
 #: Absolute tolerance on the damping change between orders (relative tests fail near zeta = 0).
 DZETA_FLOOR = 5e-4
 #: Poles down to this negative damping ratio are clustered (harmonics have zeta = 0).
 HARMONIC_ZETA_TOLERANCE = 0.01
+#: Two clusters are one mode when their poles lie closer than this fraction of their decay rate (deep inside
+#: each other's half-power band, where no record tells two modes apart) and their shapes agree to
+#: :data:`DUPLICATE_MAC`: a heavily damped mode's poles scatter over the orders more than the clustering
+#: distance allows and may fall into two clusters (the Pelton unit's 31.5 Hz mode, 7% damped, as two at 31.52
+#: and 31.56 Hz with MAC 0.96: one of them then paired with another model mode).
+DUPLICATE_DECAY_FRACTION = 0.25
+#: The MAC two clusters' shapes need to be one mode by :data:`DUPLICATE_DECAY_FRACTION` (two modes at one
+#: frequency with other shapes, as a rotor's x and y modes, stay two).
+DUPLICATE_MAC = 0.8
 
 
 @dataclass(frozen=True)
@@ -97,7 +109,7 @@ def pole_distance(p1: np.ndarray, s1: np.ndarray, p2: np.ndarray, s2: np.ndarray
     return dp + 1.0 - mac(s1, s2)
 
 
-def diagram(real: Realisation, orders: np.ndarray, fmin_hz: float, fmax_hz: float, crit: Criteria) -> Diagram:
+def diagram(real: Fit, orders: np.ndarray, fmin_hz: float, fmax_hz: float, crit: Criteria) -> Diagram:
     """Poles of every order with their stability status (no clustering yet)."""
     rows_order, rows_pole, rows_shape, rows_status = [], [], [], []
     prev_p = prev_s = None
@@ -121,7 +133,7 @@ def diagram(real: Realisation, orders: np.ndarray, fmin_hz: float, fmax_hz: floa
         rows_shape.append(phi)
         rows_status.append(status)
         prev_p, prev_s = lam, phi
-    n_ch = real.C.shape[0]
+    n_ch = real.n_channels
     shape = np.concatenate(rows_shape) if rows_shape else np.zeros((0, n_ch), complex)
     pole = np.concatenate(rows_pole) if rows_pole else np.zeros(0, complex)
     return Diagram(
@@ -222,15 +234,33 @@ def _join_fragments(groups: np.ndarray, order: np.ndarray, dist: np.ndarray, mer
 
 
 def _merge_duplicates(d: Diagram, clusters: list[Cluster], crit: Criteria) -> list[Cluster]:
-    """Keep the larger of two clusters that describe the same mode (same frequency and shape)."""
+    """Keep the larger of two clusters that describe the same mode: within the clustering distance, or with
+    poles within :data:`DUPLICATE_DECAY_FRACTION` of their decay rate and shapes alike (:data:`DUPLICATE_MAC`)."""
     clusters = sorted(clusters, key=lambda c: -len(c.members))
     kept: list[Cluster] = []
     for c in clusters:
         p, s = d.pole[[c.representative]], d.shape[[c.representative]]
-        if any(
-            pole_distance(p, s, d.pole[[k.representative]], d.shape[[k.representative]])[0, 0] < crit.cluster_distance
-            for k in kept
-        ):
+        if any(_same_mode(p, s, d.pole[[k.representative]], d.shape[[k.representative]], crit) for k in kept):
             continue
         kept.append(c)
     return kept
+
+
+def _same_mode(p1: np.ndarray, s1: np.ndarray, p2: np.ndarray, s2: np.ndarray, crit: Criteria) -> bool:
+    """Whether two representative poles ``(1,)`` with unit shapes ``(1, channels)`` are one mode.
+
+    Examples
+    --------
+    >>> s = np.array([[1.0, 0.2j]])
+    >>> p = np.array([-14.2 + 198.0j])
+    >>> _same_mode(p, s, p + 0.3j, s * 0.98 + [[0.0, 0.2]], Criteria())  # 7% damped: 0.3 rad/s is nothing
+    True
+    >>> _same_mode(p / 20, s, p / 20 + 0.3j, s * 0.98 + [[0.0, 0.2]], Criteria())  # the same step, 20 times slower
+    False
+    >>> _same_mode(p, s, p + 0.3j, np.array([[0.2j, 1.0]]), Criteria())  # another shape at the same pole
+    False
+    """
+    if pole_distance(p1, s1, p2, s2)[0, 0] < crit.cluster_distance:
+        return True
+    decay = min(-p1[0].real, -p2[0].real)
+    return bool(abs(p1[0] - p2[0]) < DUPLICATE_DECAY_FRACTION * decay and mac(s1, s2)[0, 0] >= DUPLICATE_MAC)

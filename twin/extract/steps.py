@@ -26,6 +26,7 @@ import scipy.signal as sig
 import xarray as xr
 
 from twin.errors import NoModeError, SignalError, TwinWarning
+from twin.extract.algorithms import ALGORITHM_NAMES
 from twin.extract.blocks import (
     MIN_BLOCK_LAGS,
     MIN_BLOCK_TIME_CONSTANTS,
@@ -210,7 +211,8 @@ def first_pass(p: Prepared, opts: ExtractOptions, progress: bool) -> Modes:
     samples over the blocks and spread over its model orders (:func:`jackknife_samples`)."""
     n_deleted, repeats = jackknife_plan(p.n_blocks, p.samples, opts)
     log.info(
-        "SSI-cov on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
+        "%s on %s: %d channels, %.0f s at %g Hz, %d block rows from lag %d, orders up to %d",
+        ALGORITHM_NAMES[opts.algorithm],
         p.source,
         p.y.shape[1],
         p.rec.duration_s,
@@ -232,6 +234,7 @@ def first_pass(p: Prepared, opts: ExtractOptions, progress: bool) -> Modes:
         p.rec.channels,
         p.spectrum,
         first_lag=p.first_lag,
+        algorithm=opts.algorithm,
     )
     reason = None
     if opts.chosen:
@@ -272,6 +275,7 @@ def jackknife_samples(
         delete=opts.delete_blocks,
         n_samples=p.samples,
         first_lag=p.first_lag,
+        algorithm=found.algorithm,
     )
     n_samples = p.samples
     if repeats > 1:  # the shapes from their own delete-half samples, each pole sample used `repeats` times
@@ -286,6 +290,7 @@ def jackknife_samples(
             delete=None,
             n_samples=n_samples,
             first_lag=p.first_lag,
+            algorithm=found.algorithm,
         )[3]
         sample_p, missing = repeated(sample_p, repeats), np.repeat(missing, repeats, axis=1)
     d_p, d_s = order_deviations(members, shapes, n_samples)
@@ -329,6 +334,7 @@ def differenced_pass(p: Prepared, m: Modes, opts: ExtractOptions, progress: bool
         {},
         quiet=True,
         first_lag=max(p.first_lag, DIFFERENCES + 1),
+        algorithm=opts.algorithm,
     )
     first = (m.members, m.poles, m.shapes, m.sample_p, m.sample_s, m.missing, m.d_p, m.d_s)
     again_members = mode_members(again, opts.orders_per_mode)
@@ -411,6 +417,7 @@ def shapes_pass(p: Prepared, m: Modes, opts: ExtractOptions, progress: bool) -> 
         p.spectrum,
         quiet=True,
         first_lag=p.first_lag,
+        algorithm=opts.algorithm,
     )
     read = shapes_at_longer_lags(
         again,

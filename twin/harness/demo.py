@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from twin.defaults import (  # noqa: F401 (shared with the CLI)
+    ALGORITHMS,
     DEMO_FMAX_HZ,
     DEMO_RECORDS,
     RECORD_DURATION_S,
@@ -249,6 +250,7 @@ def run_demo(
     samples: int = SAMPLES,
     fmax_hz: float = DEMO_FMAX_HZ,
     seed: int = 1,
+    algorithm: str = ALGORITHMS[0],
     method: str = "hmc",
     bootstrap: int | None = None,
     progress: bool = True,
@@ -274,6 +276,8 @@ def run_demo(
         same blocks (``extract(shape_samples=...)``).
     fmax_hz : float
         Highest frequency of the extraction [Hz].
+    algorithm : {"ssi", "plscf"}
+        How the extraction reads the modes (:mod:`twin.extract.algorithms`).
     seed : int
         Seed of the turbulence and the sensor noise (and of the sampler's chains).
     method : {"hmc", "gibbs", "paper", "laplace"}
@@ -328,6 +332,7 @@ def run_demo(
             samples=samples,
             shape_samples=SHAPE_SAMPLES_PER_SAMPLE * samples,
             fmax_hz=fmax_hz,
+            algorithm=algorithm,
             progress=progress,
             command="twin demo",
         )

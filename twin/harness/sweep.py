@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from twin.defaults import DEMO_FMAX_HZ, RECORD_DURATION_S, SAMPLING_RATE_HZ
+from twin.defaults import ALGORITHMS, DEMO_FMAX_HZ, RECORD_DURATION_S, SAMPLING_RATE_HZ
 from twin import __version__
 from twin.errors import TwinError, TwinWarning
 from twin.fem.model import RotorModel
@@ -63,6 +63,7 @@ class Settings:
     fs_hz: float = SAMPLING_RATE_HZ
     samples: int = SAMPLES
     fmax_hz: float = DEMO_FMAX_HZ
+    algorithm: str = ALGORITHMS[0]
     method: str = "hmc"
     bootstrap: int | None = None  # the loop's default calibration (twin.loop.bootstrap.DEFAULT_RECORDS), not the demo's
 

@@ -68,6 +68,7 @@ EXTRACT_KEYS = (
     "orders_per_mode",
     "remove_harmonics",
     "differenced_above_hz",
+    "algorithm",
 )
 #: A simulated record's mode is the measured mode whose simulated frequency (:func:`simulated_reference`) is
 #: within this fraction of its own. The records' modes scatter about the system's: the 3.81 Hz mode of the
