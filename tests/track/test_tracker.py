@@ -108,6 +108,28 @@ def test_records_added_later_give_the_alarms_of_one_run(step, tmp_path, hydro_un
 
 
 @pytest.mark.slow
+def test_a_record_after_an_outage_leaves_every_earlier_verdict_and_the_limit(step, tmp_path, hydro_unit, client):
+    """The limit is set at the baseline's cadence, not over the span of all records: a record 60 days after the
+    rest (an outage) changes neither the limit nor an earlier statistic or alarm."""
+    import shutil
+
+    folder, out, whole = step
+    records, cached = tmp_path / "records", tmp_path / "out"
+    shutil.copytree(folder, records)
+    shutil.copytree(out, cached)
+    with xr.open_dataset(folder / "record_00000.nc") as ds:
+        late = ds.load()
+    start = np.datetime64(str(whole.time.values[-1])[:19]) + np.timedelta64(60, "D")
+    late.attrs["start_time"] = str(start) + "Z"
+    late.to_netcdf(records / "after_the_outage.nc")
+    table = track(hydro_unit, records, cached, baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+    assert table.sizes["time"] == whole.sizes["time"] + 1
+    assert float(table.limit) == float(whole.limit)
+    np.testing.assert_allclose(table.statistic.values[:-1], whole.statistic.values, rtol=1e-9, equal_nan=True)
+    assert alarms_json(table)["alarms"][: len(alarms_json(whole)["alarms"])] == alarms_json(whole)["alarms"]
+
+
+@pytest.mark.slow
 def test_records_that_cannot_be_used_are_set_aside_and_the_rest_tracked(step, tmp_path, hydro_unit, client):
     import shutil
 

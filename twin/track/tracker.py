@@ -152,7 +152,9 @@ def track(
         Days from the first record over which the laws are learned and the chart's scale is set; no alarm
         is raised in them.
     false_alarms_per_year : float
-        The false-alarm rate the chart's limit is set for [per unit-year].
+        The false-alarm rate the chart's limit is set for [per unit-year], at the baseline's cadence
+        (its records over ``baseline_days``): records that come later, after an outage or at another
+        rate, leave the limit and every earlier verdict as they were.
     extract_options : ExtractOptions or mapping, optional
         Options of :func:`twin.extract.extract` (:class:`twin.extract.options.ExtractOptions` or a mapping of
         its fields), checked before any record is read; a record's cached modes answer only for them.
@@ -260,7 +262,9 @@ def track(
     m = len(tracked.poles)
     chart = detect.learn_baseline(residual[base], sig[base])
     watched = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
-    records_per_year = 365.25 * len(records) / max(days[-1] - days[0], 1e-9) if len(records) > 1 else 365.25
+    # the cadence the limit is set for is the baseline's: records that arrive later (after an outage, or faster)
+    # never move the limit, and so never an earlier verdict
+    records_per_year = 365.25 * int(base.sum()) / baseline_days
     if int(base.sum()) <= m + 1:
         raise TwinError(
             f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
