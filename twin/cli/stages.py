@@ -374,10 +374,10 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--order-spread",
         choices=("shapes", "all", "none"),
-        default="shapes",
+        default=None,
         help="add each mode's model-order error to the shape samples (the standard error of the "
-        "shape's mean over its orders; the default), to the pole samples too (their spread over "
-        "the orders: all) or to neither (none)",
+        "shape's mean over its orders; the default with ssi), to the pole samples too (their spread over "
+        "the orders: all, the default with plscf) or to neither (none)",
     )
     p.add_argument(
         "--orders-per-mode",

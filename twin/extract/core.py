@@ -131,14 +131,15 @@ def extract(
         or None for half of them, drawn at random (delete-half: a spread
         that matches independent records, but the loop's comparison is not
         yet calibrated to it; ``docs/decisions/extraction-jackknife.md``).
-    order_spread : {"shapes", "all", "none"}
+    order_spread : {"shapes", "all", "none"}, optional
         Add to the samples the spread of each mode over the model orders it
         is averaged over (:func:`twin.extract.samples.order_deviations`), so
         that they stand for the jackknife's statistical error and the
         model-order part of SSI's systematic error, in quadrature: to the
-        shape samples only (``"shapes"``, the default), to the pole samples
-        too (``"all"``; ``True`` means the same) or to neither (``"none"``,
-        ``False``). The shapes get the standard error of their mean over the
+        shape samples only (``"shapes"``, SSI's default), to the pole samples
+        too (``"all"``, pLSCF's default; ``True`` means the same) or to
+        neither (``"none"``, ``False``). pLSCF's poles scatter beyond their
+        jackknife spread (``docs/decisions/extraction-plscf.md``). The shapes get the standard error of their mean over the
         ``n`` orders (the spread over ``sqrt(n)``), the poles the whole
         spread. SSI's shapes sit off the truth's by more than their
         jackknife error, and the update's intervals were too narrow with

@@ -21,8 +21,11 @@ from twin.errors import SignalError
 from twin.extract.samples import deleted_blocks
 from twin.extract.stabilisation import Criteria
 
-#: What the model-order spread is added to (``order_spread``): the default first.
+#: What the model-order spread is added to (``order_spread``).
 ORDER_SPREADS = ("shapes", "all", "none")
+#: ``order_spread`` by default, per algorithm: pLSCF's poles scatter beyond their jackknife spread
+#: (docs/decisions/extraction-plscf.md), SSI's jackknife is what the loop is calibrated to.
+ORDER_SPREAD_OF = {"ssi": "shapes", "plscf": "all"}
 #: Blocks each jackknife sample leaves out: 1 (delete-one); None deletes half (honest spread;
 #: docs/decisions/extraction-jackknife.md).
 DELETE_BLOCKS: int | None = 1
@@ -37,7 +40,9 @@ class ExtractOptions:
     >>> from twin.extract import ExtractOptions
     >>> ExtractOptions(samples=20, fmax_hz=8.0).key()
     '{"fmax_hz": 8.0, "samples": 20}'
-    >>> ExtractOptions(order_spread=True).order_spread
+    >>> ExtractOptions(order_spread=True).order_spread, ExtractOptions().order_spread
+    ('all', 'shapes')
+    >>> ExtractOptions(algorithm="plscf").order_spread
     'all'
     >>> ExtractOptions(max_order=1)
     Traceback (most recent call last):
@@ -54,7 +59,7 @@ class ExtractOptions:
     channels: tuple[str, ...] | None = None
     criteria: Criteria = field(default_factory=Criteria)
     delete_blocks: int | None = DELETE_BLOCKS
-    order_spread: str = "shapes"
+    order_spread: str | None = None
     remove_harmonics: bool = True
     blocks: int | None = None
     orders_per_mode: int | None = ORDERS_PER_MODE
@@ -63,7 +68,12 @@ class ExtractOptions:
     algorithm: str = ALGORITHMS[0]
 
     def __post_init__(self) -> None:
-        spread = {True: "all", False: "none"}.get(self.order_spread, self.order_spread)  # type: ignore[call-overload]
+        if self.algorithm not in ALGORITHMS:
+            raise SignalError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {self.algorithm!r}")
+        spread = {True: "all", False: "none", None: ORDER_SPREAD_OF[self.algorithm]}.get(
+            self.order_spread,  # type: ignore[call-overload]
+            self.order_spread,
+        )
         if spread not in ORDER_SPREADS:
             raise SignalError(f"order_spread must be one of {', '.join(ORDER_SPREADS)}, got {self.order_spread!r}")
         object.__setattr__(self, "order_spread", spread)
@@ -71,8 +81,6 @@ class ExtractOptions:
             if isinstance(self.channels, str) or not isinstance(self.channels, Sequence):
                 raise SignalError(f"channels must be a list of channel names, got {self.channels!r}")
             object.__setattr__(self, "channels", tuple(str(c) for c in self.channels))
-        if self.algorithm not in ALGORITHMS:
-            raise SignalError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {self.algorithm!r}")
         if self.criteria is None:
             object.__setattr__(self, "criteria", Criteria())
         if not (whole_at_least_one(self.max_order) and self.max_order >= 2):
