@@ -2,14 +2,22 @@
 
 :func:`atomic_output` is the one way the package writes an output file
 (NetCDF files, FMUs, histories, reports): into a temporary file in the same
-folder, renamed over the target only when complete, with the usual
-permissions (``0666`` less the umask).
+folder (``.<name>.<random><suffix>``), renamed over the target only when
+complete, with the usual permissions (``0666`` less the umask). A process
+killed outright (SIGKILL, a power cut) leaves its temporary files behind;
+:func:`one_writer`, which a command that fills a folder over a long run holds
+(the tracker, a campaign), removes them when it takes the folder, and refuses a
+second writer while the first runs.
 """
 
 from __future__ import annotations
 
+import datetime
+import json
 import logging
 import os
+import shutil
+import socket
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -26,6 +34,8 @@ log = logging.getLogger(__name__)
 NETCDF_MAGIC = (b"\x89HDF", b"CDF")
 #: Figure files the command line writes.
 FIGURE_TYPES = (".png", ".pdf", ".svg")
+#: The file that says a folder is being written by one process (:func:`one_writer`).
+LOCK_NAME = ".twin-writing"
 
 
 def load_netcdf(path: str | Path, kind: str, error: type[TwinError] = TwinError) -> xr.Dataset:
@@ -157,9 +167,23 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
         for k in empty:
             ds[k].encoding = {e: v for e, v in ds[k].encoding.items() if e not in ("contiguous", "chunksizes")}
     with atomic_output(path, ".nc.part") as tmp:
-        ds.to_netcdf(tmp, engine="netcdf4")
+        try:
+            ds.to_netcdf(tmp, engine="netcdf4")
+        except (OSError, RuntimeError) as exc:  # the netCDF library's own errors (a full disk: "HDF error")
+            raise TwinError(f"cannot write {path}: {exc}{_space_left(Path(path).parent)}") from None
     log.info("wrote %s", path)
     return path
+
+
+def _space_left(folder: Path) -> str:
+    """``"; its disk has N MB free"`` when the disk under ``folder`` is nearly full (under 1% or 100 MB), else ``""``."""
+    try:
+        usage = shutil.disk_usage(folder)
+    except OSError:
+        return ""
+    if usage.free < max(0.01 * usage.total, 100e6):
+        return f"; its disk has {usage.free / 1e6:.0f} MB free"
+    return ""
 
 
 @contextmanager
@@ -178,7 +202,7 @@ def atomic_output(path: str | Path, suffix: str = ".part") -> Iterator[Path]:
     ['a.txt']
     """
     path = check_writable(path)
-    fd, tmp = tempfile.mkstemp(suffix=suffix, dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         umask = os.umask(0)
@@ -189,3 +213,89 @@ def atomic_output(path: str | Path, suffix: str = ".part") -> Iterator[Path]:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def one_writer(folder: str | Path, what: str) -> Iterator[Path]:
+    """Hold ``folder`` for this process while the block writes into it; ``what`` names the writer in messages.
+
+    The folder gets a lock file (:data:`LOCK_NAME`: this process's id, host and start). A second writer
+    is refused with a :class:`~twin.errors.TwinError` that names the first (its process, host and since
+    when) while that process runs; a lock left by a process that is gone (on this host) is taken over,
+    with a warning. Once the folder is held, the temporary files a killed writer left in it or below it
+    (:func:`atomic_output`'s ``.<name>.<random>*.part``) are removed. The lock goes when the block ends,
+    however it ends.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     _ = (Path(tmp) / ".a.nc.k3j2.nc.part").write_text("half a file")
+    ...     with one_writer(tmp, "a test") as lock:
+    ...         inside = sorted(p.name for p in Path(tmp).iterdir())
+    ...     inside, sorted(p.name for p in Path(tmp).iterdir())
+    (['.twin-writing'], [])
+    """
+    folder = Path(folder)
+    lock = folder / LOCK_NAME
+    me = {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "since": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "what": what,
+    }
+    while True:
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _holder(lock)
+            if holder is not None and _running(holder):
+                raise TwinError(
+                    f"{folder} is being written by {holder.get('what', 'another twin command')} (process "
+                    f"{holder.get('pid')} on {holder.get('host')}, since {holder.get('since')}): wait for it to "
+                    f"finish, or give another folder; if that process is gone, remove {lock}"
+                ) from None
+            log.warning(
+                "%s: taking over the lock of a writer that is gone (%s)", folder, holder or "an unreadable lock"
+            )
+            lock.unlink(missing_ok=True)
+            continue
+        except OSError as exc:
+            raise TwinError(f"cannot write into {folder}: {exc.strerror}") from None
+        with os.fdopen(fd, "w") as f:
+            json.dump(me, f)
+        break
+    try:
+        for left in _leftovers(folder):
+            left.unlink(missing_ok=True)
+            log.info("removed %s, a temporary file a killed writer left", left)
+        yield lock
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _holder(lock: Path) -> dict | None:
+    """What the lock file says of its writer, None when it cannot be read (a writer killed as it made it)."""
+    try:
+        holder = json.loads(lock.read_text())
+    except (OSError, ValueError):
+        return None
+    return holder if isinstance(holder, dict) and "pid" in holder else None
+
+
+def _running(holder: dict) -> bool:
+    """Whether the writer a lock names still runs; one on another host is taken to run (it cannot be asked)."""
+    if holder.get("host") != socket.gethostname():
+        return True
+    try:
+        os.kill(int(holder["pid"]), 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, ValueError, TypeError, OverflowError):
+        return True
+    return True
+
+
+def _leftovers(folder: Path) -> list[Path]:
+    """The temporary files :func:`atomic_output` makes, in ``folder`` and below it."""
+    return [p for p in folder.rglob(".*.part") if p.is_file()]

@@ -130,6 +130,16 @@ def test_a_record_after_an_outage_leaves_every_earlier_verdict_and_the_limit(ste
 
 
 @pytest.mark.slow
+def test_a_second_tracker_on_one_folder_is_refused(step, tmp_path, hydro_unit, client):
+    from twin.netcdf import one_writer
+
+    folder, out, _ = step
+    with one_writer(out, "twin track"):
+        with pytest.raises(TwinError, match=r"is being written by twin track \(process"):
+            track(hydro_unit, folder, out, baseline_days=BASELINE_DAYS, tasks=client, progress=False)
+
+
+@pytest.mark.slow
 def test_records_that_cannot_be_used_are_set_aside_and_the_rest_tracked(step, tmp_path, hydro_unit, client):
     import shutil
 

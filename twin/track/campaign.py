@@ -31,7 +31,7 @@ from twin.fem.effects import effect_label, scaled
 from twin.fem.model import RotorModel
 from twin.fem.operation import at_operating_point, operation_of, with_change
 from twin.fem.truthfile import Truth
-from twin.netcdf import check_folder, write_netcdf
+from twin.netcdf import check_folder, one_writer, write_netcdf
 from twin.tasks import mapper
 from twin.track.profile import operating_points
 from twin.track.schedule import Schedule, iso
@@ -136,18 +136,19 @@ def campaign(
     todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident, this)]
     noise_std_m = _noise_std(model, schedule.fs_hz, noise_ratio)
     log.info("campaign %s: %d records, %d to simulate", ident, schedule.n_records, len(todo))
-    mapper(tasks, progress=progress, desc="records")(
-        _simulate_record,
-        todo,
-        model=model,
-        schedule=schedule,
-        points=points,
-        seed=seed,
-        noise_std_m=noise_std_m,
-        out=str(out),
-        ident=ident,
-        command=command,
-    )
+    with one_writer(out, "twin campaign"):  # one campaign per folder; what a killed one left is cleaned
+        mapper(tasks, progress=progress, desc="records")(
+            _simulate_record,
+            todo,
+            model=model,
+            schedule=schedule,
+            points=points,
+            seed=seed,
+            noise_std_m=noise_std_m,
+            out=str(out),
+            ident=ident,
+            command=command,
+        )
     return xr.Dataset(
         {
             "start_time": ("record", [iso(schedule.record_start(i)) for i in range(schedule.n_records)]),

@@ -34,7 +34,7 @@ from twin.fem.model import RotorModel
 from twin.fem.operation import operation_of
 from twin.modes.measured import measured_modes
 from twin.modes.pairing import assign, pairing_cost
-from twin.netcdf import check_folder, write_netcdf
+from twin.netcdf import check_folder, one_writer, write_netcdf
 from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
@@ -196,126 +196,131 @@ def track(
     records = records_in(folder, op, None if strict else set_aside)
     check_machine(records, model.name, model.speed_rpm)
     out = check_folder(out, make=True)
-    with stage(f"extract the modes of {len(records)} records"):
-        cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress, strict=strict)
-    usable, measured = [], []
-    for r, p in zip(records, cache):
-        try:
-            measured.append(read_cached(p))
-        except UnusableRecord as exc:
-            if strict:  # cached by an earlier run that was not strict
-                raise
-            set_aside.append((r.path.name, str(exc)))
-        else:
-            usable.append(r)
-    for name, reason in set_aside:
-        log.warning("set aside: %s", reason if name in reason else f"{name}: {reason}")
-    if not usable:
-        raise TwinError(f"{folder}: no usable record ({len(set_aside)} set aside, the first: {set_aside[0][1]})")
-    records = usable
-    first = next((m for m in measured if m is not None), None)
-    if first is None:
-        raise TwinError(f"{folder}: no mode stood out of any record")
-    meas0 = measured_modes(first)
-    fmax = meas0.band_hz[1] if meas0.band_hz else 100.0
-    tracked = tracked_modes(model, tuple(meas0.channels), fmax)
-    t0 = records[0].start
-    days = np.array([(r.start - t0).total_seconds() / 86400.0 for r in records])
-    base = days < baseline_days
-    if base.sum() < 3:
-        raise TwinError(f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: at least 3 are needed")
+    with one_writer(out, "twin track"):  # one tracker per folder; what a killed one left is cleaned
+        with stage(f"extract the modes of {len(records)} records"):
+            cache = extract_new(records, out / "modes", options=options, tasks=tasks, progress=progress, strict=strict)
+        usable, measured = [], []
+        for r, p in zip(records, cache):
+            try:
+                measured.append(read_cached(p))
+            except UnusableRecord as exc:
+                if strict:  # cached by an earlier run that was not strict
+                    raise
+                set_aside.append((r.path.name, str(exc)))
+            else:
+                usable.append(r)
+        for name, reason in set_aside:
+            log.warning("set aside: %s", reason if name in reason else f"{name}: {reason}")
+        if not usable:
+            raise TwinError(f"{folder}: no usable record ({len(set_aside)} set aside, the first: {set_aside[0][1]})")
+        records = usable
+        first = next((m for m in measured if m is not None), None)
+        if first is None:
+            raise TwinError(f"{folder}: no mode stood out of any record")
+        meas0 = measured_modes(first)
+        fmax = meas0.band_hz[1] if meas0.band_hz else 100.0
+        tracked = tracked_modes(model, tuple(meas0.channels), fmax)
+        t0 = records[0].start
+        days = np.array([(r.start - t0).total_seconds() / 86400.0 for r in records])
+        base = days < baseline_days
+        if base.sum() < 3:
+            raise TwinError(
+                f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: at least 3 are needed"
+            )
 
-    with stage("find the tracked modes in each record"):
-        poles, sigmas = [], []
-        expected = _predictions(model, tracked, records, tasks, progress, with_jacobian=False)
-        for r, md, (predicted, _) in zip(records, measured, expected):
-            meas = None if md is None else measured_modes(md)
-            if meas is not None and list(meas.channels) != list(tracked.channels):
-                raise TwinError(f"{r.path}: channels {meas.channels} differ from the first record's {tracked.channels}")
-            p, s = _identify(meas, predicted, tracked.shapes)
-            poles.append(p)
-            sigmas.append(s)
-    poles, sigmas = np.array(poles), np.array(sigmas)
-    found = np.isfinite(poles[base]).mean(axis=0)
-    keep = found >= MIN_FOUND
-    if not keep.any():
-        raise TwinError("no tracked mode was found in half of the baseline's records")
-    tracked = type(tracked)(tracked.poles[keep], tracked.shapes[keep], tracked.channels)
-    poles, sigmas = poles[:, keep], sigmas[:, keep]
-    y = parts(poles)
-    sig = np.concatenate([sigmas[..., 0], sigmas[..., 1]], axis=1)
+        with stage("find the tracked modes in each record"):
+            poles, sigmas = [], []
+            expected = _predictions(model, tracked, records, tasks, progress, with_jacobian=False)
+            for r, md, (predicted, _) in zip(records, measured, expected):
+                meas = None if md is None else measured_modes(md)
+                if meas is not None and list(meas.channels) != list(tracked.channels):
+                    raise TwinError(
+                        f"{r.path}: channels {meas.channels} differ from the first record's {tracked.channels}"
+                    )
+                p, s = _identify(meas, predicted, tracked.shapes)
+                poles.append(p)
+                sigmas.append(s)
+        poles, sigmas = np.array(poles), np.array(sigmas)
+        found = np.isfinite(poles[base]).mean(axis=0)
+        keep = found >= MIN_FOUND
+        if not keep.any():
+            raise TwinError("no tracked mode was found in half of the baseline's records")
+        tracked = type(tracked)(tracked.poles[keep], tracked.shapes[keep], tracked.channels)
+        poles, sigmas = poles[:, keep], sigmas[:, keep]
+        y = parts(poles)
+        sig = np.concatenate([sigmas[..., 0], sigmas[..., 1]], axis=1)
 
-    with stage(f"learn the laws over {int(base.sum())} baseline records"):
-        laws = fit_laws(model, tracked, [r.point for r, b in zip(records, base) if b], y[base], sig[base])
-    learned = with_slopes(model, laws.slopes)
-    with stage(f"predict the tracked modes of {len(records)} records with the laws learned"):
-        predicted, by_slopes = zip(*_predictions(learned, tracked, records, tasks, progress, with_jacobian=True))
-    predicted = np.array(predicted)
-    # how each record's predicted frequencies move with the slopes, less the baseline's mean (which the
-    # offsets absorb): with the slopes' covariance, the chart's share of the laws' uncertainty
-    by_slopes = np.array(by_slopes).imag.reshape(len(records), len(tracked.poles), -1)
-    drift = by_slopes - by_slopes[base].mean(axis=0)
-    residual = y - parts(predicted) - laws.offsets
+        with stage(f"learn the laws over {int(base.sum())} baseline records"):
+            laws = fit_laws(model, tracked, [r.point for r, b in zip(records, base) if b], y[base], sig[base])
+        learned = with_slopes(model, laws.slopes)
+        with stage(f"predict the tracked modes of {len(records)} records with the laws learned"):
+            predicted, by_slopes = zip(*_predictions(learned, tracked, records, tasks, progress, with_jacobian=True))
+        predicted = np.array(predicted)
+        # how each record's predicted frequencies move with the slopes, less the baseline's mean (which the
+        # offsets absorb): with the slopes' covariance, the chart's share of the laws' uncertainty
+        by_slopes = np.array(by_slopes).imag.reshape(len(records), len(tracked.poles), -1)
+        drift = by_slopes - by_slopes[base].mean(axis=0)
+        residual = y - parts(predicted) - laws.offsets
 
-    # the chart watches the frequencies (the imaginary parts): the damping ratios scatter far more from record
-    # to record and drift with what no law describes, which a false-alarm rate cannot hold
-    m = len(tracked.poles)
-    chart = detect.learn_baseline(residual[base], sig[base])
-    watched = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
-    # the cadence the limit is set for is the baseline's: records that arrive later (after an outage, or faster)
-    # never move the limit, and so never an earlier verdict
-    records_per_year = 365.25 * int(base.sum()) / baseline_days
-    if int(base.sum()) <= m + 1:
-        raise TwinError(
-            f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
-            f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)"
+        # the chart watches the frequencies (the imaginary parts): the damping ratios scatter far more from record
+        # to record and drift with what no law describes, which a false-alarm rate cannot hold
+        m = len(tracked.poles)
+        chart = detect.learn_baseline(residual[base], sig[base])
+        watched = detect.Baseline(chart.center[m:], chart.scale[m:], chart.correlation[m:, m:], chart.n_records)
+        # the cadence the limit is set for is the baseline's: records that arrive later (after an outage, or faster)
+        # never move the limit, and so never an earlier verdict
+        records_per_year = 365.25 * int(base.sum()) / baseline_days
+        if int(base.sum()) <= m + 1:
+            raise TwinError(
+                f"the baseline ({baseline_days:g} days) holds {int(base.sum())} records: a chart of {m} "
+                f"tracked modes needs more than {m + 1}; give a longer baseline (--baseline-days)"
+            )
+        if false_alarms_per_year >= records_per_year:
+            raise TwinError(
+                f"a false-alarm rate of {false_alarms_per_year:g} per year is one or more per record at "
+                f"{records_per_year:.4g} records a year: give a rate below it"
+            )
+        limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
+        series = Series(records, days, y, sig, residual, drift)
+        done = Watch(
+            learned, tracked, explain.candidates(learned, tracked), series, Chart(chart, watched, limit, laws)
+        ).run(int(base.sum()))
+        values: dict[str, np.ndarray] = {}
+        for f in done.followers:
+            for j, name in enumerate(f.cand.parameters):
+                values[name] = f.history[:, j, :]
+        table = _dataset(
+            records,
+            days,
+            tracked,
+            poles,
+            predicted,
+            done.current,
+            done.statistic,
+            limit,
+            done.alarms,
+            values,
+            laws,
+            op,
+            baseline_days,
         )
-    if false_alarms_per_year >= records_per_year:
-        raise TwinError(
-            f"a false-alarm rate of {false_alarms_per_year:g} per year is one or more per record at "
-            f"{records_per_year:.4g} records a year: give a rate below it"
+        table.attrs.update(
+            {
+                "records": str(Path(folder).resolve()),
+                "false_alarms_per_year": float(false_alarms_per_year),
+                "set_aside": json.dumps([{"file": name, "reason": reason} for name, reason in set_aside]),
+            }
         )
-    limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
-    series = Series(records, days, y, sig, residual, drift)
-    done = Watch(
-        learned, tracked, explain.candidates(learned, tracked), series, Chart(chart, watched, limit, laws)
-    ).run(int(base.sum()))
-    values: dict[str, np.ndarray] = {}
-    for f in done.followers:
-        for j, name in enumerate(f.cand.parameters):
-            values[name] = f.history[:, j, :]
-    table = _dataset(
-        records,
-        days,
-        tracked,
-        poles,
-        predicted,
-        done.current,
-        done.statistic,
-        limit,
-        done.alarms,
-        values,
-        laws,
-        op,
-        baseline_days,
-    )
-    table.attrs.update(
-        {
-            "records": str(Path(folder).resolve()),
-            "false_alarms_per_year": float(false_alarms_per_year),
-            "set_aside": json.dumps([{"file": name, "reason": reason} for name, reason in set_aside]),
-        }
-    )
-    table["pole_se"] = (
-        ("time", "mode", "part"),
-        np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
-        {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"},
-    )
-    write_netcdf(table, out / "track.nc")
-    if report:
-        with stage("write the report"):
-            write_report(table, out, model=model)
-    return table
+        table["pole_se"] = (
+            ("time", "mode", "part"),
+            np.stack([sigmas[..., 0], sigmas[..., 1]], axis=2),
+            {"units": "1/s", "long_name": "standard error of the measured pole parts (jackknife)"},
+        )
+        write_netcdf(table, out / "track.nc")
+        if report:
+            with stage("write the report"):
+                write_report(table, out, model=model)
+        return table
 
 
 def _dataset(
