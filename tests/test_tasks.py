@@ -58,3 +58,18 @@ def test_local_cluster_runs_tasks_on_its_workers_in_order(dask_local):
 def test_a_failing_task_raises_its_own_error_here(dask_local):
     with pytest.raises(TwinError, match="task 2 refuses"):
         mapper(dask_local)(_fails, [2])
+
+
+def _sigint_disposition(_):
+    import signal
+
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+
+
+def test_local_workers_leave_ctrl_c_to_this_process(dask_local):
+    """A terminal's Ctrl-C reaches every process of the command: the workers ignore it (they printed a page of
+    KeyboardInterrupt tracebacks each), and this process keeps its own handler to close them."""
+    import signal
+
+    assert mapper(dask_local)(_sigint_disposition, [0, 1]) == [True, True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -162,6 +162,27 @@ def _is_client(obj: Any) -> bool:
 
 
 @contextmanager
+def _workers_ignore_ctrl_c() -> Iterator[None]:
+    """Start worker processes with Ctrl-C (SIGINT) ignored, this process's handler kept.
+
+    A terminal sends Ctrl-C to every process of the command, and each worker then died with a page of
+    KeyboardInterrupt tracebacks after the command's one-line message. Spawned workers inherit an ignored
+    signal, so only this process hears it and closes them (:func:`dask_client`'s ``finally``).
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():  # signal handlers belong to the main thread
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@contextmanager
 def dask_client(
     scheduler: str | None = LOCAL, *, n_workers: int | None = None, timeout_s: float = 10.0
 ) -> Iterator[Any]:
@@ -219,7 +240,7 @@ def dask_client(
         settings = {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False}
         from twin.progress import stage
 
-        with dask.config.set(settings), stage(f"start {workers} Dask workers"):
+        with dask.config.set(settings), stage(f"start {workers} Dask workers"), _workers_ignore_ctrl_c():
             cluster = LocalCluster(
                 n_workers=workers,
                 threads_per_worker=1,
