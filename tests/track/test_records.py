@@ -40,8 +40,17 @@ def test_a_cache_answers_only_for_the_record_and_options_it_was_made_from(tmp_pa
     again = _made(extract_new(records, cache, progress=False))
     assert again[0] == first[0] and again[1] != first[1]
 
+    # a record edited in place with its size and time stamp restored: its bytes differ, so it is extracted again
+    stat = records[0].path.stat()
+    data = bytearray(records[0].path.read_bytes())
+    data[-100] ^= 0xFF  # one byte of its samples
+    records[0].path.write_bytes(bytes(data))
+    os.utime(records[0].path, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert records[0].path.stat().st_size == stat.st_size
+    assert not is_fresh(targets[0], records[0].path, {})
+
     # other extraction options make every cache file stale
-    assert not is_fresh(targets[0], records[0].path, {"fmax_hz": 40.0})
+    assert not is_fresh(targets[1], records[1].path, {"fmax_hz": 40.0})
 
 
 def test_records_of_another_machine_or_speed_are_warned_about(tmp_path, hydro_unit):

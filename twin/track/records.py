@@ -210,8 +210,9 @@ def is_fresh(target: Path, record: Path, options: ExtractOptions | Mapping[str, 
     """Whether the cache file ``target`` holds the modes of ``record`` as it is now, extracted with ``options``
     (:class:`twin.extract.options.ExtractOptions`: its :meth:`~twin.extract.options.ExtractOptions.key`).
 
-    Size and modification time decide cheaply; a record whose stamp differs (copied, touched) is still
-    fresh when its bytes are those the cache was made from (its SHA-256).
+    The record's bytes decide (their SHA-256), not its size and modification time: a record edited in place
+    with its stamp restored is extracted again, and one copied or touched is not (hashing a 10-minute
+    record takes a few hundredths of a second).
     """
     if not target.exists():
         return False
@@ -222,7 +223,7 @@ def is_fresh(target: Path, record: Path, options: ExtractOptions | Mapping[str, 
         return False  # a damaged cache file is made again
     if made["extract_settings"] != ExtractOptions.of(options).key():
         return False
-    return made["record_stamp"] == stamp(record) or made["record_sha256"] == digest(record)
+    return made["record_sha256"] == digest(record)
 
 
 def provenance(record: Path, options: ExtractOptions | Mapping[str, Any] | None = None) -> dict[str, str]:
