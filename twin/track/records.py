@@ -218,7 +218,7 @@ def is_fresh(target: Path, record: Path, options: ExtractOptions | Mapping[str, 
         return False
     try:
         attrs = global_attrs(target)
-        made = {k: str(attrs.get(k, "")) for k in ("record_stamp", "record_sha256", "extract_settings")}
+        made = {k: str(attrs.get(k, "")) for k in ("record_sha256", "extract_settings")}
     except (OSError, ValueError):
         return False  # a damaged cache file is made again
     if made["extract_settings"] != ExtractOptions.of(options).key():
