@@ -204,6 +204,8 @@ def detection(args, model, root: Path, client) -> list[str]:
                 named = str(table.alarm_effect.values[first]) if first is not None else "-"
                 settled = float(table.alarm_named_day.values[first]) - start if first is not None else np.nan
                 ok = named == label and settled <= 7.0
+                if first is not None and not bool(table.alarm_named.values[first]):
+                    named = f"cannot yet tell: {named} or {table.alarm_runner_up.values[first]}"
                 follow = "-"
                 if "tracked_parameter" in table.dims:
                     names = [str(n) for n in table.tracked_parameter.values]
@@ -216,7 +218,7 @@ def detection(args, model, root: Path, client) -> list[str]:
                         for n in names
                     )
                 early = int((table.alarm_day.values < start).sum()) if table.sizes.get("alarm") else 0
-                wrong = "" if named in (label, "-") else " (wrong)"
+                wrong = "" if named in (label, "-") or named.startswith("cannot yet tell") else " (wrong)"
                 rows.append(
                     f"| {label} | {seed} | {size:g} | {shape} | {delay:.2f} | {named}{wrong}"
                     f"{f' ({early} alarm(s) before the onset)' if early else ''} | "

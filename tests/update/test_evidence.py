@@ -55,3 +55,35 @@ def test_the_simplest_form_the_data_allow_is_named():
     assert simplest("bearing_anisotropic:UGB", {"bearing_anisotropic:UGB": 9.0, "bearing_change:LGB": 8.0}, 3.0) == (
         "bearing_anisotropic:UGB"
     )
+
+
+def test_a_bounded_prior_gives_the_integral_over_the_truncated_prior():
+    """The evidence of a sign-bounded change is the integral of the likelihood over the prior truncated to the
+    bound (and renormalised): a fit that needs the other sign loses most of its evidence."""
+    J, cov, scale = np.array([[1.0], [0.5]]), 0.2 * np.eye(2), np.array([2.0])
+    for y in (np.array([1.2, 0.4]), np.array([-1.2, -0.4])):
+
+        def integrand(x: float, y=y) -> float:
+            return 2.0 * scipy.stats.norm.pdf(x, scale=2.0) * scipy.stats.multivariate_normal(J[:, 0] * x, cov).pdf(y)
+
+        z, _ = scipy.integrate.quad(integrand, 0.0, 30.0, epsabs=1e-14)
+        no_change = scipy.stats.multivariate_normal(np.zeros(2), cov).pdf(y)
+        f = linear_fit(y, J, scale, cov, bounds=np.array([[0.0, np.inf]]))
+        assert np.isclose(f.log_bayes_factor, np.log(z / no_change), rtol=1e-8)
+        assert f.values[0] >= 0.0
+    wrong_sign = linear_fit(np.array([-1.2, -0.4]), J, scale, cov, bounds=np.array([[0.0, np.inf]]))
+    assert wrong_sign.log_bayes_factor < linear_fit(np.array([-1.2, -0.4]), J, scale, cov).log_bayes_factor - 3
+
+
+def test_the_mass_inside_two_bounds_is_the_orthant_probability():
+    from twin.update.evidence import box_mass
+
+    rho = 0.5
+    cov = np.array([[1.0, rho], [rho, 1.0]])
+    both = box_mass(np.zeros(2), cov, np.zeros(2), np.full(2, np.inf))
+    assert np.isclose(np.exp(both), 0.25 + np.arcsin(rho) / (2 * np.pi), atol=1e-5)
+    # ends far from the mass play no part; one end is integrated exactly
+    assert box_mass(np.zeros(2), cov, np.full(2, -100.0), np.full(2, np.inf)) == 0.0
+    assert np.isclose(
+        box_mass(np.array([1.0, 0.0]), cov, np.array([0.0, -np.inf]), np.full(2, np.inf)), scipy.stats.norm.logcdf(1.0)
+    )

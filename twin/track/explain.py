@@ -23,6 +23,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.special
 
 from twin.fem.effects import exclusive, holds
 from twin.fem.model import RotorModel
@@ -31,27 +32,31 @@ from twin.loop.candidates import Candidate
 from twin.loop.candidates import candidates as all_candidates
 from twin.modes.sensitivity import pole_jacobian, solve_modes
 from twin.track.physics import Tracked, parts, tracked_indices
-from twin.update.evidence import linear_fit, simplest
+from twin.update.evidence import LinearFit, box_mass, linear_fit, log_evidence, simplest
 
 #: Random walk of a followed change per square-root day, as a fraction of its plausible scale.
 PROCESS_NOISE = 0.02
 #: The evidence (natural log) a named change needs over no change at all.
 MIN_LOG_EVIDENCE = 3.0
-#: ... and over the runner-up, for the name to stand (a Bayes factor of 20); below it the records cannot
-#: yet tell the two apart, and the tracker weighs them again as records come (``twin.track.tracker``).
+#: ... and the posterior odds (natural log) of the named change against all the others together, for the
+#: name to stand (20 to 1); below them the records cannot yet tell it from the runner-up, and the tracker
+#: weighs them again as records come (``twin.track.watch``).
 MIN_MARGIN = 3.0
 
 
 @dataclass(frozen=True)
 class Linearised:
     """A candidate change (:class:`twin.loop.candidates.Candidate`) with its parameters, their plausible
-    scales and the tracked pole parts' sensitivities to them at the reference point."""
+    scales, the tracked pole parts' sensitivities to them at the reference point and the physical bounds
+    of the change (``(k, 2)``; the parameter's bounds less its value in the model: a magnetic pull does not
+    stiffen, added mass is not negative, a bearing keeps a non-negative stiffness)."""
 
     candidate: Candidate
     parameters: tuple[str, ...]
     scale: np.ndarray
     jacobian: np.ndarray  # (2m, k)
     where: str = ""
+    bounds: np.ndarray | None = None
 
     @property
     def label(self) -> str:
@@ -84,8 +89,12 @@ def candidates(model: RotorModel, tracked: Tracked) -> list[Linearised]:
         sol = solve_modes(m)
         jac = pole_jacobian(m, sol, names, modes=tracked_indices(m, sol, tracked))
         scales = cand.effect.plausible_scale(m)
+        given = [m.parameter(n) for n in names]
+        bounds = np.array([[p.bounds[0] - p.nominal, p.bounds[1] - p.nominal] for p in given])
         out.append(
-            Linearised(cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T, cand.where(ref))
+            Linearised(
+                cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T, cand.where(ref), bounds
+            )
         )
     return out
 
@@ -105,11 +114,74 @@ class Verdict:
     chi2: float
     dof: int
     text: str
+    #: Natural log of the posterior odds of the named change against all the others together (each weighed by
+    #: its log evidence and :func:`log_prior`; the named one's richer or simpler forms left out): the name stands
+    #: when it is :data:`MIN_MARGIN` or more.
+    odds: float = np.inf
+
+    @property
+    def clear(self) -> bool:
+        """Whether the name stands: the evidence over no change and the odds over every other change suffice."""
+        return self.log_evidence >= MIN_LOG_EVIDENCE and self.odds >= MIN_MARGIN
 
 
-def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict:
+@dataclass(frozen=True)
+class Setting:
+    """Where a pooled residual was measured, for the candidates' refit on the full model: the model, its tracked
+    modes, the pooled records' mean operating point and the changes followed already (candidate, values)."""
+
+    model: RotorModel
+    tracked: Tracked
+    point: dict[str, float]
+    others: list
+
+
+#: Candidates refitted on the full model (:func:`refit`): those whose linear evidence lies within this much of
+#: the best's (natural log), at most :data:`REFIT_MAX` of them.
+REFIT_WITHIN = 25.0
+REFIT_MAX = 10
+
+
+def refit(r: np.ndarray, cov: np.ndarray, ok: np.ndarray, cand: Linearised, setting: Setting, start) -> LinearFit:
+    """The candidate fitted to the pooled residual ``r`` (the parts ``ok``) on the full model at the setting's
+    point, from the linear fit ``start``: Gauss-Newton to the posterior mode inside the change's bounds, and
+    Laplace's evidence there (:func:`twin.update.evidence.log_evidence`, the bounds' mass as in
+    :func:`twin.update.evidence.linear_fit`).
+
+    The sensitivities at the reference point and no change hold for small changes only: a guide bearing's
+    stiffness 30% down moves the first modes a quarter as much as its slope says, and a linear screening then
+    prefers a change of the wrong kind (measured on the tracker's detection campaigns).
+    """
+    base = changed_poles(setting.model, setting.tracked, setting.point, setting.others)[0][ok]
+    factor = np.linalg.cholesky(cov)
+    white = lambda v: np.linalg.solve(factor, v)  # noqa: E731
+    y, s = white(r), cand.scale
+    low, high = (cand.bounds[:, 0], cand.bounds[:, 1]) if cand.bounds is not None else (-np.inf, np.inf)
+    theta = np.clip(start.values, low, high)
+    for _ in range(UPDATE_STEPS):
+        g, H = changed_poles(setting.model, setting.tracked, setting.point, [*setting.others, (cand, theta)], cand)
+        J = white(H[ok]) * s
+        e = y - white(g[ok] - base)
+        A = J.T @ J + np.eye(len(s))
+        step = s * np.linalg.solve(A, J.T @ e - theta / s)
+        theta = np.clip(theta + step, low, high)
+        if np.all(np.abs(step) < 1e-3 * s):
+            break
+    g, H = changed_poles(setting.model, setting.tracked, setting.point, [*setting.others, (cand, theta)], cand)
+    J = white(H[ok]) * s
+    e, u = y - white(g[ok] - base), theta / s
+    A = J.T @ J + np.eye(len(s))
+    post = np.linalg.inv(A) * np.outer(s, s)
+    log_b = log_evidence(e, u, A) + 0.5 * float(y @ y)
+    if cand.bounds is not None:
+        log_b += box_mass(theta, post, low, high) - box_mass(np.zeros_like(s), np.diag(s**2), low, high)
+    return LinearFit(theta, post, float(e @ e), log_b)
+
+
+def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised], setting: Setting | None = None) -> Verdict:
     """The candidate that best explains the pooled residual ``r`` (``2m``, covariance ``cov``): each weighed as
-    a linear-Gaussian hypothesis against no change (:func:`twin.update.evidence.linear_fit`). A richer form
+    a linear-Gaussian hypothesis against no change (:func:`twin.update.evidence.linear_fit`), and, given the
+    ``setting``, the leading ones refitted on the full model (:func:`refit`). A richer form
     of a change is named only when it pays for itself against the simpler (:func:`twin.update.evidence.simplest`);
     the runner-up is the best other change, not the named one in a richer or simpler form.
 
@@ -117,8 +189,33 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
     """
     ok = np.isfinite(r)
     r, cov = r[ok], cov[np.ix_(ok, ok)]
-    fits = [(linear_fit(r, c.jacobian[ok], c.scale, cov), c) for c in cands]
-    scored = sorted(fits, key=lambda t: -t[0].log_bayes_factor)
+    fits = [(linear_fit(r, c.jacobian[ok], c.scale, cov, c.bounds), c) for c in cands]
+    # residuals that no candidate brings down to their stated errors (a change that grew or varied with the
+    # operating point over the pooled records, what the laws miss under it) scatter beyond them: the errors
+    # are widened by the best candidate's reduced chi-square, so that the evidence between changes is not
+    # inflated with it (Birge's ratio)
+    spread = min(f.chi2 / max(int(ok.sum()) - len(c.scale), 1) for f, c in fits)
+    if spread > 1.0:
+        cov = cov * spread
+        fits = [(linear_fit(r, c.jacobian[ok], c.scale, cov, c.bounds), c) for c in cands]
+    if setting is not None:
+        top = max(f.log_bayes_factor for f, _ in fits)
+        lead = sorted(
+            (i for i, (f, _) in enumerate(fits) if f.log_bayes_factor >= top - REFIT_WITHIN),
+            key=lambda i: -fits[i][0].log_bayes_factor,
+        )[:REFIT_MAX]
+        for i in lead:
+            f, c = fits[i]
+            fits[i] = (refit(r, cov, ok, c, setting, f), c)
+        # a candidate left out of the refit keeps its linear evidence only below every refitted one's
+        floor = min(fits[i][0].log_bayes_factor for i in lead)
+        fits = [
+            (f if i in lead else dataclasses.replace(f, log_bayes_factor=min(f.log_bayes_factor, floor)), c)
+            for i, (f, c) in enumerate(fits)
+        ]
+    prior = log_prior(cands)
+    score = {c.label: f.log_bayes_factor + prior[c.label] for f, c in fits}
+    scored = sorted(fits, key=lambda t: -score[t[1].label])
     evidence = {c.label: f.log_bayes_factor for f, c in fits}
     label = simplest(scored[0][1].label, evidence, MIN_MARGIN)
     best_fit, best = next(t for t in scored if t[1].label == label)
@@ -126,6 +223,8 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
     others = [t for t in scored if t[1].label != best.label and not exclusive(t[1].label, best.label)]
     second_fit, second = others[0] if others else next(t for t in scored if t[1].label != best.label)
     best_ev, second_ev = best_fit.log_bayes_factor, second_fit.log_bayes_factor
+    rest = np.array([score[c.label] for _, c in others])
+    odds = score[best.label] - float(scipy.special.logsumexp(rest)) if rest.size else np.inf
     mean, post = best_fit.values, best_fit.covariance
     return Verdict(
         best.label,
@@ -138,8 +237,32 @@ def diagnose(r: np.ndarray, cov: np.ndarray, cands: list[Linearised]) -> Verdict
         second_ev,
         best_fit.chi2,
         int(ok.sum()),
-        _text(best, mean, post, best_ev, second.label, second_ev),
+        _text(best, mean, post, best_ev, second.label, second_ev, odds),
+        odds,
     )
+
+
+def log_prior(cands: list[Linearised]) -> dict[str, float]:
+    """Each candidate's prior log probability among the changes: half to the library's effects and half to the
+    local changes, shared equally within each (all to the library when there is no local change).
+
+    A local change is one place of dozens (every shaft element, every disk), so the best of them beats a
+    library effect by chance more often than one effect beats another: with equal weights a tilt of the thrust
+    block growing over days was named as a stiffer shaft element. The weights make the naming a posterior
+    probability over every candidate.
+
+    Examples
+    --------
+    >>> from twin.fem.effects import MagneticPull
+    >>> from twin.loop.candidates import Candidate
+    >>> one = Linearised(Candidate("magnetic_pull", MagneticPull()), ("MAG.stiffness",), np.ones(1), np.ones((2, 1)))
+    >>> log_prior([one])
+    {'magnetic_pull': 0.0}
+    """
+    n_library = sum(c.library for c in cands)
+    n_local = len(cands) - n_library
+    share = 0.5 if n_library and n_local else 1.0
+    return {c.label: float(np.log(share / (n_library if c.library else n_local))) for c in cands}
 
 
 def changed_poles(
@@ -187,6 +310,8 @@ def update(
             b += H[ok].T @ ci @ (y[ok] - g[ok])
         step = np.linalg.solve(A, b)
         mean = mean + step
+        if cand.bounds is not None:  # projected onto the physical bounds of the change
+            mean = np.clip(mean, cand.bounds[:, 0], cand.bounds[:, 1])
         if np.all(np.abs(step) < 1e-3 * cand.scale):
             break
     return mean, np.linalg.inv(A)
@@ -195,15 +320,17 @@ def update(
 def named(verdict: Verdict, cand: Linearised, mean: np.ndarray, cov: np.ndarray, note: str = "") -> Verdict:
     """The verdict with the change's values updated (:func:`update`) in place of the screening's linear ones,
     and a ``note`` added to its text."""
-    text = _text(cand, mean, cov, verdict.log_evidence, verdict.runner_up, verdict.runner_up_evidence)
+    text = _text(cand, mean, cov, verdict.log_evidence, verdict.runner_up, verdict.runner_up_evidence, verdict.odds)
     return dataclasses.replace(verdict, mean=mean, covariance=cov, text=f"{text}; {note}" if note else text)
 
 
-def _text(cand: Linearised, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float) -> str:
+def _text(
+    cand: Linearised, mean: np.ndarray, cov: np.ndarray, evidence: float, second: str, second_ev: float, odds: float
+) -> str:
     values = ", ".join(f"{n} = {m:.3g} ± {np.sqrt(v):.2g}" for n, m, v in zip(cand.parameters, mean, cov.diagonal()))
     if evidence < MIN_LOG_EVIDENCE:
         return f"no change the model can name stands out (best: {cand.label}, log evidence {evidence:.1f})"
-    if evidence - second_ev < MIN_MARGIN:
+    if odds < MIN_MARGIN:
         return (
             f"{cand.label} or {second}: the records cannot yet tell them apart (log evidence {evidence:.1f} "
             f"and {second_ev:.1f}); followed as {cand.label}: {values}"

@@ -373,7 +373,12 @@ def _dataset(
                 {"units": "d", "long_name": "day the records told the change from the others"},
             ),
             "alarm_effect": ("alarm", [a.verdict.label for a in alarms]),
-            "alarm_named": ("alarm", [bool(a.verdict.log_evidence >= explain.MIN_LOG_EVIDENCE) for a in alarms]),
+            "alarm_named": (
+                "alarm",
+                [bool(a.verdict.clear) for a in alarms],
+                {"long_name": "whether the records named the change (alarm_effect) against every other"},
+            ),
+            "alarm_runner_up": ("alarm", [a.verdict.runner_up for a in alarms]),
             "alarm_verdict": ("alarm", [a.verdict.text for a in alarms]),
         },
         coords={

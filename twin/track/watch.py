@@ -11,10 +11,12 @@ an alarm whose name the records cannot yet tell (:class:`Reading`). :meth:`Watch
 4. above the limit, the records since the onset (:func:`twin.track.detect.onset`) name the change, which
    is updated on them and followed; the chart starts again.
 
-A name the records since the onset cannot yet tell from the runner-up's (their log evidences closer
-than :data:`twin.track.explain.MIN_MARGIN`) is a reading: its change is followed, so the chart goes on
+A name the records since the onset cannot yet tell from the others (its posterior odds against them all
+below :data:`twin.track.explain.MIN_MARGIN`) is a reading: its change is followed, so the chart goes on
 watching what it does not explain, and the records since the onset are weighed again as each one comes,
-until one name stands out; the change is then updated anew if the name changed. A change that grows (a
+until one name stands out; the change is then updated anew if the name changed. A reading still open at
+the next alarm ends with its best change followed but unnamed: a name is given only when the records
+support it. A change that grows (a
 ramp) alarms while it is small, when the records cannot yet say which it is. An alarm that names a change
 already followed (one that grew faster than its filter's process noise lets it follow) re-estimates that
 change as a whole on the records since the new onset, so one change has one follower.
@@ -150,13 +152,26 @@ class Watch:
             obs[: self.m] = np.nan
         return obs
 
-    def diagnosis(self, residuals: np.ndarray, se: np.ndarray) -> explain.Verdict:
-        """The candidates weighed on records' residuals pooled (the damping's parts left out unless
-        :data:`DIAGNOSE_WITH_DAMPING`)."""
-        mean, pooled_cov = detect.pooled(residuals, se, self.chart.baseline)
+    def diagnosis(self, residuals: np.ndarray, k: int, t: int, others: list) -> explain.Verdict:
+        """The candidates weighed on the residuals of records ``k..t`` pooled (the damping's parts left out unless
+        :data:`DIAGNOSE_WITH_DAMPING`), the leading ones refitted on the full model at the records' mean
+        operating point with the changes ``others`` (candidate, values) on it."""
+        s = self.series
+        mean, pooled_cov = detect.pooled(residuals[k : t + 1], s.sig[k : t + 1], self.chart.baseline)
         if not DIAGNOSE_WITH_DAMPING:
             mean[: self.m] = np.nan
-        return explain.diagnose(mean, pooled_cov, self.candidates)
+        points = [s.records[i].point for i in range(k, t + 1)]
+        point = {key: float(np.mean([p[key] for p in points])) for key in points[0]} if points else {}
+        setting = explain.Setting(self.model, self.tracked, point, others)
+        return explain.diagnose(mean, pooled_cov, self.candidates, setting)
+
+    def _reading_others(self) -> list:
+        """The changes on the model beside a reading's: the other followers, and its own as it was before."""
+        reading = self.reading
+        others = [(f.cand, f.mean) for f in self.followers if f is not reading.follower]
+        if reading.before is not None:
+            others.append((reading.follower.cand, reading.before[0]))
+        return others
 
     def step(self, t: int) -> None:
         """One record: the followers updated, a reading weighed again, the chart, and an alarm if it rises."""
@@ -166,10 +181,7 @@ class Watch:
         for f in self.followers:
             f.update(point, obs, cov, s.days[t], [(g.cand, g.mean) for g in self.followers if g is not f])
         if self.reading is not None:
-            reading = self.reading
-            others = [(f.cand, f.mean) for f in self.followers if f is not reading.follower]
-            if reading.before is not None:
-                others.append((reading.follower.cand, reading.before[0]))
+            reading, others = self.reading, self._reading_others()
             g = explain.changed_poles(self.model, self.tracked, point, others)[0] if others else None
             reading.without[t] = s.residual[t] if g is None else s.y[t] - self.chart.laws.offsets - g
             self._settle(t, force=False)
@@ -196,7 +208,7 @@ class Watch:
             detect.standardised(self.current[start : t + 1, m:], s.sig[start : t + 1, m:], self.chart.watched),
             self.chart.watched,
         )
-        verdict = self.diagnosis(self.current[k : t + 1], s.sig[k : t + 1])
+        verdict = self.diagnosis(self.current, k, t, [(f.cand, f.mean) for f in self.followers])
         alarm = Alarm(t, k, verdict)
         self.alarms.append(alarm)
         if verdict.log_evidence >= explain.MIN_LOG_EVIDENCE:
@@ -205,9 +217,8 @@ class Watch:
             before = None if same is None else (same.mean.copy(), same.cov.copy(), same.day)
             f = self._follow(cand, k, t)
             alarm.verdict = explain.named(verdict, f.cand, f.mean, f.cov)
-            clear = alarm.verdict.log_evidence - alarm.verdict.runner_up_evidence >= explain.MIN_MARGIN
-            alarm.named = t if clear else None
-            if not clear:
+            alarm.named = t if alarm.verdict.clear else None
+            if not alarm.verdict.clear:
                 self.reading = Reading(f, k, alarm, alarm.verdict, self.current.copy(), before)
         log.info(
             "alarm at %s (onset %s): %s",
@@ -239,10 +250,12 @@ class Watch:
         return f
 
     def _settle(self, t: int, force: bool) -> None:
-        """Weigh the reading's records again; name the change when one stands out (or ``force``)."""
+        """Weigh the reading's records again; name the change when one stands out. With ``force`` (a new alarm
+        comes) the reading ends either way: the best change is followed, but named only if it stands out, and
+        the alarm otherwise keeps saying which changes the records cannot yet tell apart."""
         reading, s = self.reading, self.series
-        verdict = self.diagnosis(reading.without[reading.onset : t + 1], s.sig[reading.onset : t + 1])
-        if verdict.log_evidence - verdict.runner_up_evidence < explain.MIN_MARGIN and not force:
+        verdict = self.diagnosis(reading.without, reading.onset, t, self._reading_others())
+        if not verdict.clear and not force:
             return
         if verdict.log_evidence < explain.MIN_LOG_EVIDENCE:
             verdict = reading.verdict  # the evidence went: keep what the alarm said
@@ -259,9 +272,10 @@ class Watch:
             else f"first read as {reading.verdict.label} on day {s.days[reading.alarm.record]:.2f}"
         )
         reading.alarm.verdict = explain.named(verdict, f.cand, f.mean, f.cov, note=note)
-        reading.alarm.named = t
+        reading.alarm.named = t if verdict.clear else None
         log.info(
-            "the change since %s named on %s: %s",
+            "the change since %s %s on %s: %s",
+            "named" if verdict.clear else "still unnamed",
             s.records[reading.onset].start.isoformat(),
             s.records[t].start.isoformat(),
             reading.alarm.verdict.text,
