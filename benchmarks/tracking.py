@@ -30,7 +30,10 @@ Run from the repository root (the whole benchmark takes hours on 2 cores):
 
 Options: ``--records-per-day`` (4), ``--duration`` [s] (600), ``--baseline-days`` (14), ``--after-days`` (7),
 ``--effects`` (a subset of labels), ``--sizes`` (factors of the reference size), ``--workers`` (2),
-``--keep DIR`` (keep the records and tracks there instead of a temporary folder).
+``--keep DIR`` (keep the records and tracks there instead of a temporary folder), ``--track-into NAME`` (each
+case's tracker folder, ``out``: with ``--keep``, a second name tracks the kept records again, beside the first,
+without simulating them), ``--onset-day`` (the change's day, a day after the baseline by default: with a second
+name, a shorter baseline over the same records, e.g. ``--baseline-days 10 --onset-day 15``).
 """
 
 from __future__ import annotations
@@ -160,7 +163,7 @@ def detection(args, model, root: Path, client) -> list[str]:
     """Per effect one seed: its cases share the baseline and the noise, and differ only by the change."""
     effects = reference_effects(model)
     chosen = args.effects or list(effects)
-    start = args.baseline_days + 1.0
+    start = args.onset_day if args.onset_day is not None else args.baseline_days + 1.0
     days = start + args.after_days
     rows = [
         "| effect | seed | size | onset | delay [d] | named | named after [d] | followed at the end (truth) |",
@@ -177,21 +180,26 @@ def detection(args, model, root: Path, client) -> list[str]:
                 text = schedule_text(days, args.records_per_day, args.duration, (effect, start, ramp))
                 case = root / f"{label.replace(':', '_')}_{size:g}_{shape}"
                 case.mkdir(parents=True, exist_ok=True)
-                (case / "schedule.toml").write_text(text)
-                campaign(
-                    model,
-                    read_schedule(case / "schedule.toml", model),
-                    case / "records",
-                    seed=seed,
-                    tasks=client,
-                    progress=False,
-                )
-                if donor is not None:
+                if args.track_into == "out" or not (case / "records").is_dir():  # else the kept records, again
+                    (case / "schedule.toml").write_text(text)
+                    campaign(
+                        model,
+                        read_schedule(case / "schedule.toml", model),
+                        case / "records",
+                        seed=seed,
+                        tasks=client,
+                        progress=False,
+                    )
+                if donor is not None and args.track_into == "out":
                     share_modes(donor, case)
+                into = case / args.track_into
+                if into != case / "out" and (case / "out" / "modes").is_dir() and not (into / "modes").exists():
+                    # the same records, extracted with the same options: the tracker checks each by its content
+                    shutil.copytree(case / "out" / "modes", into / "modes")
                 table = track(
                     model,
                     case / "records",
-                    case / "out",
+                    into,
                     baseline_days=args.baseline_days,
                     false_alarms_per_year=args.false_alarms,
                     tasks=client,
@@ -329,6 +337,17 @@ def main() -> None:
     parser.add_argument("--false-alarms", type=float, default=0.1, help="the chart's rate [per unit-year]")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", type=Path)
+    parser.add_argument(
+        "--onset-day",
+        type=float,
+        help="detection: the day each change begins (default: a day after the baseline); with --track-into, the "
+        "kept campaigns' day, so a shorter baseline tracks the same records",
+    )
+    parser.add_argument(
+        "--track-into",
+        default="out",
+        help="detection: each case's tracker folder (another name tracks the kept records again beside the first)",
+    )
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
     model = load_model("hydro_unit")

@@ -65,3 +65,37 @@ def test_pooled_residuals_weigh_each_record_by_its_standard_error():
     se = np.array([[1.0, 1.0], [1.0, 2.0]])
     mean, cov = detect.pooled(r, se, b)
     assert mean == pytest.approx([2.0, 2.0]) and cov.diagonal() == pytest.approx([0.5, 4.0])
+
+
+def test_the_step_statistic_is_chi_square_in_control_at_each_onset():
+    """With the correlation known and nothing shared, the ratio at one onset is chi-square with the candidate's
+    degrees of freedom: its 1% quantile is exceeded by 1% of the records, for one and two directions."""
+    rng = np.random.default_rng(11)
+    p = 4
+    mix = rng.normal(size=(p, p))
+    C = mix @ mix.T + p * np.eye(p)
+    R = C / np.sqrt(np.outer(C.diagonal(), C.diagonal()))
+    L = np.linalg.cholesky(R)
+    J1, J2 = rng.normal(size=(p, 1)), rng.normal(size=(p, 2))
+    glr = detect.StepGLR(R, [J1, J2], level=0.0, onsets=(1,))
+    stats_ = np.array([glr.add(L @ rng.normal(size=p), rng.uniform(0.5, 2.0, p)) for _ in range(20000)])
+    for c, k in enumerate((1, 2)):
+        assert np.mean(stats_[:, c] > stats.chi2.isf(0.01, k)) == pytest.approx(0.01, abs=0.002)
+
+
+def test_a_step_builds_up_with_the_records_until_the_baseline_s_own_error_caps_it():
+    """A noise-free step theta along a direction a: from N records back the ratio is N F theta^2 / (1 + level N)
+    (F = a' R^-1 a), so it grows with the records and tends to F theta^2 / level, what the baseline's centre
+    leaves uncertain; a reset forgets the records."""
+    R = np.array([[1.0, 0.3], [0.3, 1.0]])
+    a = np.array([[1.0], [0.5]])
+    F = (a.T @ np.linalg.solve(R, a)).item()
+    theta, level = 0.4, 0.02
+    glr = detect.StepGLR(R, [a], level=level, onsets=(1, 2, 4, 8, 16, 32))
+    for n in range(1, 33):
+        value = glr.add(a[:, 0] * theta, np.ones(2))[0]
+        back = max(k for k in (1, 2, 4, 8, 16, 32) if k <= n)
+        assert value == pytest.approx(back * F * theta**2 / (1 + level * back), rel=1e-10)
+    assert value < F * theta**2 / level
+    glr.reset()
+    assert glr.add(np.zeros(2), np.ones(2))[0] == 0.0

@@ -113,6 +113,9 @@ def _chart(table: xr.Dataset, path: Path) -> None:
     top.set_ylabel("frequency residual [mHz]")
     top.legend(fontsize=7, ncol=5)
     bottom.semilogy(day, np.maximum(table.statistic.values, 1e-3), ".-", ms=3, lw=0.6, label="statistic")
+    if "directed" in table:  # the step statistics share the limit's line: each over its own limit, times this one
+        steps = np.maximum(table.directed.values * float(table.limit), 1e-3)
+        bottom.semilogy(day, steps, ".-", ms=2, lw=0.5, color="tab:green", label="step along a change (scaled)")
     bottom.axhline(float(table.limit), color="tab:red", ls="--", label="limit")
     bottom.axvspan(day[0], float(table.attrs.get("baseline_days", 0.0)), color="0.9", label="baseline")
     for d, k in zip(np.atleast_1d(table.alarm_day.values), np.atleast_1d(table.alarm_onset_day.values)):
@@ -201,7 +204,8 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
         "",
         (
             "Frequency residuals after the learned laws and the followed changes, and the chart's statistic "
-            "(MEWMA) against its limit; alarms in red, from the estimated onset."
+            "(MEWMA) against its limit, beside the largest step statistic along a candidate change scaled to "
+            "the same limit; alarms in red, from the estimated onset."
         ),
         "",
         '<img src="chart.png">',

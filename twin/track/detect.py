@@ -20,6 +20,13 @@ chi-square distributed record by record, and successive records are correlated, 
 is at most the one stated. A small persistent shift builds up over a few records; a large one alarms at
 once.
 
+The exponential smoothing caps what a small step can show: with ``lam = 0.2`` the smoothed residual holds
+about nine records' worth of it. Beside the chart, :class:`StepGLR` weighs a step along each change the
+model can name, from onsets 1, 2, 4, ... 32 records back: its evidence grows with the records after the step
+(until the baseline's own errors cap it), with the candidate's one or two degrees of freedom instead of one
+per tracked mode. The two share the false-alarm rate (:data:`DIRECTED_SHARE`), the step statistics a
+Bonferroni share each per candidate and onset.
+
 The onset of a change is the start of the window whose mean residual is most unlike zero (the generalised
 likelihood ratio of a mean shift, :func:`onset`).
 """
@@ -102,26 +109,36 @@ def learn_baseline(residuals: np.ndarray, se: np.ndarray) -> Baseline:
 
 
 def threshold(
-    n_outputs: int, n_baseline: int, records_per_year: float, false_alarms_per_year: float = FALSE_ALARMS_PER_YEAR
+    n_outputs: int,
+    n_baseline: int,
+    records_per_year: float,
+    false_alarms_per_year: float = FALSE_ALARMS_PER_YEAR,
+    estimated: int | None = None,
 ) -> float:
     """The chart's limit for a false-alarm probability per record of ``false_alarms_per_year / records_per_year``.
 
     The scales and correlation come from ``n_baseline`` records, not from an infinite past, so the limit
     is the Phase II limit of Hotelling's statistic with estimated parameters,
-    ``p (n + 1)(n - 1) / (n (n - p)) F(p, n - p)``, which tends to the chi-square quantile of ``p`` degrees
+    ``k (n + 1)(n - 1) / (n (n - p)) F(k, n - p)``, which tends to the chi-square quantile of ``k`` degrees
     of freedom as the baseline grows (measured: with the chi-square limit and 24 baseline records the
-    statistic ran at twice its nominal mean).
+    statistic ran at twice its nominal mean). ``k`` is ``n_outputs``, the statistic's degrees of freedom;
+    ``p`` is ``estimated``, the residuals whose correlation the baseline estimated (``n_outputs`` when
+    None): a statistic along ``k`` directions of ``p`` residuals (:class:`StepGLR`) keeps ``k`` degrees of
+    freedom and pays for the ``p``-dimensional estimate.
 
     Examples
     --------
     >>> round(threshold(9, 56, 4 * 365.25), 1), round(threshold(9, 10_000, 4 * 365.25), 1)
     (55.6, 34.7)
+    >>> round(threshold(2, 56, 4 * 365.25, estimated=9), 1)
+    28.2
     """
-    p, n = int(n_outputs), int(n_baseline)
+    k, n = int(n_outputs), int(n_baseline)
+    p = k if estimated is None else int(estimated)
     if n <= p + 1:
         raise ValueError(f"a chart of {p} residuals needs more than {p + 1} baseline records, got {n}")
     alpha = false_alarms_per_year / records_per_year
-    return float(p * (n + 1) * (n - 1) / (n * (n - p)) * stats.f.isf(alpha, p, n - p))
+    return float(k * (n + 1) * (n - 1) / (n * (n - p)) * stats.f.isf(alpha, k, n - p))
 
 
 def standardised(residuals: np.ndarray, se: np.ndarray, baseline: Baseline) -> np.ndarray:
@@ -232,3 +249,77 @@ def onset(z: np.ndarray, baseline: Baseline) -> int:
         if g > best:
             best, where = g, k
     return where
+
+
+#: The share of the false-alarm rate given to the step statistics along the candidate changes (all of them
+#: together, :class:`StepGLR`); the omnibus chart (:class:`MEWMA`) has the rest.
+DIRECTED_SHARE = 0.5
+#: The onsets a step is sought at (:class:`StepGLR`), in records back from the latest: a doubling grid, which
+#: loses little of the ratio at any onset between them and keeps the limit's share per onset large.
+ONSETS = (1, 2, 4, 8, 16, 32)
+
+
+class StepGLR:
+    """The generalised likelihood ratio of a step along each candidate change, from an onset :data:`ONSETS`
+    records back: a statistic for small steps, which the exponential smoothing of :class:`MEWMA` caps at a
+    few records' worth of evidence.
+
+    Each record's standardised residual ``z_i`` (covariance ``R``, the baseline's correlation) would move by
+    ``a_i θ`` under a change ``θ`` of a candidate, ``a_i = diag(weight_i) J`` with ``J`` the residuals'
+    sensitivity to its ``k`` parameters (``directions``, ``(p, k)`` each). For the records from onset ``s``
+    on, the score ``b = Σ a_i' R^-1 z_i`` has in control the covariance ``V = Σ a_i' R^-1 a_i`` plus what
+    every record shares: the baseline centre's error (``level`` times ``R``, :func:`level_variance`) through
+    ``A = Σ a_i`` and the laws' slopes (covariance ``uncertain``) through each record's sensitivity ``g_i``
+    to them. ``b' V^-1 b`` is then chi-square with ``k`` degrees of freedom, and grows with the records
+    after a step (until the shared errors cap it) where the MEWMA's stays.
+
+    Examples
+    --------
+    >>> glr = StepGLR(np.eye(2), [np.array([[1.0], [0.0]])], level=0.0)
+    >>> [round(float(glr.add(np.array([1.0, 5.0]), np.ones(2))[0]), 1) for _ in range(5)]
+    [1.0, 2.0, 2.0, 4.0, 4.0]
+    """
+
+    def __init__(
+        self,
+        correlation: np.ndarray,
+        directions: list[np.ndarray],
+        level: float,
+        uncertain: np.ndarray | None = None,
+        onsets: tuple[int, ...] = ONSETS,
+    ) -> None:
+        self.inverse = np.linalg.inv(correlation)
+        self.directions = [np.asarray(d, dtype=float).reshape(len(correlation), -1) for d in directions]
+        self.level, self.onsets = float(level), tuple(sorted(int(k) for k in onsets))
+        self.uncertain = None if uncertain is None else np.atleast_2d(np.asarray(uncertain, dtype=float))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the records so far (after an alarm)."""
+        self._records: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
+
+    def add(self, z: np.ndarray, weight: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+        """One record (standardised residual ``z``, its standardisation ``weight``, zero where a mode was not
+        found, and its sensitivity ``g`` to the laws' slopes): the largest ratio over the onsets, per
+        candidate."""
+        self._records = [*self._records, (np.asarray(z, float), np.asarray(weight, float), g)][-self.onsets[-1] :]
+        out = np.zeros(len(self.directions))
+        for c, J in enumerate(self.directions):
+            k = J.shape[1]
+            b, V, A = np.zeros(k), np.zeros((k, k)), np.zeros_like(J)
+            B = None if self.uncertain is None else np.zeros((k, len(self.uncertain)))
+            best = 0.0
+            for back, (zi, wi, gi) in enumerate(reversed(self._records), start=1):  # from the latest record back
+                a = wi[:, None] * J
+                ra = self.inverse @ a
+                b, V, A = b + ra.T @ zi, V + a.T @ ra, A + a
+                if B is not None and gi is not None:
+                    B = B + ra.T @ gi
+                if back not in self.onsets:
+                    continue
+                total = V + self.level * (A.T @ self.inverse @ A)
+                if B is not None:
+                    total = total + B @ self.uncertain @ B.T
+                best = max(best, float(b @ np.linalg.pinv(total, rcond=1e-10, hermitian=True) @ b))
+            out[c] = best
+        return out

@@ -280,11 +280,25 @@ def track(
                 f"a false-alarm rate of {false_alarms_per_year:g} per year is one or more per record at "
                 f"{records_per_year:.4g} records a year: give a rate below it"
             )
-        limit = detect.threshold(m, int(base.sum()), records_per_year, false_alarms_per_year)
+        # the false-alarm rate is shared between the omnibus chart and the step statistics along each candidate
+        # change from each onset of the grid (a Bonferroni share each)
+        n_base, share = int(base.sum()), detect.DIRECTED_SHARE
+        limit = detect.threshold(m, n_base, records_per_year, (1.0 - share) * false_alarms_per_year)
+        cands = explain.candidates(learned, tracked)
+        directed_limits = np.array(
+            [
+                detect.threshold(
+                    len(c.parameters),
+                    n_base,
+                    records_per_year,
+                    share * false_alarms_per_year / (len(cands) * len(detect.ONSETS)),
+                    m,
+                )
+                for c in cands
+            ]
+        )
         series = Series(records, days, y, sig, residual, drift)
-        done = Watch(
-            learned, tracked, explain.candidates(learned, tracked), series, Chart(chart, watched, limit, laws)
-        ).run(int(base.sum()))
+        done = Watch(learned, tracked, cands, series, Chart(chart, watched, limit, laws, directed_limits)).run(n_base)
         values: dict[str, np.ndarray] = {}
         for f in done.followers:
             for j, name in enumerate(f.cand.parameters):
@@ -297,6 +311,7 @@ def track(
             predicted,
             done.current,
             done.statistic,
+            done.directed,
             limit,
             done.alarms,
             values,
@@ -331,6 +346,7 @@ def _dataset(
     predicted,
     residual,
     statistic,
+    directed,
     limit,
     alarms: list[Alarm],
     values,
@@ -358,6 +374,15 @@ def _dataset(
             ),
             "statistic": ("time", statistic, {"units": "1", "long_name": "control chart statistic (MEWMA T2)"}),
             "limit": ((), limit, {"units": "1", "long_name": "control limit"}),
+            "directed": (
+                "time",
+                directed,
+                {
+                    "units": "1",
+                    "long_name": "largest step statistic over its limit (GLR along each candidate change)",
+                    "comment": "an alarm above 1",
+                },
+            ),
             "operating_point": (("time", "condition"), np.array([[r.point[k] for k in op.names] for r in records])),
             "day": ("time", days, {"units": "d", "long_name": "days after the first record"}),
             "record": ("time", [r.path.name for r in records]),

@@ -7,8 +7,9 @@ an alarm whose name the records cannot yet tell (:class:`Reading`). :meth:`Watch
 
 1. every followed change is updated by the record (its extended Kalman filter);
 2. a reading weighs the records since its onset again, and names the change when one stands out;
-3. the record's residual against the model with the followed changes goes to the chart;
-4. above the limit, the records since the onset (:func:`twin.track.detect.onset`) name the change, which
+3. the record's residual against the model with the followed changes goes to the chart: the omnibus
+   MEWMA, and the step statistic along each candidate change (:class:`twin.track.detect.StepGLR`);
+4. above either's limit, the records since the onset (:func:`twin.track.detect.onset`) name the change, which
    is updated on them and followed; the chart starts again.
 
 A name the records since the onset cannot yet tell from the others (its posterior odds against them all
@@ -76,6 +77,9 @@ class Chart:
     watched: detect.Baseline
     limit: float
     laws: LawFit
+    #: The limit of each candidate's step statistic (:class:`twin.track.detect.StepGLR`), in the order of the
+    #: watch's candidates; None for the omnibus chart alone.
+    directed_limits: np.ndarray | None = None
 
 
 @dataclass
@@ -107,7 +111,8 @@ class Reading:
 class Watch:
     """The chart and the followed changes over the records after the baseline (module docstring).
 
-    ``statistic`` (the chart's, per record), ``current`` (each record's residual against the model with
+    ``statistic`` (the chart's, per record), ``directed`` (the largest of the candidates' step statistics
+    over its limit, per record: an alarm above 1), ``current`` (each record's residual against the model with
     the changes followed so far), ``followers`` and ``alarms`` are what a track keeps.
     """
 
@@ -126,10 +131,20 @@ class Watch:
 
     def __post_init__(self) -> None:
         self.statistic = np.full(len(self.series.records), np.nan)
+        self.directed = np.full(len(self.series.records), np.nan)
         self.current = self.series.residual.copy()
         drift = self.series.drift
-        self._smooth = detect.MEWMA(
-            self.chart.watched, uncertain=self.chart.laws.covariance if drift.shape[2] else None
+        uncertain = self.chart.laws.covariance if drift.shape[2] else None
+        self._smooth = detect.MEWMA(self.chart.watched, uncertain=uncertain)
+        self._steps = (
+            None
+            if self.chart.directed_limits is None
+            else detect.StepGLR(
+                self.chart.watched.correlation,
+                [c.jacobian[self.m :] for c in self.candidates],
+                detect.level_variance(self.chart.watched.n_records),
+                uncertain,
+            )
         )
 
     @property
@@ -190,11 +205,18 @@ class Watch:
             self.current[t] = s.y[t] - self.chart.laws.offsets - g
         watched = self.chart.watched
         z = detect.standardised(self.current[t, m:], s.sig[t, m:], watched)
-        g = np.nan_to_num(s.drift[t] / (watched.scale * s.sig[t, m:])[:, None])  # 0 where the mode was not found
+        weight = np.nan_to_num(1.0 / (watched.scale * s.sig[t, m:]))  # 0 where the mode was not found
+        g = np.nan_to_num(s.drift[t] * weight[:, None])
         self.statistic[t] = self._smooth.add(z, g)
-        if self.statistic[t] > self.chart.limit:
+        alarm = self.statistic[t] > self.chart.limit
+        if self._steps is not None:
+            self.directed[t] = float(np.max(self._steps.add(z, weight, g) / self.chart.directed_limits))
+            alarm = alarm or self.directed[t] > 1.0
+        if alarm:
             self._alarm(t)
             self._smooth.reset()
+            if self._steps is not None:
+                self._steps.reset()
             self.start = t + 1
         for f in self.followers:
             f.keep(t)
