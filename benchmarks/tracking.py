@@ -91,11 +91,10 @@ def schedule_text(days: float, per_day: int, duration: float, change: tuple[obje
     return text
 
 
-def run_case(model, folder: Path, text: str, seed: int, baseline: float, client, rate: float):
-    """One campaign and its tracking: the track's dataset and the seconds of each."""
+def simulate(model, folder: Path, text: str, seed: int, client) -> None:
+    """The campaign of the schedule ``text`` into ``folder/records`` (its records already there kept)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "schedule.toml").write_text(text)
-    t0 = time.perf_counter()
     campaign(
         model,
         read_schedule(folder / "schedule.toml", model),
@@ -104,6 +103,12 @@ def run_case(model, folder: Path, text: str, seed: int, baseline: float, client,
         tasks=client,
         progress=False,
     )
+
+
+def run_case(model, folder: Path, text: str, seed: int, baseline: float, client, rate: float):
+    """One campaign and its tracking: the track's dataset and the seconds of each."""
+    t0 = time.perf_counter()
+    simulate(model, folder, text, seed, client)
     t1 = time.perf_counter()
     table = track(
         model,
@@ -179,17 +184,8 @@ def detection(args, model, root: Path, client) -> list[str]:
                 effect = ShaftStiffnessChange(18, -0.5 * size) if label == LOCAL else scaled(ref, size)
                 text = schedule_text(days, args.records_per_day, args.duration, (effect, start, ramp))
                 case = root / f"{label.replace(':', '_')}_{size:g}_{shape}"
-                case.mkdir(parents=True, exist_ok=True)
                 if args.track_into == "out" or not (case / "records").is_dir():  # else the kept records, again
-                    (case / "schedule.toml").write_text(text)
-                    campaign(
-                        model,
-                        read_schedule(case / "schedule.toml", model),
-                        case / "records",
-                        seed=seed,
-                        tasks=client,
-                        progress=False,
-                    )
+                    simulate(model, case, text, seed, client)
                 if donor is not None and args.track_into == "out":
                     share_modes(donor, case)
                 into = case / args.track_into

@@ -296,25 +296,30 @@ class StepGLR:
 
     def reset(self) -> None:
         """Forget the records so far (after an alarm)."""
-        self._records: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
+        self._records: list[list[tuple]] = []
 
     def add(self, z: np.ndarray, weight: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
         """One record (standardised residual ``z``, its standardisation ``weight``, zero where a mode was not
         found, and its sensitivity ``g`` to the laws' slopes): the largest ratio over the onsets, per
         candidate."""
-        self._records = [*self._records, (np.asarray(z, float), np.asarray(weight, float), g)][-self.onsets[-1] :]
+        z, weight = np.asarray(z, float), np.asarray(weight, float)
+        terms = []  # this record's share of each candidate's sums, kept for the later records' onsets
+        for J in self.directions:
+            a = weight[:, None] * J
+            ra = self.inverse @ a
+            terms.append((ra.T @ z, a.T @ ra, a, None if g is None else ra.T @ g))
+        self._records = [*self._records, terms][-self.onsets[-1] :]
         out = np.zeros(len(self.directions))
-        for c, J in enumerate(self.directions):
-            k = J.shape[1]
-            b, V, A = np.zeros(k), np.zeros((k, k)), np.zeros_like(J)
+        for c in range(len(self.directions)):
+            k = self.directions[c].shape[1]
+            b, V, A = np.zeros(k), np.zeros((k, k)), np.zeros_like(self.directions[c])
             B = None if self.uncertain is None else np.zeros((k, len(self.uncertain)))
             best = 0.0
-            for back, (zi, wi, gi) in enumerate(reversed(self._records), start=1):  # from the latest record back
-                a = wi[:, None] * J
-                ra = self.inverse @ a
-                b, V, A = b + ra.T @ zi, V + a.T @ ra, A + a
-                if B is not None and gi is not None:
-                    B = B + ra.T @ gi
+            for back, record in enumerate(reversed(self._records), start=1):  # from the latest record back
+                rz, ra_a, a, rg = record[c]
+                b, V, A = b + rz, V + ra_a, A + a
+                if B is not None and rg is not None:
+                    B = B + rg
                 if back not in self.onsets:
                     continue
                 total = V + self.level * (A.T @ self.inverse @ A)

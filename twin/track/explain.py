@@ -32,7 +32,7 @@ from twin.loop.candidates import Candidate
 from twin.loop.candidates import candidates as all_candidates
 from twin.modes.sensitivity import pole_jacobian, solve_modes
 from twin.track.physics import Tracked, parts, tracked_indices
-from twin.update.evidence import LinearFit, box_mass, linear_fit, log_evidence, simplest
+from twin.update.evidence import LinearFit, linear_fit, log_evidence, simplest, truncation
 
 #: Random walk of a followed change per square-root day, as a fraction of its plausible scale.
 PROCESS_NOISE = 0.02
@@ -152,29 +152,26 @@ def refit(r: np.ndarray, cov: np.ndarray, ok: np.ndarray, cand: Linearised, sett
     stiffness 30% down moves the first modes a quarter as much as its slope says, and a linear screening then
     prefers a change of the wrong kind (measured on the tracker's detection campaigns).
     """
-    base = changed_poles(setting.model, setting.tracked, setting.point, setting.others)[0][ok]
-    factor = np.linalg.cholesky(cov)
-    white = lambda v: np.linalg.solve(factor, v)  # noqa: E731
-    y, s = white(r), cand.scale
-    low, high = (cand.bounds[:, 0], cand.bounds[:, 1]) if cand.bounds is not None else (-np.inf, np.inf)
-    theta = np.clip(start.values, low, high)
-    for _ in range(UPDATE_STEPS):
-        g, H = changed_poles(setting.model, setting.tracked, setting.point, [*setting.others, (cand, theta)], cand)
-        J = white(H[ok]) * s
-        e = y - white(g[ok] - base)
-        A = J.T @ J + np.eye(len(s))
-        step = s * np.linalg.solve(A, J.T @ e - theta / s)
-        theta = np.clip(theta + step, low, high)
-        if np.all(np.abs(step) < 1e-3 * s):
-            break
+    base = changed_poles(setting.model, setting.tracked, setting.point, setting.others)[0]
+    # the pooled residual as one observation at the setting's point, for the tracker's Gauss-Newton
+    y = np.full(len(ok), np.nan)
+    y[ok] = r + base[ok]
+    full = np.eye(len(ok))
+    full[np.ix_(ok, ok)] = cov
+    start_values = start.values if cand.bounds is None else np.clip(start.values, *cand.bounds.T)
+    theta, _ = update(
+        setting.model, setting.tracked, cand, [(setting.point, y, full)], setting.others, start=start_values
+    )
     g, H = changed_poles(setting.model, setting.tracked, setting.point, [*setting.others, (cand, theta)], cand)
-    J = white(H[ok]) * s
-    e, u = y - white(g[ok] - base), theta / s
+    factor, s = np.linalg.cholesky(cov), cand.scale
+    white = np.linalg.solve(factor, r)
+    J = np.linalg.solve(factor, H[ok]) * s
+    e, u = np.linalg.solve(factor, r - (g - base)[ok]), theta / s
     A = J.T @ J + np.eye(len(s))
     post = np.linalg.inv(A) * np.outer(s, s)
-    log_b = log_evidence(e, u, A) + 0.5 * float(y @ y)
+    log_b = log_evidence(e, u, A) + 0.5 * float(white @ white)
     if cand.bounds is not None:
-        log_b += box_mass(theta, post, low, high) - box_mass(np.zeros_like(s), np.diag(s**2), low, high)
+        log_b += truncation(theta, post, s, cand.bounds)
     return LinearFit(theta, post, float(e @ e), log_b)
 
 
@@ -290,15 +287,17 @@ def update(
     cand: Linearised,
     observed: list[tuple[dict, np.ndarray, np.ndarray]],
     others: list,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The candidate's values after the records since the onset: the posterior mode and covariance under its
-    prior (zero, its plausible scale), by Gauss-Newton on the full model at each record's operating point.
+    prior (zero, its plausible scale), by Gauss-Newton on the full model at each record's operating point,
+    from ``start`` (zero when None) and inside the change's bounds.
 
     ``observed`` holds ``(point, y, cov)`` per record: the measured pole parts less the baseline's offsets
     (NaN where not measured or not used) and their covariance; ``others`` the changes followed already.
     """
     k = len(cand.parameters)
-    mean = np.zeros(k)
+    mean = np.zeros(k) if start is None else np.array(start, dtype=float)
     prior = np.diag(1.0 / cand.scale**2)
     for _ in range(UPDATE_STEPS):
         A, b = prior.copy(), -prior @ mean

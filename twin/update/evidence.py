@@ -104,6 +104,14 @@ def box_mass(mean: np.ndarray, cov: np.ndarray, low: np.ndarray, high: np.ndarra
     return float(np.log(max(p, 1e-300)))
 
 
+def truncation(values: np.ndarray, covariance: np.ndarray, scale: np.ndarray, bounds: np.ndarray) -> float:
+    """What truncating the prior ``N(0, diag(scale²))`` to ``bounds`` (``(k, 2)``) adds to a log evidence: the
+    posterior's (``N(values, covariance)``) log mass inside them less the prior's (:func:`box_mass`)."""
+    low, high = np.asarray(bounds, float).T
+    s = np.asarray(scale, float)
+    return box_mass(values, covariance, low, high) - box_mass(np.zeros_like(s), np.diag(s**2), low, high)
+
+
 def linear_fit(
     y: np.ndarray,
     jacobian: np.ndarray,
@@ -147,9 +155,8 @@ def linear_fit(
     values, post = s * u, np.linalg.inv(H) * np.outer(s, s)
     log_b = log_evidence(e, u, H) + 0.5 * float(y @ y)
     if bounds is not None:
-        low, high = np.asarray(bounds, float).T
-        log_b += box_mass(values, post, low, high) - box_mass(np.zeros_like(s), np.diag(s**2), low, high)
-        values = np.clip(values, low, high)
+        log_b += truncation(values, post, s, bounds)
+        values = np.clip(values, *np.asarray(bounds, float).T)
     return LinearFit(values, post, float(e @ e), log_b)
 
 
