@@ -166,13 +166,31 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
         ds = ds.copy()
         for k in empty:
             ds[k].encoding = {e: v for e, v in ds[k].encoding.items() if e not in ("contiguous", "chunksizes")}
-    with atomic_output(path, ".nc.part") as tmp:
+    with atomic_output(path, ".nc.part") as tmp, _process_locks(ds):
         try:
             ds.to_netcdf(tmp, engine="netcdf4")
         except (OSError, RuntimeError) as exc:  # the netCDF library's own errors (a full disk: "HDF error")
             raise TwinError(f"cannot write {path}: {exc}{_space_left(Path(path).parent)}") from None
     log.info("wrote %s", path)
     return path
+
+
+@contextmanager
+def _process_locks(ds: xr.Dataset) -> Iterator[None]:
+    """Write ``ds`` under this process's own file locks when it holds no Dask array.
+
+    Inside a Dask worker xarray guards each variable's write with a cluster-wide lock, a round trip to
+    the scheduler each time: writing a record's modes took 0.36 s there against 0.05 s in a plain
+    process, a fifth of the record's extraction. A dataset in memory is written by this process
+    alone (the file is a temporary one of its own), so the synchronous scheduler's locks serve.
+    """
+    if any(v.chunks is not None for v in ds.variables.values()):
+        yield
+        return
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        yield
 
 
 def _space_left(folder: Path) -> str:

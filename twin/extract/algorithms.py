@@ -69,14 +69,24 @@ class Algorithm:
         if self.name not in ALGORITHMS:
             raise ValueError(f"the identification algorithm must be one of {', '.join(ALGORITHMS)}, got {self.name!r}")
 
-    def fit(self, R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, first_lag: int = 1) -> Fit:
+    @property
+    def starts_near(self) -> bool:
+        """Whether a fit gains from ``near`` (:meth:`fit`): SSI's iterative singular vectors."""
+        return self.name == "ssi"
+
+    def fit(
+        self, R: np.ndarray, block_rows: int, max_order: int, fs_hz: float, first_lag: int = 1, near: Fit | None = None
+    ) -> Fit:
         """The algorithm's fit of the covariances ``R`` (lags ``0..2 block_rows + first_lag - 1``).
 
         pLSCF fits the band widened by :data:`BAND_MARGIN` on either side (within the Nyquist
         frequency), so that a heavily damped mode near an edge has its half-power band in the fit.
+        ``near`` is a fit of nearly the same covariances (the full record's, for a jackknife sample):
+        SSI starts its singular vectors from it (:func:`twin.extract.ssi.leading_singular`).
         """
         if self.name == "ssi":
-            return realise(R, block_rows, max_order, fs_hz, first_lag=first_lag)
+            start = getattr(near, "basis", None)
+            return realise(R, block_rows, max_order, fs_hz, first_lag=first_lag, start=start)
         lo, hi = self.band_hz
         band = (lo / BAND_MARGIN, min(hi * BAND_MARGIN, fs_hz / 2))
         return matrix_fraction(R, max_order, fs_hz, band, first_lag=first_lag)

@@ -70,7 +70,7 @@ import logging
 import numpy as np
 from twin.progress import bar
 
-from twin.extract.algorithms import SSI, Algorithm
+from twin.extract.algorithms import SSI, Algorithm, Fit
 from twin.extract.ssi import BlockCovariances
 from twin.extract.stabilisation import pole_distance
 
@@ -269,6 +269,7 @@ def jackknife(
     n_samples: int | None = None,
     first_lag: int = 1,
     algorithm: Algorithm = SSI,
+    near: Fit | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full-record estimates and delete-d jackknife samples of the given modes.
 
@@ -295,6 +296,9 @@ def jackknife(
         The lag the Hankel matrix starts at, as for the full record (:func:`twin.extract.ssi.hankel`).
     algorithm : Algorithm
         The identification algorithm and band, as for the full record (:mod:`twin.extract.algorithms`).
+    near : Fit, optional
+        The full record's fit (the first pass's), which each sample's fit starts from
+        (:meth:`~twin.extract.algorithms.Algorithm.fit`); made here when not given.
 
     Returns
     -------
@@ -317,9 +321,12 @@ def jackknife(
     missing = np.zeros((n_modes, M), dtype=int)
     all_orders = np.unique(np.concatenate([m[0] for m in members]))
     max_order = int(all_orders.max())
+    # each sample's fit starts from the full record's (SSI's singular vectors: in half the time)
+    if near is None and algorithm.starts_near:
+        near = algorithm.fit(blocks.covariance(), block_rows, max_order, fs_hz, first_lag=first_lag)
     for j in bar(range(M), desc="jackknife", unit="sample", progress=progress, mininterval=0.5):
         real = algorithm.fit(
-            blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz, first_lag=first_lag
+            blocks.covariance(leave_out=left_out[j]), block_rows, max_order, fs_hz, first_lag=first_lag, near=near
         )
         at = {}
         for n in all_orders:

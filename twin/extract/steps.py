@@ -276,6 +276,7 @@ def jackknife_samples(
         n_samples=p.samples,
         first_lag=p.first_lag,
         algorithm=found.algorithm,
+        near=found.real,
     )
     n_samples = p.samples
     if repeats > 1:  # the shapes from their own delete-half samples, each pole sample used `repeats` times
@@ -291,6 +292,7 @@ def jackknife_samples(
             n_samples=n_samples,
             first_lag=p.first_lag,
             algorithm=found.algorithm,
+            near=found.real,
         )[3]
         sample_p, missing = repeated(sample_p, repeats), np.repeat(missing, repeats, axis=1)
     d_p, d_s = order_deviations(members, shapes, n_samples)
