@@ -67,6 +67,29 @@ def test_a_campaign_writes_its_records_and_resumes_where_it_stopped(tmp_path, hy
         campaign(hydro_unit, s, out, seed=5, progress=False)
 
 
+def test_a_campaign_is_extended_by_days_with_the_records_of_the_longer_one(tmp_path, hydro_unit):
+    """More days with the same schedule otherwise (here in another file) simulate the days added only, and the
+    folder then holds the records a campaign of all the days makes from scratch; another schedule's terms are
+    refused by name."""
+    short, longer = tmp_path / "short.toml", tmp_path / "longer.toml"
+    short.write_text(SCHEDULE.replace("days = 1", "days = 0.5"))
+    longer.write_text(SCHEDULE)
+    out, whole = tmp_path / "records", tmp_path / "whole"
+    campaign(hydro_unit, read_schedule(short, hydro_unit), out, seed=6, progress=False)
+    table = campaign(hydro_unit, read_schedule(longer, hydro_unit), out, seed=6, progress=False)
+    assert list(table.made.values) == [False, False, True, True]
+    reference = campaign(hydro_unit, read_schedule(longer, hydro_unit), whole, seed=6, progress=False)
+    assert np.array_equal(table.operating_point, reference.operating_point)
+    for i in range(4):
+        a, b = (xr.load_dataset(f / RECORD_NAME.format(i)) for f in (out, whole))
+        assert np.array_equal(a.displacement, b.displacement)
+        assert json.loads(a.attrs["truth"])["effects"] == json.loads(b.attrs["truth"])["effects"]
+    other = tmp_path / "other.toml"
+    other.write_text(SCHEDULE.replace("records_per_day = 4", "records_per_day = 2").replace("days = 1", "days = 3"))
+    with pytest.raises(TwinError, match=r"another campaign \(its schedule differs in records_per_day \(4, not 2\)\)"):
+        campaign(hydro_unit, read_schedule(other, hydro_unit), out, seed=6, progress=False)
+
+
 def test_a_campaign_on_dask_workers_makes_the_same_records(tmp_path, hydro_unit, schedule_file):
     """The same records to 1e-5 of the peak (about 2e-6 measured): the BLAS runs one thread on a worker and
     several here, and the stationary covariance of lightly damped modes (a discrete Lyapunov solution)

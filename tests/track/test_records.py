@@ -81,3 +81,20 @@ def test_records_of_another_machine_or_speed_are_warned_about(tmp_path, hydro_un
     messages = [str(w.message) for w in caught]
     assert messages[0].startswith("1 of 2 records say they are of heavier_runner (record_00001.nc)")
     assert messages[1].startswith("1 of 2 records were taken at 150 rpm")
+
+
+def test_a_gap_is_an_interval_beyond_four_of_the_baselines_median():
+    import numpy as np
+
+    from twin.track.records import GAP_INTERVALS, gaps_before
+
+    rng = np.random.default_rng(3)
+    days = np.cumsum(rng.uniform(0.2, 0.3, size=40))  # about four records a day, irregular
+    days[30:] += 1.5  # an outage of about a day and a half after the 30th record
+    gap, threshold = gaps_before(days, 20)
+    assert threshold == GAP_INTERVALS * np.median(np.diff(days[:20]))
+    assert np.flatnonzero(gap).tolist() == [30]
+    assert gap[30] == days[30] - days[29]
+    # records at the baseline's cadence, or a single record, have none
+    assert not gaps_before(np.arange(10) * 0.25, 5)[0].any()
+    assert gaps_before(np.array([0.0]), 1)[0].tolist() == [0.0]

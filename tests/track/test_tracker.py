@@ -127,6 +127,14 @@ def test_a_record_after_an_outage_leaves_every_earlier_verdict_and_the_limit(ste
     assert float(table.limit) == float(whole.limit)
     np.testing.assert_allclose(table.statistic.values[:-1], whole.statistic.values, rtol=1e-9, equal_nan=True)
     assert alarms_json(table)["alarms"][: len(alarms_json(whole)["alarms"])] == alarms_json(whole)["alarms"]
+    # the outage is stated as a gap, in track.nc, --json and the report
+    gap = float(table.day.values[-1] - table.day.values[-2])
+    assert gap == pytest.approx(60.0, abs=1e-3)
+    assert table.gap_before.values[-1] == gap and not table.gap_before.values[:-1].any()
+    last = np.datetime_as_string(whole.time.values[-1], unit="s") + "Z"
+    assert alarms_json(table)["gaps"] == [{"from": last, "to": str(start) + "Z", "days": round(gap, 4)}]
+    assert alarms_json(whole)["gaps"] == []
+    assert "Gaps in the records" in (cached / "report.html").read_text()
 
 
 @pytest.mark.slow

@@ -85,7 +85,12 @@ def _trends(table: xr.Dataset, colour_by: str, path: Path, quantity: str) -> Non
             continue
         if quantity == "frequency":
             y = table.frequency.values[:, i]
-            ax.plot(day, table.predicted_frequency.values[:, i], color="0.6", lw=0.8, label="model at the point")
+            ax.plot(
+                *_broken(table, day, table.predicted_frequency.values[:, i]),
+                color="0.6",
+                lw=0.8,
+                label="model at the point",
+            )
             ax.set_ylabel("Hz")
         else:
             y = 100 * table.damping_ratio.values[:, i]
@@ -94,6 +99,7 @@ def _trends(table: xr.Dataset, colour_by: str, path: Path, quantity: str) -> Non
         ax.set_title(f"mode {i + 1} ({float(table.model_frequency.values[i]):.2f} Hz)", fontsize=9)
         for d in np.atleast_1d(table.alarm_day.values):
             ax.axvline(d, color="tab:red", lw=0.8)
+        _shade_gaps(table, [ax])
     for ax in axes[-1]:
         ax.set_xlabel("days")
     if scatter is not None:
@@ -112,10 +118,14 @@ def _chart(table: xr.Dataset, path: Path) -> None:
         top.plot(day, res[:, i], ".", ms=3, label=f"mode {i + 1}")
     top.set_ylabel("frequency residual [mHz]")
     top.legend(fontsize=7, ncol=5)
-    bottom.semilogy(day, np.maximum(table.statistic.values, 1e-3), ".-", ms=3, lw=0.6, label="statistic")
+    stat = np.maximum(table.statistic.values, 1e-3)
+    bottom.semilogy(*_broken(table, day, stat), ".-", ms=3, lw=0.6, label="statistic")
     if "directed" in table:  # the step statistics share the limit's line: each over its own limit, times this one
         steps = np.maximum(table.directed.values * float(table.limit), 1e-3)
-        bottom.semilogy(day, steps, ".-", ms=2, lw=0.5, color="tab:green", label="step along a change (scaled)")
+        bottom.semilogy(
+            *_broken(table, day, steps), ".-", ms=2, lw=0.5, color="tab:green", label="step along a change (scaled)"
+        )
+    _shade_gaps(table, [bottom, top], label=True)
     bottom.axhline(float(table.limit), color="tab:red", ls="--", label="limit")
     bottom.axvspan(day[0], float(table.attrs.get("baseline_days", 0.0)), color="0.9", label="baseline")
     for d, k in zip(np.atleast_1d(table.alarm_day.values), np.atleast_1d(table.alarm_onset_day.values)):
@@ -138,10 +148,12 @@ def _parameters(table: xr.Dataset, truth: dict[str, np.ndarray] | None, path: Pa
         v = table.parameter.sel(tracked_parameter=name).values
         lo = table.parameter_low.sel(tracked_parameter=name).values
         hi = table.parameter_high.sel(tracked_parameter=name).values
-        ax.fill_between(day, lo, hi, color="tab:blue", alpha=0.25, lw=0, label="5-95%")
-        ax.plot(day, v, color="tab:blue", lw=1, label="followed")
+        d, v, lo, hi = _broken(table, day, v, lo, hi)
+        ax.fill_between(d, lo, hi, color="tab:blue", alpha=0.25, lw=0, label="5-95%")
+        ax.plot(d, v, color="tab:blue", lw=1, label="followed")
+        _shade_gaps(table, [ax])
         if truth is not None and name in truth and len(truth[name]) == len(day):
-            ax.plot(day, truth[name], color="k", ls="--", lw=1, label="truth (simulated)")
+            ax.plot(*_broken(table, day, truth[name]), color="k", ls="--", lw=1, label="truth (simulated)")
         ax.set_ylabel(name, fontsize=8)
         ax.legend(fontsize=7)
     axes[-1, 0].set_xlabel("days")
@@ -189,6 +201,19 @@ def report_markdown(table: xr.Dataset, truth: dict[str, np.ndarray] | None, colo
                 f"| {t} | {float(table.alarm_day.values[i]):.2f} | "
                 f"{float(table.alarm_onset_day.values[i]):.2f} | {effect} | {named} | {verdict} |"
             )
+    gaps = record_gaps(table)
+    if gaps:
+        lines += [
+            "",
+            "## Gaps in the records",
+            "",
+            "Times without records (hatched in the figures; the chart goes on across them, so a change made "
+            "during a gap shows as a step at the first record after it):",
+            "",
+            "| last record before (UTC) | first record after (UTC) | days |",
+            "| --- | --- | --- |",
+        ]
+        lines += [f"| {g['from']} | {g['to']} | {g['days']:.2f} |" for g in gaps]
     if set_aside:
         lines += ["", "## Records set aside", "", "| record | why |", "| --- | --- |"]
         lines += [f"| {html.escape(a['file'])} | {html.escape(a['reason'])} |" for a in set_aside]
@@ -234,6 +259,63 @@ def monitored_records(table: xr.Dataset) -> int:
     1
     """
     return int((table["day"].values >= float(table.attrs["baseline_days"])).sum())
+
+
+def record_gaps(table: xr.Dataset) -> list[dict]:
+    """The gaps in a track's records (``gap_before``, :func:`twin.track.records.gaps_before`): per gap the last
+    record's time before it (``from``), the first after it (``to``), both ISO 8601 UTC, and its length in ``days``.
+
+    Examples
+    --------
+    >>> t = xr.Dataset(
+    ...     {"gap_before": ("time", [0.0, 0.0, 2.5])},
+    ...     coords={"time": np.array(["2027-01-01T00", "2027-01-01T06", "2027-01-03T18"], dtype="datetime64[ns]")},
+    ... )
+    >>> record_gaps(t)
+    [{'from': '2027-01-01T06:00:00Z', 'to': '2027-01-03T18:00:00Z', 'days': 2.5}]
+    """
+    if "gap_before" not in table:
+        return []
+    gap, times = table.gap_before.values, table.time.values
+    return [
+        {
+            "from": np.datetime_as_string(times[i - 1], unit="s") + "Z",
+            "to": np.datetime_as_string(times[i], unit="s") + "Z",
+            "days": round(float(gap[i]), 4),
+        }
+        for i in np.flatnonzero(gap > 0)
+    ]
+
+
+def _gap_spans(table: xr.Dataset) -> list[tuple[float, float]]:
+    """The gaps as ``(day before, day after)``, for the figures."""
+    if "gap_before" not in table:
+        return []
+    day = table.day.values
+    return [(float(day[i - 1]), float(day[i])) for i in np.flatnonzero(table.gap_before.values > 0)]
+
+
+def _broken(table: xr.Dataset, day: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``day`` and each series with a NaN inserted at every gap, so that a line is drawn broken there."""
+    if "gap_before" not in table:
+        return (day, *ys)
+    at = np.flatnonzero(table.gap_before.values > 0)
+    return tuple(np.insert(np.asarray(v, dtype=float), at, np.nan, axis=0) for v in (day, *ys))
+
+
+def _shade_gaps(table: xr.Dataset, axes, label: bool = False) -> None:
+    """Hatch the gaps on each of ``axes`` (the first labelled "no records" when ``label``)."""
+    for j, (a, b) in enumerate(_gap_spans(table)):
+        for k, ax in enumerate(axes):
+            ax.axvspan(
+                a,
+                b,
+                facecolor="none",
+                edgecolor="0.6",
+                hatch="//",
+                lw=0,
+                label="no records" if label and j == 0 and k == 0 else None,
+            )
 
 
 def write_report(

@@ -11,13 +11,16 @@ as :func:`twin.fmu.simulate.simulate` writes it, with
 * ``schedule`` and ``truth`` (the changes in effect, at their size then) in its attrs, for tests and
   benchmarks: a tracker never reads them.
 
-The records are independent tasks (Dask over records with ``tasks=``); a campaign is resumable: a
-record already in the folder is kept, and a folder holding another campaign's records is refused.
+The records are independent tasks (Dask over records with ``tasks=``); a campaign is resumable and
+extendable: a record already in the folder is kept, so the same schedule with more days simulates only
+the days added (record ``i`` does not depend on the span: :meth:`twin.track.schedule.Schedule.record_terms`),
+and a folder holding another campaign's records is refused, saying what differs.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 from pathlib import Path
 from typing import Any
@@ -34,7 +37,7 @@ from twin.fem.truthfile import Truth
 from twin.netcdf import check_folder, one_writer, write_netcdf
 from twin.tasks import mapper
 from twin.track.profile import operating_points
-from twin.track.schedule import Schedule, iso
+from twin.track.schedule import Schedule, iso, record_terms
 
 log = logging.getLogger(__name__)
 
@@ -67,10 +70,16 @@ def record_model(
     return m, Truth(tuple(active), schedule.source)
 
 
-def campaign_id(model: RotorModel, schedule: Schedule, seed: int) -> str:
-    """A digest of what makes a campaign's records: the model's file, the schedule and the seed."""
+def campaign_id(model: RotorModel, schedule: Schedule, seed: int, *, span: bool = False) -> str:
+    """A digest of what makes a campaign's records: the model's file, the schedule but its span and file name
+    (:meth:`~twin.track.schedule.Schedule.record_terms`) and the seed.
+
+    ``span=True`` gives the digest of the whole schedule (its days and file name too), which the records of
+    folders made before campaigns were extendable carry: such a folder is still resumed with its schedule.
+    """
     text = Path(model.source).read_text() if model.source and Path(model.source).is_file() else repr(model)
-    return hashlib.sha256(f"{text}\n{schedule.to_json()}\n{seed}".encode()).hexdigest()[:16]
+    terms = schedule.to_json() if span else json.dumps(schedule.record_terms(), sort_keys=True)
+    return hashlib.sha256(f"{text}\n{terms}\n{seed}".encode()).hexdigest()[:16]
 
 
 def campaign(
@@ -126,6 +135,7 @@ def campaign(
         record_model(model, op.reference_point(), Schedule(1, 1, 1.0, changes=(change,)), change.start_day + 1e9)
     out = check_folder(out, make=True)
     ident = campaign_id(model, schedule, seed)
+    idents = (ident, campaign_id(model, schedule, seed, span=True))
     days = np.array([schedule.record_day(i) for i in range(schedule.n_records)])
     start = schedule.start
     year_day0 = (
@@ -133,7 +143,7 @@ def campaign(
     ).total_seconds() / 86400.0
     points = operating_points(schedule.variations, op, days, year_day0, seed)
     this = {"model": model.name, "schedule": schedule.to_json(), "campaign_seed": int(seed)}
-    todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), ident, this)]
+    todo = [i for i in range(schedule.n_records) if not _kept(out / RECORD_NAME.format(i), idents, this)]
     noise_std_m = _noise_std(model, schedule.fs_hz, noise_ratio)
     log.info("campaign %s: %d records, %d to simulate", ident, schedule.n_records, len(todo))
     with one_writer(out, "twin campaign"):  # one campaign per folder; what a killed one left is cleaned
@@ -166,9 +176,10 @@ def campaign(
     )
 
 
-def _kept(path: Path, ident: str, this: dict) -> bool:
-    """Whether the record at ``path`` is there already, from this campaign (an error if from another, saying
-    what differs of ``this``: the model's name, the schedule, the seed, else the model file's text)."""
+def _kept(path: Path, idents: tuple[str, ...], this: dict) -> bool:
+    """Whether the record at ``path`` is there already, from this campaign (its digest one of ``idents``; an
+    error if from another, saying what differs of ``this``: the model's name, the schedule's terms, the
+    seed, else the model file's text)."""
     if not path.exists():
         return False
     try:
@@ -178,7 +189,7 @@ def _kept(path: Path, ident: str, this: dict) -> bool:
         raise TwinError(
             f"{path}: a record of the campaign folder cannot be read ({exc}): remove it to simulate it again"
         ) from None
-    if attrs.get("campaign") != ident:
+    if attrs.get("campaign") not in idents:
         raise TwinError(
             f"{path} is a record of another campaign ({_differs(attrs, this)}): give another folder, or remove its "
             "records to start this one"
@@ -195,12 +206,21 @@ def _differs(theirs: dict, this: dict) -> str:
     'its seed is 2, not 1'
     >>> _differs({"model": "a", "schedule": "{}", "campaign_seed": 1}, {"model": "a", "schedule": "{}", "campaign_seed": 1})
     "the model file's text differs (the same model name, edited since)"
+    >>> _differs({"model": "a", "schedule": '{"days": 9, "duration_s": 60.0}', "campaign_seed": 1},
+    ...          {"model": "a", "schedule": '{"days": 2, "duration_s": 600.0}', "campaign_seed": 1})
+    'its schedule differs in duration_s (60.0, not 600.0)'
     """
     words = []
     if str(theirs.get("model")) != this["model"]:
         words.append(f"it is of {theirs.get('model')}, not {this['model']}")
-    if str(theirs.get("schedule")) != this["schedule"]:
-        words.append("its schedule differs")
+    try:
+        old, new = (record_terms(json.loads(str(x))) for x in (theirs.get("schedule"), this["schedule"]))
+    except (TypeError, ValueError, AttributeError):
+        old, new = {"schedule": theirs.get("schedule")}, {"schedule": this["schedule"]}
+    keys = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    if keys:
+        shown = [k if isinstance(new.get(k), (dict, list)) else f"{k} ({old.get(k)}, not {new.get(k)})" for k in keys]
+        words.append(f"its schedule differs in {', '.join(shown)}")
     if str(theirs.get("campaign_seed")) != str(this["campaign_seed"]):
         words.append(f"its seed is {theirs.get('campaign_seed')}, not {this['campaign_seed']}")
     return "; ".join(words) or "the model file's text differs (the same model name, edited since)"

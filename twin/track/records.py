@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from twin.errors import NoModeError, SignalError, TwinError, TwinWarning
@@ -313,3 +314,31 @@ def read_cached(path: Path) -> xr.Dataset | None:
     if "unusable" in ds.attrs:
         raise UnusableRecord(str(ds.attrs["unusable"]))
     return None if "no_mode" in ds.attrs else modes_from(ds, path)
+
+
+#: A gap in the records: more time between two of them than this many times the baseline's median interval.
+GAP_INTERVALS = 4.0
+
+
+def gaps_before(days: np.ndarray, n_base: int) -> tuple[np.ndarray, float]:
+    """The time without records before each record [d], where it is a gap (0 elsewhere), and the gap's threshold.
+
+    A gap is an interval longer than :data:`GAP_INTERVALS` times the median interval between the
+    baseline's ``n_base`` first records (the cadence the chart's limit is set for): an outage, a
+    logger down, a unit at standstill. The chart goes on across it, so a change that happened during
+    the gap shows as a step at the first record after it.
+
+    Examples
+    --------
+    >>> gap, threshold = gaps_before(np.array([0.0, 0.25, 0.5, 0.75, 1.0, 3.0, 3.25]), 5)
+    >>> gap.tolist(), threshold
+    ([0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0], 1.0)
+    """
+    days = np.asarray(days, dtype=float)
+    step = np.diff(days)
+    base = step[: max(n_base - 1, 0)]
+    threshold = GAP_INTERVALS * float(np.median(base)) if base.size and np.median(base) > 0 else np.inf
+    gap = np.zeros(len(days))
+    if len(days) > 1:
+        gap[1:] = np.where(step > threshold, step, 0.0)
+    return gap, threshold

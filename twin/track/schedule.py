@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+from typing import Any
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -95,21 +96,46 @@ class Schedule:
 
     def to_json(self) -> str:
         """The schedule as JSON, for the records' attrs (the truth of each change included)."""
-        return json.dumps(
-            {
-                "days": self.days,
-                "records_per_day": self.records_per_day,
-                "duration_s": self.duration_s,
-                "fs_hz": self.fs_hz,
-                "start": iso(self.start),
-                "source": self.source,
-                "operation": {k: asdict(v) for k, v in self.variations.items()},
-                "changes": [
-                    {"start_day": c.start_day, "ramp_days": c.ramp_days, "truth": json.loads(c.truth.to_json())}
-                    for c in self.changes
-                ],
-            }
-        )
+        return json.dumps(self._fields())
+
+    def record_terms(self) -> dict[str, Any]:
+        """What makes each record of a campaign: the schedule but its span (``days``) and its file's name.
+
+        Record ``i`` of a campaign is the same whatever the span (the dispatch of the operating
+        conditions is drawn record after record), so two schedules with equal terms make the same
+        records and a campaign is extended by days by giving it more.
+
+        Examples
+        --------
+        >>> a, b = Schedule(30, 4, 600.0, source="a.toml"), Schedule(60, 4, 600.0, source="b.toml")
+        >>> a.record_terms() == b.record_terms(), a.record_terms() == Schedule(30, 2, 600.0).record_terms()
+        (True, False)
+        """
+        return record_terms(self._fields())
+
+    def _fields(self) -> dict[str, Any]:
+        return {
+            "days": self.days,
+            "records_per_day": self.records_per_day,
+            "duration_s": self.duration_s,
+            "fs_hz": self.fs_hz,
+            "start": iso(self.start),
+            "source": self.source,
+            "operation": {k: asdict(v) for k, v in self.variations.items()},
+            "changes": [
+                {"start_day": c.start_day, "ramp_days": c.ramp_days, "truth": json.loads(c.truth.to_json())}
+                for c in self.changes
+            ],
+        }
+
+
+def record_terms(fields: dict[str, Any]) -> dict[str, Any]:
+    """A schedule's JSON fields (:meth:`Schedule.to_json`, read back) without its span and its files' names."""
+    out = {k: v for k, v in fields.items() if k not in ("days", "source")}
+    out["changes"] = [
+        {**c, "truth": {k: v for k, v in c.get("truth", {}).items() if k != "source"}} for c in out.get("changes", [])
+    ]
+    return out
 
 
 def iso(time: dt.datetime) -> str:

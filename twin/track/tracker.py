@@ -39,8 +39,16 @@ from twin.progress import stage
 from twin.tasks import mapper, one_blas_thread
 from twin.track import detect, explain
 from twin.track.physics import Tracked, fit_laws, parts, predict, tracked_modes, with_slopes
-from twin.track.records import UnusableRecord, check_machine, extract_new, read_cached, records_in
-from twin.report.tracking import monitored_records, write_report
+from twin.track.records import (
+    GAP_INTERVALS,
+    UnusableRecord,
+    check_machine,
+    extract_new,
+    gaps_before,
+    read_cached,
+    records_in,
+)
+from twin.report.tracking import monitored_records, record_gaps, write_report
 from twin.track.watch import Alarm, Chart, Series, Watch
 
 log = logging.getLogger(__name__)
@@ -356,6 +364,7 @@ def _dataset(
 ) -> xr.Dataset:
     m = len(tracked.poles)
     times = np.array([r.start.replace(tzinfo=None) for r in records], dtype="datetime64[ns]")
+    gap, gap_threshold = gaps_before(days, int((days < baseline_days).sum()))
     freq = poles.imag / (2 * np.pi)
     zeta = -poles.real / np.abs(poles)
     ds = xr.Dataset(
@@ -385,6 +394,16 @@ def _dataset(
             ),
             "operating_point": (("time", "condition"), np.array([[r.point[k] for k in op.names] for r in records])),
             "day": ("time", days, {"units": "d", "long_name": "days after the first record"}),
+            "gap_before": (
+                "time",
+                gap,
+                {
+                    "units": "d",
+                    "long_name": "time without records before this record where it is a gap, else 0",
+                    "comment": f"a gap: more than {GAP_INTERVALS:g} times the baseline's median interval "
+                    f"({gap_threshold:.4g} d)",
+                },
+            ),
             "record": ("time", [r.path.name for r in records]),
             "slope": ("slope_key", laws.slopes, {"long_name": "learned slopes of the laws (SI per condition unit)"}),
             "slope_std": ("slope_key", np.sqrt(laws.covariance.diagonal())),
@@ -433,9 +452,10 @@ def _dataset(
 
 
 def alarms_json(table: xr.Dataset) -> dict:
-    """The ``--json`` summary: ``{"records": N, "monitored": M, "set_aside": [{"file", "reason"}], "alarms":
-    [{"time", "day", "effects", "verdict"}]}`` (``monitored``: the records after the baseline,
-    :func:`monitored_records`; ``set_aside``: the records that could not be used, and why)."""
+    """The ``--json`` summary: ``{"records": N, "monitored": M, "gaps": [{"from", "to", "days"}], "set_aside":
+    [{"file", "reason"}], "alarms": [{"time", "day", "effects", "verdict"}]}`` (``monitored``: the records after
+    the baseline, :func:`monitored_records`; ``gaps``: the times without records, :func:`record_gaps`;
+    ``set_aside``: the records that could not be used, and why)."""
     out = []
     for i in range(table.sizes.get("alarm", 0)):
         time = np.datetime_as_string(table.alarm_time.values[i], unit="s") + "Z"
@@ -454,6 +474,7 @@ def alarms_json(table: xr.Dataset) -> dict:
     return {
         "records": int(table.sizes["time"]),
         "monitored": monitored_records(table),
+        "gaps": record_gaps(table),
         "set_aside": json.loads(table.attrs.get("set_aside", "[]")),
         "alarms": out,
     }
