@@ -20,7 +20,10 @@ seeds no test uses (from 5000):
     wall time (simulation, then one ``twin track`` call over all its records) and the track's size on disk.
 ``throughput``
     One campaign tracked on a Dask ``LocalCluster`` of 1 and of 2 workers: records per minute, the ratio;
-    the track's memory (peak RSS) and its size on disk, scaled to a year.
+    the track's memory (peak RSS) and its size on disk, scaled to a year. Then where the time goes per
+    record, under cProfile: the extraction's steps in one process with one BLAS thread (a worker's
+    setting), over 8 of the records, and the tracker's stages after the extraction over all of them
+    (a second call on the cached modes, in process).
 
 Run from the repository root (the whole benchmark takes hours on 2 cores):
 
@@ -302,6 +305,8 @@ def throughput(args, model, root: Path, _client) -> list[str]:
             track_bytes = sum(p.stat().st_size for p in (case / "out").rglob("*") if p.is_file())
             per_year = track_bytes * 365.25 / args.days
             year_minutes = 365.25 * args.records_per_day / (60 * n / t_track)
+        if workers == 2:
+            profile = profile_rows(model, case, args.baseline_days, args.false_alarms)
         if not args.keep:
             shutil.rmtree(case, ignore_errors=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -313,7 +318,101 @@ def throughput(args, model, root: Path, _client) -> list[str]:
             f"track on 2 workers; the track (modes and track.nc) about {per_year / 1e6:.0f} MB on disk; "
             f"peak memory of this process {peak:.0f} MB"
         ),
+        "",
+        *profile,
     ]
+    return rows
+
+
+def _cumulative(stats, name: str, caller: str | None = None) -> float:
+    """cProfile's cumulative time [s] of the functions called ``name`` (``file.py:name``: in that file only;
+    only the calls from ``caller``)."""
+    where, _, name = name.rpartition(":")
+    total = 0.0
+    for (file, _, fn), (_, _, _, ct, callers) in stats.stats.items():
+        if fn != name or not file.endswith(where):
+            continue
+        if caller is None:
+            total += ct
+        else:
+            total += sum(c[3] for (_, _, f), c in callers.items() if f == caller)
+    return total
+
+
+def profile_rows(model, case: Path, baseline_days: float, rate: float) -> list[str]:
+    """Where a record's time goes: the extraction's steps and the tracker's stages, per record (cProfile)."""
+    import cProfile
+    import pstats
+
+    from threadpoolctl import threadpool_limits
+
+    from twin.extract.options import ExtractOptions
+    from twin.track.records import _extract_one
+
+    paths = sorted((case / "records").glob("*.nc"))[:8]
+    profiler = cProfile.Profile()
+    with tempfile.TemporaryDirectory() as cache, threadpool_limits(1, "blas"):
+        _extract_one(str(paths[0]), cache=cache, options=ExtractOptions())  # imports and first calls
+        profiler.enable()
+        for path in paths:
+            _extract_one(str(path), cache=cache, options=ExtractOptions())
+        profiler.disable()
+    st = pstats.Stats(profiler)
+    n = len(paths)
+    whole = _cumulative(st, "_extract_one")
+    prepare, harmonics = _cumulative(st, "prepare"), _cumulative(st, "remove_running_harmonics")
+    first, jack = _cumulative(st, "ssi_pass"), _cumulative(st, "jackknife")
+    fits, eig = _cumulative(st, "fit", "jackknife"), _cumulative(st, "modes", "jackknife")
+    extract, write = _cumulative(st, "extract"), _cumulative(st, "write_modes")
+    steps = [
+        ("read the record, its checks", prepare - harmonics),
+        ("remove the running-speed lines", harmonics),
+        ("first SSI pass: realisation, diagram, clusters", first),
+        ("jackknife: each sample's singular vectors", fits),
+        ("jackknife: each sample's eigen-solutions over the orders", eig),
+        ("jackknife: matching and averaging the poles", jack - fits - eig),
+        ("the modes' samples, shapes and checks", extract - prepare - first - jack),
+        ("write the modes' file", write),
+        ("hash the record, the cache's provenance", whole - extract - write),
+    ]
+    rows = [
+        f"Where a record's time goes (cProfile, one process, one BLAS thread; {n} records, "
+        f"{whole / n:.2f} s a record extracted):",
+        "",
+        "| extraction step | s a record | share |",
+        "| --- | --- | --- |",
+    ]
+    rows += [f"| {name} | {t / n:.3f} | {100 * t / whole:.0f}% |" for name, t in steps]
+
+    profiler = cProfile.Profile()
+    profiler.enable()
+    table = track(
+        model, case / "records", case / "out", baseline_days=baseline_days, false_alarms_per_year=rate, progress=False
+    )
+    profiler.disable()
+    st = pstats.Stats(profiler)
+    n = table.sizes["time"]
+    total = _cumulative(st, "tracker.py:track")
+    predictions = _cumulative(st, "_predictions")
+    stages = [
+        ("check the cache (hash every record)", _cumulative(st, "extract_new")),
+        ("read the cached modes", _cumulative(st, "read_cached")),
+        ("the model's prediction at each record's point (twice)", predictions),
+        ("find the tracked modes", _cumulative(st, "_identify")),
+        ("learn the laws", _cumulative(st, "fit_laws")),
+        ("the watch: chart, step statistics, naming, following", _cumulative(st, "watch.py:run")),
+        ("write track.nc", _cumulative(st, "write_netcdf")),
+        ("write the report", _cumulative(st, "write_report")),
+    ]
+    rows += [
+        "",
+        f"The tracker after the extraction ({n} records on their cached modes, in process: {total:.1f} s, "
+        f"{1e3 * total / n:.0f} ms a record):",
+        "",
+        "| tracker stage | ms a record | share |",
+        "| --- | --- | --- |",
+    ]
+    rows += [f"| {name} | {1e3 * t / n:.1f} | {100 * t / total:.0f}% |" for name, t in stages]
     return rows
 
 
