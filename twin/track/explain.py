@@ -90,12 +90,31 @@ def candidates(model: RotorModel, tracked: Tracked) -> list[Linearised]:
         jac = pole_jacobian(m, sol, names, modes=tracked_indices(m, sol, tracked))
         scales = cand.effect.plausible_scale(m)
         given = [m.parameter(n) for n in names]
-        bounds = np.array([[p.bounds[0] - p.nominal, p.bounds[1] - p.nominal] for p in given])
+        bounds = in_service(
+            np.array([[p.bounds[0] - p.nominal, p.bounds[1] - p.nominal] for p in given]), cand.effect.in_service
+        )
         out.append(
             Linearised(
                 cand, tuple(names), np.array([scales[n] for n in names]), parts(jac.T).T, cand.where(ref), bounds
             )
         )
+    return out
+
+
+def in_service(bounds: np.ndarray, way: int) -> np.ndarray:
+    """A change's bounds ``(n, 2)`` (lower, upper, from the baseline's value) narrowed to the way its effect's
+    parameters can move in service (:attr:`twin.fem.effects.base.Effect.in_service`: -1 down, +1 up, 0 either).
+
+    Examples
+    --------
+    >>> in_service(np.array([[-1.0, np.inf]]), -1).tolist(), in_service(np.array([[-1.0, np.inf]]), 0).tolist()
+    ([[-1.0, 0.0]], [[-1.0, inf]])
+    """
+    out = np.array(bounds, dtype=float)
+    if way < 0:
+        out[:, 1] = np.minimum(out[:, 1], 0.0)
+    elif way > 0:
+        out[:, 0] = np.maximum(out[:, 0], 0.0)
     return out
 
 

@@ -91,17 +91,28 @@ def box_mass(mean: np.ndarray, cov: np.ndarray, low: np.ndarray, high: np.ndarra
     i = np.flatnonzero(active)
     if i.size == 1:
         k = i[0]
-        a, b = (low[k] - mean[k]) / sd[k], (high[k] - mean[k]) / sd[k]
-        # the upper tail's log survival stays accurate where the mass is tiny
-        p = (
-            scipy.stats.norm.logsf(a)
-            if b == np.inf
-            else np.log(max(scipy.stats.norm.cdf(b) - scipy.stats.norm.cdf(a), 0.0))
-        )
-        return float(p)
+        return _log_interval((low[k] - mean[k]) / sd[k], (high[k] - mean[k]) / sd[k])
     dist = scipy.stats.multivariate_normal(mean[i], cov[np.ix_(i, i)], allow_singular=True)
     p = dist.cdf(high[i], lower_limit=low[i], rng=np.random.default_rng(MASS_SEED))
     return float(np.log(max(p, 1e-300)))
+
+
+def _log_interval(a: float, b: float) -> float:
+    """``ln(Φ(b) - Φ(a))`` for the standard normal, accurate far in either tail (where the difference of the
+    two probabilities is lost to rounding: an interval below a posterior 40 standard deviations away).
+
+    Examples
+    --------
+    >>> round(_log_interval(-np.inf, 0.0), 6), round(_log_interval(38.0, np.inf), 2), round(_log_interval(-40.0, -39.0), 2)
+    (-0.693147, -726.56, -765.08)
+    """
+    if a > 0:  # the upper tail: survival functions
+        upper = scipy.stats.norm.logsf(a)
+        return float(upper if b == np.inf else upper + np.log1p(-np.exp(scipy.stats.norm.logsf(b) - upper)))
+    if b < 0:  # the lower tail, alike
+        lower = scipy.stats.norm.logcdf(b)
+        return float(lower if a == -np.inf else lower + np.log1p(-np.exp(scipy.stats.norm.logcdf(a) - lower)))
+    return float(np.log(scipy.stats.norm.cdf(b) - scipy.stats.norm.cdf(a)))
 
 
 def truncation(values: np.ndarray, covariance: np.ndarray, scale: np.ndarray, bounds: np.ndarray) -> float:

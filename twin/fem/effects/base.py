@@ -69,6 +69,10 @@ class Effect:
     name_pattern: ClassVar[re.Pattern | None] = None
     local: ClassVar[bool] = False
     replaces: ClassVar[frozenset[str]] = frozenset()
+    #: The way its parameters can move over a machine's service, from one day's state to a later one's: -1 only
+    #: down, +1 only up, 0 either. The tracker, which names changes from a baseline, bounds them so; the
+    #: single-record diagnosis, which names where a model differs from the machine, does not.
+    in_service: ClassVar[int] = 0
 
     def parameters(self, model) -> list[Parameter]:
         """The effect's parameters on ``model``: names, values [SI], units, footprints and bounds."""

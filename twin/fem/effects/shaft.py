@@ -43,6 +43,8 @@ class ShaftStiffnessChange(RelativeChange):
     element: ClassVar[str | None] = "index"
     element_kind: ClassVar[str | None] = "shaft"
     explanation: ClassVar[str] = "one shaft element is softer or stiffer than modelled (a crack, a weakened section)"
+    #: In service a shaft element only softens (a crack grows, a shrink fit or a coupling loosens); none stiffens.
+    in_service: ClassVar[int] = -1
     index: int = 0
     change: float = 0.0  # relative: -0.5 keeps half the stiffness
 
