@@ -229,10 +229,10 @@ def leading_singular(H: np.ndarray, k: int, start: np.ndarray | None = None) -> 
 
     With ``start``, orthonormal columns that nearly span the leading left singular vectors (those of a
     matrix close to ``H``: a jackknife sample's Hankel matrix leaves out a sixteenth of the record),
-    subspace iteration from them: ``Q <- orth(H H^T Q)``, the singular triplets of ``Q^T H`` after each
-    step, until the leading ``k - START_OVERSAMPLING`` singular values move by less than
-    :data:`START_RTOL`. On the hydro unit's records it stops after 2 to 5 steps and gives each mode's
-    jackknife spread as Lanczos does (a median relative difference of 1e-9), in a third of the time.
+    subspace iteration from them: ``Q <- orth(H H^T Q)``, the Ritz values of ``Q^T H`` after each step,
+    until the leading ``k - START_OVERSAMPLING`` singular values move by less than :data:`START_RTOL`
+    (relative). On 16 of the hydro unit's records each mode's jackknife spread came out as with Lanczos
+    (a median relative difference of 1e-10, 99% within 0.5%) in about half the time.
 
     Examples
     --------
