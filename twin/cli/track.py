@@ -21,7 +21,8 @@ def add_commands(sub) -> None:
         "duration; how the operating conditions vary; hidden changes with their start day and ramp),\n"
         "each at its operating point with the model's laws applied. One record_<index>.nc per record in\n"
         "the folder, with its start time and operating data; records already there are kept, so an\n"
-        "interrupted campaign goes on where it stopped.",
+        "interrupted campaign goes on where it stopped, and the same schedule with more days simulates\n"
+        "only the days added.",
         [
             "twin campaign hydro_unit --schedule schedule.toml -o records --seed 1 --workers 2",
             "twin campaign hydro_unit --schedule schedule.toml -o records --json",
