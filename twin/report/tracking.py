@@ -274,32 +274,31 @@ def record_gaps(table: xr.Dataset) -> list[dict]:
     >>> record_gaps(t)
     [{'from': '2027-01-01T06:00:00Z', 'to': '2027-01-03T18:00:00Z', 'days': 2.5}]
     """
-    if "gap_before" not in table:
-        return []
-    gap, times = table.gap_before.values, table.time.values
+    times = table.time.values
     return [
         {
             "from": np.datetime_as_string(times[i - 1], unit="s") + "Z",
             "to": np.datetime_as_string(times[i], unit="s") + "Z",
-            "days": round(float(gap[i]), 4),
+            "days": round(float(table.gap_before.values[i]), 4),
         }
-        for i in np.flatnonzero(gap > 0)
+        for i in _after_gaps(table)
     ]
+
+
+def _after_gaps(table: xr.Dataset) -> np.ndarray:
+    """The indices of the records that come after a gap (none in a track written before gaps were stated)."""
+    return np.flatnonzero(table.gap_before.values > 0) if "gap_before" in table else np.array([], dtype=int)
 
 
 def _gap_spans(table: xr.Dataset) -> list[tuple[float, float]]:
     """The gaps as ``(day before, day after)``, for the figures."""
-    if "gap_before" not in table:
-        return []
     day = table.day.values
-    return [(float(day[i - 1]), float(day[i])) for i in np.flatnonzero(table.gap_before.values > 0)]
+    return [(float(day[i - 1]), float(day[i])) for i in _after_gaps(table)]
 
 
 def _broken(table: xr.Dataset, day: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
     """``day`` and each series with a NaN inserted at every gap, so that a line is drawn broken there."""
-    if "gap_before" not in table:
-        return (day, *ys)
-    at = np.flatnonzero(table.gap_before.values > 0)
+    at = _after_gaps(table)
     return tuple(np.insert(np.asarray(v, dtype=float), at, np.nan, axis=0) for v in (day, *ys))
 
 
